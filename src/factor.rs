@@ -1,0 +1,159 @@
+//! K's sparse Cholesky factorisation (faer): the symbolic analysis (fill-reducing
+//! ordering, elimination tree) is done once per sparsity pattern, the numeric
+//! factorisation once per set of values, and each solve reuses both.
+
+use crate::error::{ErrorKind, Result, fail};
+use crate::sparse::Csc;
+use faer::dyn_stack::{MemBuffer, MemStack, StackReq};
+use faer::linalg::cholesky::llt::factor::LltRegularization;
+use faer::sparse::linalg::cholesky::{
+    CholeskySymbolicParams, LltRef, SymbolicCholesky, SymmetricOrdering,
+    factorize_symbolic_cholesky,
+};
+use faer::sparse::{SparseColMatRef, SymbolicSparseColMatRef};
+use faer::{Conj, MatMut, Par, Side};
+use std::time::Instant;
+
+/// The numeric part of a factorisation, as handed back by [`Factor::refactor`].
+pub struct NumericFactor {
+    l_values: Vec<f64>,
+    factor_seconds: f64,
+}
+
+/// The Cholesky factor L L^T = P K P^T of an SPD matrix K, with the pattern of K it
+/// was computed for.
+pub struct Factor {
+    symbolic: SymbolicCholesky<usize>,
+    l_values: Vec<f64>,
+    col_ptr: Vec<usize>,
+    row_idx: Vec<usize>,
+    /// Seconds of the last numeric factorisation.
+    pub factor_seconds: f64,
+}
+
+impl Factor {
+    /// Analyses and factors `k` (both triangles stored, only the lower is read).
+    ///
+    /// Errors: `NotPositiveDefinite` (non-positive pivot: K singular or indefinite),
+    /// `OutOfMemory`.
+    pub fn new(k: &Csc) -> Result<Factor> {
+        let n = k.nrows;
+        let sym = SymbolicSparseColMatRef::new_checked(n, n, &k.col_ptr, None, &k.row_idx);
+        let symbolic = factorize_symbolic_cholesky(
+            sym,
+            Side::Lower,
+            SymmetricOrdering::Amd,
+            CholeskySymbolicParams::default(),
+        )
+        .map_err(|e| {
+            crate::Error::new(
+                ErrorKind::OutOfMemory,
+                format!("K: symbolic analysis: {e:?}"),
+            )
+        })?;
+        let mut f = Factor {
+            l_values: Vec::new(),
+            symbolic,
+            col_ptr: k.col_ptr.clone(),
+            row_idx: k.row_idx.clone(),
+            factor_seconds: 0.0,
+        };
+        f.refactor(k)?;
+        Ok(f)
+    }
+
+    /// Number of rows of K.
+    pub fn n(&self) -> usize {
+        self.col_ptr.len() - 1
+    }
+
+    /// True when `k` has exactly the pattern this factor was analysed for.
+    pub fn same_pattern(&self, k: &Csc) -> bool {
+        k.col_ptr == self.col_ptr && k.row_idx == self.row_idx
+    }
+
+    /// Numeric refactorisation with new values on the same pattern, reusing the
+    /// symbolic analysis. On error the previous factor is kept; on success the
+    /// previous numeric factor is returned so that the caller can [`Factor::restore`]
+    /// it if a later step fails.
+    ///
+    /// Errors: `BadArgument` (pattern differs), `NotPositiveDefinite`, `OutOfMemory`.
+    pub fn refactor(&mut self, k: &Csc) -> Result<NumericFactor> {
+        if !self.same_pattern(k) {
+            return fail(
+                ErrorKind::BadArgument,
+                "K: the sparsity pattern differs from the one the problem was created with",
+            );
+        }
+        let start = Instant::now();
+        let n = self.n();
+        let a = SparseColMatRef::new(
+            SymbolicSparseColMatRef::new_checked(n, n, &self.col_ptr, None, &self.row_idx),
+            &k.values,
+        );
+        let req = self
+            .symbolic
+            .factorize_numeric_llt_scratch::<f64>(Par::Seq, Default::default());
+        let mut mem = MemBuffer::try_new(req)
+            .map_err(|_| crate::Error::new(ErrorKind::OutOfMemory, "K: factorisation workspace"))?;
+        let mut values = Vec::new();
+        values
+            .try_reserve_exact(self.symbolic.len_val())
+            .map_err(|_| crate::Error::new(ErrorKind::OutOfMemory, "K: Cholesky factor values"))?;
+        values.resize(self.symbolic.len_val(), 0.0);
+        let result = self.symbolic.factorize_numeric_llt::<f64>(
+            &mut values,
+            a,
+            Side::Lower,
+            LltRegularization::default(),
+            Par::Seq,
+            MemStack::new(&mut mem),
+            Default::default(),
+        );
+        if let Err(e) = result {
+            return fail(
+                ErrorKind::NotPositiveDefinite,
+                format!(
+                    "K is not positive definite (Cholesky: {e:?}): singular, indefinite, \
+                     or missing Dirichlet conditions"
+                ),
+            );
+        }
+        let previous = NumericFactor {
+            l_values: std::mem::replace(&mut self.l_values, values),
+            factor_seconds: self.factor_seconds,
+        };
+        self.factor_seconds = start.elapsed().as_secs_f64();
+        Ok(previous)
+    }
+
+    /// Puts back a numeric factor returned by [`Factor::refactor`].
+    pub fn restore(&mut self, previous: NumericFactor) {
+        self.l_values = previous.l_values;
+        self.factor_seconds = previous.factor_seconds;
+    }
+
+    /// Workspace needed by [`Factor::solve_in_place`] for `ncols` right-hand sides.
+    pub fn solve_scratch(&self, ncols: usize) -> StackReq {
+        self.symbolic.solve_in_place_scratch::<f64>(ncols, Par::Seq)
+    }
+
+    /// Overwrites `rhs` (n x k) with K^-1 rhs, using `stack` as workspace (at least
+    /// `solve_scratch(k)`).
+    pub fn solve_in_place(&self, rhs: MatMut<'_, f64>, stack: &mut MemStack) {
+        LltRef::new(&self.symbolic, &self.l_values).solve_in_place_with_conj(
+            Conj::No,
+            rhs,
+            Par::Seq,
+            stack,
+        );
+    }
+
+    /// Solves K x = rhs for one vector, in place (allocates its workspace).
+    pub fn solve_vec(&self, x: &mut [f64]) {
+        let mut mem = MemBuffer::new(self.solve_scratch(1));
+        let n = x.len();
+        let m = faer::MatMut::from_column_major_slice_mut(x, n, 1);
+        self.solve_in_place(m, MemStack::new(&mut mem));
+    }
+}

@@ -1,0 +1,36 @@
+//! The C boundary: `extern "C"` entry points, the status enum, the thread-local last
+//! error message, the panic boundary, pointer and slice checks, and the `#[repr(C)]`
+//! options, report and matrix structs. Nothing here does numerics: every entry point
+//! validates what C hands it, borrows it as Rust slices (never copying, never taking
+//! ownership), calls the safe API in [`crate::problem`], and writes outputs back.
+//!
+//! The header `include/dualsplit.h` is generated from these files by cbindgen
+//! (`DUALSPLIT_BLESS=1 cargo test --test header`); `tests/header.rs` fails when it
+//! is out of date.
+//!
+//! Rules shared by every entry point:
+//! - panics are caught and reported as [`DsStatus::Panic`]; none crosses the boundary;
+//! - on an error status the outputs are untouched, the handle is unchanged and
+//!   [`ds_last_error_message`] describes the failure;
+//! - array pointers may be NULL when the array has length 0;
+//! - caller memory is only borrowed for the duration of the call.
+
+mod boundary;
+mod last_error;
+mod matrix;
+mod options;
+mod problem;
+mod report;
+mod status;
+mod types;
+
+pub use last_error::ds_last_error_message;
+pub use matrix::DsMatrix;
+pub use options::{DsOptions, ds_options_default};
+pub use problem::{
+    DsProblem, ds_history_reset, ds_problem_free, ds_problem_new, ds_problem_refactor,
+    ds_problem_set_contacts, ds_problem_sizes, ds_solve, ds_step,
+};
+pub use report::DsReport;
+pub use status::{DsStatus, ds_status_string};
+pub use types::{DsFormat, DsFriction, DsIndexType, DsMethod, DsStorage};

@@ -1,0 +1,195 @@
+//! The options struct of the C API, its defaults and its translation into
+//! [`Options`].
+
+use super::types::{CEnum, DsMethod};
+use crate::error::{Error, ErrorKind, Result};
+use crate::options::Options;
+use std::panic::{AssertUnwindSafe, catch_unwind};
+
+/// Options of ds_solve / ds_step. Fill with ds_options_default, then change fields.
+/// Passing NULL instead of a DsOptions uses the defaults.
+///
+/// Errors when read: DS_STATUS_BAD_ARGUMENT if struct_size is not sizeof(DsOptions),
+/// method is not a DsMethod, tol is negative or not finite, or max_outer or max_inner
+/// is negative.
+#[repr(C)]
+#[derive(Copy, Clone, Debug, PartialEq)]
+pub struct DsOptions {
+    /// sizeof(DsOptions), set by ds_options_default; checked so that the struct can
+    /// grow in later versions without breaking compiled callers.
+    pub struct_size: u32,
+    /// A DsMethod value (default DS_METHOD_SPLIT).
+    pub method: i32,
+    /// Stop when the relative error measure err (dimensionless, see DsReport) is at
+    /// most tol; >= 0 (default 1e-10).
+    pub tol: f64,
+    /// Maximum number of outer iterations, >= 0 (default 10000): sweeps for PGS,
+    /// normal/tangential alternations for SPLIT and BLOCK_GS.
+    pub max_outer: i64,
+    /// Maximum number of projected Gauss-Seidel sweeps per sub-problem of SPLIT and
+    /// BLOCK_GS, >= 0 (default 1000).
+    pub max_inner: i64,
+}
+
+impl DsOptions {
+    /// The C struct holding `opts`.
+    pub fn from_options(opts: &Options) -> DsOptions {
+        DsOptions {
+            struct_size: std::mem::size_of::<DsOptions>() as u32,
+            method: DsMethod::from(opts.method) as i32,
+            tol: opts.tol,
+            max_outer: i64::try_from(opts.max_outer).unwrap_or(i64::MAX),
+            max_inner: i64::try_from(opts.max_inner).unwrap_or(i64::MAX),
+        }
+    }
+
+    /// Validates the fields and converts to [`Options`].
+    ///
+    /// Errors: `BadArgument` (see [`DsOptions`]).
+    pub(crate) fn to_options(&self) -> Result<Options> {
+        let bad = |msg: String| Error::new(ErrorKind::BadArgument, msg);
+        let method = DsMethod::parse(self.method, "opts.method")?;
+        if !(self.tol.is_finite() && self.tol >= 0.0) {
+            return Err(bad(format!(
+                "opts.tol = {} must be finite and >= 0",
+                self.tol
+            )));
+        }
+        let count = |v: i64, name: &str| {
+            usize::try_from(v).map_err(|_| bad(format!("opts.{name} = {v} is negative")))
+        };
+        Ok(Options {
+            method: method.into(),
+            tol: self.tol,
+            max_outer: count(self.max_outer, "max_outer")?,
+            max_inner: count(self.max_inner, "max_inner")?,
+        })
+    }
+
+    /// Reads the options at `ptr` (NULL: the defaults). `struct_size` is read first,
+    /// alone, so that a smaller struct is never read past its end.
+    ///
+    /// Errors: `BadArgument` (see [`DsOptions`]).
+    ///
+    /// # Safety
+    /// `ptr` must be NULL or point to at least `struct_size` readable bytes that
+    /// start with the `struct_size` field.
+    pub(crate) unsafe fn read(ptr: *const DsOptions) -> Result<Options> {
+        if ptr.is_null() {
+            return Ok(Options::default());
+        }
+        if !ptr.is_aligned() {
+            return Err(Error::new(
+                ErrorKind::BadArgument,
+                format!("argument opts = {ptr:p} is not aligned"),
+            ));
+        }
+        // SAFETY: non-NULL and aligned; the first field is present whatever the
+        // version of the caller's struct.
+        let size = unsafe { std::ptr::addr_of!((*ptr).struct_size).read() };
+        let expected = std::mem::size_of::<DsOptions>();
+        if size as usize != expected {
+            return Err(Error::new(
+                ErrorKind::BadArgument,
+                format!(
+                    "opts.struct_size = {size} but sizeof(DsOptions) = {expected}: \
+                     initialise the options with ds_options_default"
+                ),
+            ));
+        }
+        // SAFETY: the caller says the struct is struct_size = sizeof(DsOptions) bytes.
+        unsafe { ptr.read() }.to_options()
+    }
+}
+
+impl Default for DsOptions {
+    fn default() -> Self {
+        DsOptions::from_options(&Options::default())
+    }
+}
+
+/// Fills *opts with the defaults: struct_size = sizeof(DsOptions), method
+/// DS_METHOD_SPLIT, tol 1e-10, max_outer 10000, max_inner 1000. NULL is a no-op.
+///
+/// # Safety
+/// `opts` must be NULL or point to a writable DsOptions.
+#[unsafe(no_mangle)]
+pub unsafe extern "C" fn ds_options_default(opts: *mut DsOptions) {
+    if opts.is_null() || !opts.is_aligned() {
+        return;
+    }
+    let Ok(value) = catch_unwind(AssertUnwindSafe(DsOptions::default)) else {
+        return;
+    };
+    // SAFETY: non-NULL and aligned; writable per the contract. write() does not
+    // read or drop the old (possibly uninitialised) contents.
+    unsafe { opts.write(value) };
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::options::Method;
+
+    #[test]
+    fn defaults_round_trip() {
+        let mut o = DsOptions {
+            struct_size: 0,
+            method: -5,
+            tol: f64::NAN,
+            max_outer: -1,
+            max_inner: -1,
+        };
+        // SAFETY: o is a valid, writable DsOptions.
+        unsafe { ds_options_default(&mut o) };
+        // SAFETY: NULL is a no-op.
+        unsafe { ds_options_default(std::ptr::null_mut()) };
+        assert_eq!(o.struct_size as usize, std::mem::size_of::<DsOptions>());
+        assert_eq!(o.method, DsMethod::Split as i32);
+        assert_eq!((o.tol, o.max_outer, o.max_inner), (1e-10, 10_000, 1_000));
+        // SAFETY: o is a valid DsOptions.
+        assert_eq!(unsafe { DsOptions::read(&o) }.unwrap(), Options::default());
+        // SAFETY: NULL means defaults.
+        assert_eq!(
+            unsafe { DsOptions::read(std::ptr::null()) }.unwrap(),
+            Options::default()
+        );
+        let pgs = DsOptions { method: 2, ..o };
+        // SAFETY: pgs is a valid DsOptions.
+        assert_eq!(
+            unsafe { DsOptions::read(&pgs) }.unwrap().method,
+            Method::Pgs
+        );
+    }
+
+    #[test]
+    fn bad_fields() {
+        let o = DsOptions::default();
+        let cases = [
+            (
+                DsOptions {
+                    struct_size: 8,
+                    ..o
+                },
+                "struct_size = 8",
+            ),
+            (DsOptions { method: 3, ..o }, "opts.method = 3"),
+            (DsOptions { tol: -1.0, ..o }, "opts.tol"),
+            (
+                DsOptions {
+                    tol: f64::INFINITY,
+                    ..o
+                },
+                "opts.tol",
+            ),
+            (DsOptions { max_outer: -1, ..o }, "opts.max_outer = -1"),
+            (DsOptions { max_inner: -3, ..o }, "opts.max_inner = -3"),
+        ];
+        for (bad, text) in cases {
+            // SAFETY: bad is a valid DsOptions.
+            let e = unsafe { DsOptions::read(&bad) }.unwrap_err();
+            assert_eq!(e.kind, ErrorKind::BadArgument);
+            assert!(e.message.contains(text), "{} lacks {text}", e.message);
+        }
+    }
+}

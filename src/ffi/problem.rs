@@ -1,0 +1,424 @@
+//! The opaque problem handle and the `extern "C"` entry points that use it.
+//!
+//! Sign conventions (design.md section 1): K u = f - N^T lambda_N - T^T lambda_T;
+//! N u <= g; lambda_N >= 0 is the compressive normal force; the friction force on
+//! the body, -T^T lambda_T, opposes the slip T u.
+
+use super::boundary::{OutArray, entry, ref_in, ref_mut, slice_in};
+use super::matrix::DsMatrix;
+use super::options::DsOptions;
+use super::report::DsReport;
+use super::status::DsStatus;
+use super::types::{CEnum, DsFriction};
+use crate::error::{Error, ErrorKind, Result};
+use crate::problem::{ContactProblem, Friction, Solution};
+use crate::report::SolveStatus;
+use std::panic::{AssertUnwindSafe, catch_unwind};
+
+/// An opaque contact problem: K factored once, the contact matrices N and T, the
+/// condensed dual, and the history of a quasistatic simulation (ds_step). Created by
+/// ds_problem_new, freed by ds_problem_free. A handle may be used from any thread,
+/// but by one thread at a time.
+pub struct DsProblem {
+    inner: ContactProblem,
+}
+
+/// The contact dimension d as `usize`, or `BadArgument`.
+fn dimension(d: i32) -> Result<usize> {
+    match d {
+        2 => Ok(2),
+        3 => Ok(3),
+        _ => Err(Error::new(
+            ErrorKind::BadArgument,
+            format!("d = {d} is not 2 or 3 (the contact dimension)"),
+        )),
+    }
+}
+
+/// Creates a contact problem: validates K, N, T, factors K (sparse Cholesky) and
+/// forms the condensed dual on the contact interface. The matrices are only read
+/// during the call; the caller keeps ownership.
+///
+/// - d: contact dimension, 2 or 3.
+/// - k: stiffness K, n x n, symmetric positive definite (Dirichlet conditions
+///   applied), FULL (checked for symmetry), UPPER or LOWER storage.
+/// - n: normals N, m x n, FULL storage; row i gives (N u)_i, the displacement of
+///   contact i towards the foundation, constrained by N u <= g.
+/// - t: tangents T, (d-1) m x n, FULL storage; in 3D rows 2i and 2i+1 belong to
+///   contact i.
+/// - out: receives the new handle on success; untouched on error.
+///
+/// m = 0 is allowed (N and T with no rows). Returns DS_STATUS_OK, or
+/// DS_STATUS_NULL_POINTER, DS_STATUS_BAD_ARGUMENT (d, enum fields, triangle storage of
+/// N or T), DS_STATUS_BAD_SIZE (K not square, N or T not n columns, T not (d-1) m
+/// rows, negative sizes), DS_STATUS_BAD_INDEX, DS_STATUS_NOT_FINITE,
+/// DS_STATUS_NOT_SYMMETRIC, DS_STATUS_NOT_POSITIVE_DEFINITE, DS_STATUS_OUT_OF_MEMORY.
+///
+/// # Safety
+/// Each pointer must be NULL or valid: k, n, t point to DsMatrix structs whose arrays
+/// match their fields; out points to a writable DsProblem*.
+#[unsafe(no_mangle)]
+pub unsafe extern "C" fn ds_problem_new(
+    d: i32,
+    k: *const DsMatrix,
+    n: *const DsMatrix,
+    t: *const DsMatrix,
+    out: *mut *mut DsProblem,
+) -> DsStatus {
+    entry("ds_problem_new", || {
+        // SAFETY: pointer validity is this function's contract; NULL is rejected.
+        let (k, n, t, out) = unsafe {
+            (
+                ref_in(k, "k")?,
+                ref_in(n, "n")?,
+                ref_in(t, "t")?,
+                ref_mut(out, "out")?,
+            )
+        };
+        let d = dimension(d)?;
+        // SAFETY: the matrices' arrays match their fields (contract).
+        let (kv, nv, tv) = unsafe { (k.view("K")?, n.view("N")?, t.view("T")?) };
+        let inner = ContactProblem::new(d, &kv, &nv, &tv)?;
+        *out = Box::into_raw(Box::new(DsProblem { inner }));
+        Ok(())
+    })
+}
+
+/// Frees a handle created by ds_problem_new. NULL is a no-op. The handle must not be
+/// used afterwards.
+///
+/// # Safety
+/// `problem` must be NULL or a handle from ds_problem_new not freed before.
+#[unsafe(no_mangle)]
+pub unsafe extern "C" fn ds_problem_free(problem: *mut DsProblem) {
+    if problem.is_null() {
+        return;
+    }
+    // SAFETY: the handle came from Box::into_raw in ds_problem_new (contract).
+    let boxed = unsafe { Box::from_raw(problem) };
+    if let Err(payload) = catch_unwind(AssertUnwindSafe(move || drop(boxed))) {
+        super::last_error::set(&format!(
+            "ds_problem_free: internal panic: {}",
+            super::boundary::panic_message(&payload)
+        ));
+        super::boundary::drop_payload(payload);
+    }
+}
+
+/// Refactors K with new values and the same sparsity pattern and storage as the K
+/// given to ds_problem_new (e.g. after a geometric or material update); rebuilds the
+/// condensed dual. The history of ds_step is kept. On error the handle is unchanged.
+///
+/// Returns DS_STATUS_OK, or the errors of ds_problem_new for K, and
+/// DS_STATUS_BAD_ARGUMENT if the pattern differs.
+///
+/// # Safety
+/// `problem` must be NULL or a live handle; `k` NULL or a valid DsMatrix.
+#[unsafe(no_mangle)]
+pub unsafe extern "C" fn ds_problem_refactor(
+    problem: *mut DsProblem,
+    k: *const DsMatrix,
+) -> DsStatus {
+    entry("ds_problem_refactor", || {
+        // SAFETY: pointer validity is this function's contract; NULL is rejected.
+        let (problem, k) = unsafe { (ref_mut(problem, "problem")?, ref_in(k, "k")?) };
+        // SAFETY: K's arrays match its fields (contract).
+        let kv = unsafe { k.view("K")? };
+        problem.inner.refactor(&kv)
+    })
+}
+
+/// Replaces the contact matrices N (m x n) and T ((d-1) m x n) without refactoring
+/// K; m may change. Rebuilds the condensed dual. On error the handle is unchanged.
+///
+/// Returns DS_STATUS_OK, or the errors of ds_problem_new for N and T.
+///
+/// # Safety
+/// `problem` must be NULL or a live handle; `n`, `t` NULL or valid DsMatrix structs.
+#[unsafe(no_mangle)]
+pub unsafe extern "C" fn ds_problem_set_contacts(
+    problem: *mut DsProblem,
+    n: *const DsMatrix,
+    t: *const DsMatrix,
+) -> DsStatus {
+    entry("ds_problem_set_contacts", || {
+        // SAFETY: pointer validity is this function's contract; NULL is rejected.
+        let (problem, n, t) = unsafe {
+            (
+                ref_mut(problem, "problem")?,
+                ref_in(n, "n")?,
+                ref_in(t, "t")?,
+            )
+        };
+        // SAFETY: the matrices' arrays match their fields (contract).
+        let (nv, tv) = unsafe { (n.view("N")?, t.view("T")?) };
+        problem.inner.set_contacts(&nv, &tv)
+    })
+}
+
+/// The sizes of a problem: *n_dofs = n (length of f and u), *n_contacts = m (length
+/// of g, bound and lambda_n), *d = contact dimension (lambda_t has (d-1) m values).
+///
+/// Returns DS_STATUS_OK or DS_STATUS_NULL_POINTER (any argument NULL); outputs are
+/// written only on success.
+///
+/// # Safety
+/// `problem` must be NULL or a live handle; the outputs NULL or writable.
+#[unsafe(no_mangle)]
+pub unsafe extern "C" fn ds_problem_sizes(
+    problem: *const DsProblem,
+    n_dofs: *mut i64,
+    n_contacts: *mut i64,
+    d: *mut i32,
+) -> DsStatus {
+    entry("ds_problem_sizes", || {
+        // SAFETY: pointer validity is this function's contract; NULL is rejected.
+        let (problem, n_dofs, n_contacts, d) = unsafe {
+            (
+                ref_in(problem, "problem")?,
+                ref_mut(n_dofs, "n_dofs")?,
+                ref_mut(n_contacts, "n_contacts")?,
+                ref_mut(d, "d")?,
+            )
+        };
+        let p = &problem.inner;
+        let too_big = |_| Error::new(ErrorKind::BadSize, "size does not fit in int64_t");
+        let (nd, nc) = (
+            i64::try_from(p.n_dofs()).map_err(too_big)?,
+            i64::try_from(p.n_contacts()).map_err(too_big)?,
+        );
+        let dim = i32::try_from(p.dim()).map_err(too_big)?;
+        *n_dofs = nd;
+        *n_contacts = nc;
+        *d = dim;
+        Ok(())
+    })
+}
+
+/// Which of the two solve entry points runs.
+#[derive(Copy, Clone, PartialEq, Eq)]
+enum Mode {
+    /// ds_solve: one increment as given, history untouched.
+    Solve,
+    /// ds_step: one step of the history.
+    Step,
+}
+
+/// The common body of ds_solve and ds_step: all pointers are checked before the
+/// core runs, and outputs are written only after it returned.
+///
+/// # Safety
+/// As ds_solve.
+#[allow(clippy::too_many_arguments)]
+unsafe fn solve_impl(
+    mode: Mode,
+    problem: *mut DsProblem,
+    opts: *const DsOptions,
+    friction: i32,
+    f: *const f64,
+    g: *const f64,
+    bound: *const f64,
+    u: *mut f64,
+    lambda_n: *mut f64,
+    lambda_t: *mut f64,
+    report: *mut DsReport,
+) -> Result<()> {
+    let (f_name, g_name) = match mode {
+        Mode::Solve => ("f", "g"),
+        Mode::Step => ("f_total", "g0"),
+    };
+    // SAFETY: the handle pointer is NULL or live (contract); NULL is rejected.
+    let problem = unsafe { ref_mut(problem, "problem")? };
+    // SAFETY: opts is NULL or a DsOptions of struct_size bytes (contract).
+    let options = unsafe { DsOptions::read(opts)? };
+    let law = DsFriction::parse(friction, "friction")?;
+    let bound_name = match law {
+        DsFriction::Tresca => "bound (Tresca p)",
+        DsFriction::Coulomb => "bound (Coulomb mu)",
+    };
+    let n = problem.inner.n_dofs();
+    let m = problem.inner.n_contacts();
+    let mt = (problem.inner.dim() - 1) * m;
+    // SAFETY: the arrays hold n, m, m values (contract); NULL only if empty.
+    let (f, g, bound) = unsafe {
+        (
+            slice_in(f, n, f_name)?,
+            slice_in(g, m, g_name)?,
+            slice_in(bound, m, bound_name)?,
+        )
+    };
+    let u = OutArray::new(u, n, "u")?;
+    let lambda_n = OutArray::new(lambda_n, m, "lambda_n")?;
+    let lambda_t = OutArray::new(lambda_t, mt, "lambda_t")?;
+    let report = if report.is_null() {
+        None
+    } else {
+        Some(OutArray::new(report, 1, "report")?)
+    };
+    let law = match law {
+        DsFriction::Tresca => Friction::Tresca(bound),
+        DsFriction::Coulomb => Friction::Coulomb(bound),
+    };
+    let solution: Solution = match mode {
+        Mode::Solve => problem.inner.solve(f, g, law, &options)?,
+        Mode::Step => problem.inner.step(f, g, law, &options)?,
+    };
+    let ds_report = DsReport::from(&solution.report);
+    match solution.report.status {
+        SolveStatus::Converged => {
+            u.check_len(&solution.u)?;
+            lambda_n.check_len(&solution.lambda_n)?;
+            lambda_t.check_len(&solution.lambda_t)?;
+            // SAFETY: the output arrays are valid for their lengths (contract) and no
+            // Rust reference to them exists; the inputs are no longer read.
+            unsafe {
+                u.write(&solution.u)?;
+                lambda_n.write(&solution.lambda_n)?;
+                lambda_t.write(&solution.lambda_t)?;
+                if let Some(r) = &report {
+                    r.write(&[ds_report])?;
+                }
+            }
+            Ok(())
+        }
+        SolveStatus::NotConverged => {
+            if let Some(r) = &report {
+                // SAFETY: report is valid for one write (contract).
+                unsafe { r.write(&[ds_report])? };
+            }
+            Err(Error::new(
+                ErrorKind::NotConverged,
+                format!(
+                    "{} did not converge: err = {:.3e} > tol = {:.3e} after {} outer \
+                     iterations (max_outer = {}, max_inner = {}); outputs not written",
+                    options.method.name(),
+                    solution.report.err,
+                    options.tol,
+                    solution.report.outer_iterations,
+                    options.max_outer,
+                    options.max_inner
+                ),
+            ))
+        }
+    }
+}
+
+/// Solves one increment exactly as given (the history of ds_step is neither used nor
+/// changed): K u = f - N^T lambda_N - T^T lambda_T with N u <= g, lambda_N >= 0,
+/// complementarity, and the friction law on the slip T u.
+///
+/// - problem: the handle.
+/// - opts: options, or NULL for the defaults.
+/// - friction: a DsFriction value; selects what `bound` holds.
+/// - f: load vector, n values (force units).
+/// - g: gaps, m values (length units; g_i < 0 is an initial penetration).
+/// - bound: m values: Tresca slip bounds p_i >= 0 (force units) or Coulomb
+///   coefficients mu_i >= 0.
+/// - u: out, displacement, n values.
+/// - lambda_n: out, normal contact forces, m values, >= 0 (compressive).
+/// - lambda_t: out, tangential contact forces, (d-1) m values, contact by contact;
+///   the friction force on the body is -T^T lambda_T.
+/// - report: out, may be NULL.
+///
+/// Arrays of length 0 may be NULL. Returns DS_STATUS_OK (u, lambda_n, lambda_t and
+/// report written); DS_STATUS_NOT_CONVERGED (only the report written);
+/// DS_STATUS_NULL_POINTER, DS_STATUS_BAD_ARGUMENT (friction, options),
+/// DS_STATUS_NOT_FINITE, DS_STATUS_NEGATIVE_FRICTION, DS_STATUS_OUT_OF_MEMORY
+/// (nothing written). The handle stays usable in every case.
+///
+/// # Safety
+/// `problem` must be NULL or a live handle; `opts` NULL or a DsOptions; each array
+/// NULL or valid for its length (n, m or (d-1) m values); `report` NULL or writable.
+#[unsafe(no_mangle)]
+pub unsafe extern "C" fn ds_solve(
+    problem: *mut DsProblem,
+    opts: *const DsOptions,
+    friction: i32,
+    f: *const f64,
+    g: *const f64,
+    bound: *const f64,
+    u: *mut f64,
+    lambda_n: *mut f64,
+    lambda_t: *mut f64,
+    report: *mut DsReport,
+) -> DsStatus {
+    entry("ds_solve", || {
+        // SAFETY: forwarded contract of ds_solve.
+        unsafe {
+            solve_impl(
+                Mode::Solve,
+                problem,
+                opts,
+                friction,
+                f,
+                g,
+                bound,
+                u,
+                lambda_n,
+                lambda_t,
+                report,
+            )
+        }
+    })
+}
+
+/// One step of a quasistatic history. The caller passes the TOTAL load f_total
+/// (n values) and the INITIAL gaps g0 (m values) of the step; with the held
+/// displacement u_k the library solves the increment with f = f_total - K u_k and
+/// g = g0 - N u_k, friction acting on the tangential increment T du, warm-started
+/// from the last multipliers, and returns the total displacement u_k+1 = u_k + du in
+/// u and the total contact forces in lambda_n and lambda_t. The history advances
+/// only on DS_STATUS_OK.
+///
+/// Arguments, outputs and statuses as ds_solve.
+///
+/// # Safety
+/// As ds_solve.
+#[unsafe(no_mangle)]
+pub unsafe extern "C" fn ds_step(
+    problem: *mut DsProblem,
+    opts: *const DsOptions,
+    friction: i32,
+    f_total: *const f64,
+    g0: *const f64,
+    bound: *const f64,
+    u: *mut f64,
+    lambda_n: *mut f64,
+    lambda_t: *mut f64,
+    report: *mut DsReport,
+) -> DsStatus {
+    entry("ds_step", || {
+        // SAFETY: forwarded contract of ds_step.
+        unsafe {
+            solve_impl(
+                Mode::Step,
+                problem,
+                opts,
+                friction,
+                f_total,
+                g0,
+                bound,
+                u,
+                lambda_n,
+                lambda_t,
+                report,
+            )
+        }
+    })
+}
+
+/// Forgets the history of ds_step: u_0 = 0 and no warm start.
+///
+/// Returns DS_STATUS_OK or DS_STATUS_NULL_POINTER.
+///
+/// # Safety
+/// `problem` must be NULL or a live handle.
+#[unsafe(no_mangle)]
+pub unsafe extern "C" fn ds_history_reset(problem: *mut DsProblem) -> DsStatus {
+    entry("ds_history_reset", || {
+        // SAFETY: NULL is rejected; otherwise a live handle (contract).
+        let problem = unsafe { ref_mut(problem, "problem")? };
+        problem.inner.reset_history();
+        Ok(())
+    })
+}

@@ -1,0 +1,65 @@
+//! The report struct of the C API.
+
+use super::status::DsStatus;
+use super::types::DsMethod;
+use crate::report::{Report, SolveStatus};
+
+/// What a solve reports besides u and the multipliers. Written by ds_solve / ds_step
+/// on DS_STATUS_OK and on DS_STATUS_NOT_CONVERGED (then it describes the last
+/// iterate, which is not returned).
+#[repr(C)]
+#[derive(Copy, Clone, Debug, PartialEq)]
+pub struct DsReport {
+    /// A DsStatus value: DS_STATUS_OK or DS_STATUS_NOT_CONVERGED.
+    pub status: i32,
+    /// The DsMethod that ran.
+    pub method: i32,
+    /// Relative KKT error |r| / max(|lambda|, |rho . b|) of the natural map with
+    /// rho_i = 1/A_ii (dimensionless, invariant under scaling K and f).
+    pub err: f64,
+    /// |K u - f + N^T lambda_N + T^T lambda_T| / |f| (dimensionless).
+    pub equilibrium_residual: f64,
+    /// Outer iterations done.
+    pub outer_iterations: i64,
+    /// Projected Gauss-Seidel sweeps of the sub-problems, in total.
+    pub inner_iterations: i64,
+    /// Contacts with lambda_N = 0.
+    pub n_open: i64,
+    /// Closed contacts with |lambda_T| < p (sticking).
+    pub n_stick: i64,
+    /// Closed contacts with |lambda_T| = p (slipping; frictionless closed contacts
+    /// count here).
+    pub n_slip: i64,
+    /// Seconds of the last numeric factorisation of K.
+    pub factor_seconds: f64,
+    /// Seconds spent forming the condensed dual last time.
+    pub condense_seconds: f64,
+    /// Seconds of this solve (right-hand side, iterations, recovery of u).
+    pub solve_seconds: f64,
+}
+
+fn count(v: usize) -> i64 {
+    i64::try_from(v).unwrap_or(i64::MAX)
+}
+
+impl From<&Report> for DsReport {
+    fn from(r: &Report) -> DsReport {
+        DsReport {
+            status: match r.status {
+                SolveStatus::Converged => DsStatus::Ok,
+                SolveStatus::NotConverged => DsStatus::NotConverged,
+            } as i32,
+            method: DsMethod::from(r.method) as i32,
+            err: r.err,
+            equilibrium_residual: r.equilibrium_residual,
+            outer_iterations: count(r.outer_iterations),
+            inner_iterations: count(r.inner_iterations),
+            n_open: count(r.n_open),
+            n_stick: count(r.n_stick),
+            n_slip: count(r.n_slip),
+            factor_seconds: r.factor_seconds,
+            condense_seconds: r.condense_seconds,
+            solve_seconds: r.solve_seconds,
+        }
+    }
+}

@@ -1,0 +1,225 @@
+//! The C enums. Enum-valued inputs are `int32_t` in C (a C caller may pass any
+//! integer), so each enum here is parsed from an `i32`, answering
+//! `DS_STATUS_BAD_ARGUMENT` for an unknown value. The enums are force-exported to the
+//! header (cbindgen.toml `[export] include`).
+
+use crate::error::{Error, ErrorKind, Result};
+use crate::options::Method;
+use crate::sparse::{Format, Storage};
+
+/// Layout of a DsMatrix (its `format` field), named as in CSparse.
+#[repr(C)]
+#[derive(Copy, Clone, Debug, PartialEq, Eq)]
+pub enum DsFormat {
+    /// Compressed sparse row: `p` holds nrows+1 row pointers, `i` the column indices.
+    Csr = 0,
+    /// Compressed sparse column (CSparse `cs` with nz = -1, packed `cholmod_sparse`):
+    /// `p` holds ncols+1 column pointers, `i` the row indices.
+    Csc = 1,
+    /// Triplets (CSparse `cs` with nz >= 0): `i` holds nnz row indices, `p` nnz column
+    /// indices. Duplicates are summed.
+    Coo = 2,
+}
+
+/// Integer width of a DsMatrix's `p` and `i` arrays (its `index_type` field).
+#[repr(C)]
+#[derive(Copy, Clone, Debug, PartialEq, Eq)]
+pub enum DsIndexType {
+    /// `int32_t` (Fortran default INTEGER, CSparse `cs_di`, CHOLMOD `int`).
+    I32 = 0,
+    /// `int64_t` (`SuiteSparse_long`, CSparse `cs_dl`, CHOLMOD `long`).
+    I64 = 1,
+}
+
+/// Which part of a symmetric matrix a DsMatrix stores (its `storage` field). Only K
+/// may use UPPER or LOWER; N and T must be FULL.
+#[repr(C)]
+#[derive(Copy, Clone, Debug, PartialEq, Eq)]
+pub enum DsStorage {
+    /// Every entry is stored; K is checked for symmetry (CHOLMOD stype 0).
+    Full = 0,
+    /// Only entries with row <= column (CHOLMOD stype 1); entries below the diagonal
+    /// are DS_STATUS_BAD_INDEX.
+    Upper = 1,
+    /// Only entries with row >= column (CHOLMOD stype -1); entries above the diagonal
+    /// are DS_STATUS_BAD_INDEX.
+    Lower = 2,
+}
+
+/// The iterative method run on the condensed dual (DsOptions `method`).
+#[repr(C)]
+#[derive(Copy, Clone, Debug, PartialEq, Eq)]
+pub enum DsMethod {
+    /// Pop's dual splitting, Schur complement variant: the tangential step on
+    /// S = A22 - A21 A11^-1 A12 over the current contact set, then the normal step on
+    /// A11, both by projected Gauss-Seidel. The default.
+    Split = 0,
+    /// Plain block Gauss-Seidel on (lambda_N, lambda_T): tangential step on A22, normal
+    /// step on A11, both by projected Gauss-Seidel.
+    BlockGs = 1,
+    /// Projected Gauss-Seidel on the whole dual, contact by contact (Siconos NSGS).
+    Pgs = 2,
+}
+
+/// Friction law of one increment (the `friction` argument of ds_solve / ds_step).
+#[repr(C)]
+#[derive(Copy, Clone, Debug, PartialEq, Eq)]
+pub enum DsFriction {
+    /// Given friction: `bound` holds the slip bounds p_i >= 0 (force units), and
+    /// |lambda_T,i| <= p_i.
+    Tresca = 0,
+    /// Coulomb friction: `bound` holds the coefficients mu_i >= 0 (dimensionless), and
+    /// |lambda_T,i| <= mu_i lambda_N,i, solved by fixed point on p = mu lambda_N.
+    Coulomb = 1,
+}
+
+/// An enum that C passes as an `int32_t`.
+pub(crate) trait CEnum: Copy + 'static {
+    /// The C type name, e.g. "DsFormat".
+    const NAME: &'static str;
+    /// Every variant with its C name; the C value of a variant is its index.
+    const ALL: &'static [(Self, &'static str)];
+
+    /// The variant with C value `v`, if any.
+    fn from_i32(v: i32) -> Option<Self> {
+        usize::try_from(v)
+            .ok()
+            .and_then(|i| Self::ALL.get(i))
+            .map(|&(e, _)| e)
+    }
+
+    /// The variant with C value `v`, or `BadArgument` naming `what` and the valid values.
+    fn parse(v: i32, what: &str) -> Result<Self> {
+        Self::from_i32(v).ok_or_else(|| {
+            let valid: Vec<String> = Self::ALL
+                .iter()
+                .enumerate()
+                .map(|(i, (_, name))| format!("{name} = {i}"))
+                .collect();
+            Error::new(
+                ErrorKind::BadArgument,
+                format!(
+                    "{what} = {v} is not a valid {} ({})",
+                    Self::NAME,
+                    valid.join(", ")
+                ),
+            )
+        })
+    }
+}
+
+impl CEnum for DsFormat {
+    const NAME: &'static str = "DsFormat";
+    const ALL: &'static [(Self, &'static str)] = &[
+        (DsFormat::Csr, "DS_FORMAT_CSR"),
+        (DsFormat::Csc, "DS_FORMAT_CSC"),
+        (DsFormat::Coo, "DS_FORMAT_COO"),
+    ];
+}
+
+impl CEnum for DsIndexType {
+    const NAME: &'static str = "DsIndexType";
+    const ALL: &'static [(Self, &'static str)] = &[
+        (DsIndexType::I32, "DS_INDEX_TYPE_I32"),
+        (DsIndexType::I64, "DS_INDEX_TYPE_I64"),
+    ];
+}
+
+impl CEnum for DsStorage {
+    const NAME: &'static str = "DsStorage";
+    const ALL: &'static [(Self, &'static str)] = &[
+        (DsStorage::Full, "DS_STORAGE_FULL"),
+        (DsStorage::Upper, "DS_STORAGE_UPPER"),
+        (DsStorage::Lower, "DS_STORAGE_LOWER"),
+    ];
+}
+
+impl CEnum for DsMethod {
+    const NAME: &'static str = "DsMethod";
+    const ALL: &'static [(Self, &'static str)] = &[
+        (DsMethod::Split, "DS_METHOD_SPLIT"),
+        (DsMethod::BlockGs, "DS_METHOD_BLOCK_GS"),
+        (DsMethod::Pgs, "DS_METHOD_PGS"),
+    ];
+}
+
+impl CEnum for DsFriction {
+    const NAME: &'static str = "DsFriction";
+    const ALL: &'static [(Self, &'static str)] = &[
+        (DsFriction::Tresca, "DS_FRICTION_TRESCA"),
+        (DsFriction::Coulomb, "DS_FRICTION_COULOMB"),
+    ];
+}
+
+impl From<DsFormat> for Format {
+    fn from(f: DsFormat) -> Format {
+        match f {
+            DsFormat::Csr => Format::Csr,
+            DsFormat::Csc => Format::Csc,
+            DsFormat::Coo => Format::Coo,
+        }
+    }
+}
+
+impl From<DsStorage> for Storage {
+    fn from(s: DsStorage) -> Storage {
+        match s {
+            DsStorage::Full => Storage::Full,
+            DsStorage::Upper => Storage::Upper,
+            DsStorage::Lower => Storage::Lower,
+        }
+    }
+}
+
+impl From<DsMethod> for Method {
+    fn from(m: DsMethod) -> Method {
+        match m {
+            DsMethod::Split => Method::Split,
+            DsMethod::BlockGs => Method::BlockGs,
+            DsMethod::Pgs => Method::Pgs,
+        }
+    }
+}
+
+impl From<Method> for DsMethod {
+    fn from(m: Method) -> DsMethod {
+        match m {
+            Method::Split => DsMethod::Split,
+            Method::BlockGs => DsMethod::BlockGs,
+            Method::Pgs => DsMethod::Pgs,
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn check<E: CEnum + PartialEq + std::fmt::Debug>(value: impl Fn(E) -> i32) {
+        for (i, &(e, _)) in E::ALL.iter().enumerate() {
+            assert_eq!(value(e), i as i32, "{}", E::NAME);
+            assert_eq!(E::from_i32(i as i32), Some(e));
+        }
+        assert_eq!(E::from_i32(-1), None);
+        assert_eq!(E::from_i32(E::ALL.len() as i32), None);
+        let e = E::parse(77, "K.format").unwrap_err();
+        assert_eq!(e.kind, ErrorKind::BadArgument);
+        assert!(e.message.contains("K.format = 77"), "{}", e.message);
+    }
+
+    #[test]
+    fn c_values_are_indices() {
+        check::<DsFormat>(|e| e as i32);
+        check::<DsIndexType>(|e| e as i32);
+        check::<DsStorage>(|e| e as i32);
+        check::<DsMethod>(|e| e as i32);
+        check::<DsFriction>(|e| e as i32);
+        for m in Method::ALL {
+            assert_eq!(Method::from(DsMethod::from(m)), m);
+            assert_eq!(
+                DsMethod::from(m) as usize,
+                Method::ALL.iter().position(|&x| x == m).unwrap()
+            );
+        }
+    }
+}

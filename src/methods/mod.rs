@@ -1,0 +1,97 @@
+//! The iterative methods on the condensed dual
+//!
+//!     min 1/2 lambda^T A lambda - lambda^T b,  lambda_N >= 0,  |lambda_T,i| <= p_i,
+//!
+//! all behind one entry point, [`run`], so that every method runs on the same data.
+//! Projections onto the friction sets and the small local problems live in
+//! `projection`; the projected Gauss-Seidel sweeps in `pgs`; Pop's splitting and
+//! the block Gauss-Seidel variant in `split`.
+
+mod pgs;
+mod projection;
+mod split;
+
+pub use projection::{project_disk, solve_disk_qp};
+
+use crate::dual::Dual;
+use crate::options::{Method, Options};
+use crate::report::natural_map_error;
+
+/// The friction bound of one solve, per contact.
+#[derive(Copy, Clone, Debug)]
+pub enum Law<'a> {
+    /// Fixed slip bound p_i.
+    Tresca(&'a [f64]),
+    /// p_i = mu_i lambda_N,i.
+    Coulomb(&'a [f64]),
+}
+
+impl Law<'_> {
+    /// The slip bound of contact i given its normal multiplier.
+    #[inline]
+    pub fn bound(&self, i: usize, lambda_n: f64) -> f64 {
+        match self {
+            Law::Tresca(p) => p[i],
+            Law::Coulomb(mu) => mu[i] * lambda_n.max(0.0),
+        }
+    }
+
+    /// Writes every bound into `p` (length m) for the normal multipliers `lambda_n`.
+    pub fn bounds(&self, lambda_n: &[f64], p: &mut [f64]) {
+        for (i, pi) in p.iter_mut().enumerate() {
+            *pi = self.bound(i, lambda_n[i]);
+        }
+    }
+}
+
+/// What a method reports back.
+#[derive(Copy, Clone, Debug, Default)]
+pub struct Outcome {
+    /// Outer iterations done.
+    pub outer: usize,
+    /// Inner sweeps done in total.
+    pub inner: usize,
+    /// The error measured on the dual gradient at the last iterate.
+    pub dual_err: f64,
+}
+
+/// The dual data of one increment: operator, linear term and friction law.
+pub struct DualProblem<'a> {
+    /// A and rho.
+    pub dual: &'a Dual,
+    /// The linear term b = B K^-1 f - [g; 0], length d m.
+    pub b: &'a [f64],
+    /// Friction bound.
+    pub law: Law<'a>,
+}
+
+impl DualProblem<'_> {
+    /// w := A lam - b (the negative of v = [N u - g; T u]).
+    pub fn gradient(&self, lam: &[f64], w: &mut [f64]) {
+        self.dual.apply(lam, w);
+        for (wi, bi) in w.iter_mut().zip(self.b) {
+            *wi -= bi;
+        }
+    }
+
+    /// The error of design.md section 5 at `lam`, given w = A lam - b; `p` and `v`
+    /// are scratch of length m and d m.
+    pub fn error(&self, lam: &[f64], w: &[f64], p: &mut [f64], v: &mut [f64]) -> f64 {
+        let m = self.dual.m;
+        self.law.bounds(&lam[..m], p);
+        for (vi, wi) in v.iter_mut().zip(w) {
+            *vi = -wi;
+        }
+        natural_map_error(lam, v, &self.dual.rho, self.b, p, self.dual.d)
+    }
+}
+
+/// Runs `opts.method` from the starting point in `lam` (length d m; a warm start or
+/// zeros) until the dual error is at most `target` or the iteration limit.
+pub fn run(problem: &DualProblem<'_>, lam: &mut [f64], opts: &Options, target: f64) -> Outcome {
+    match opts.method {
+        Method::Pgs => pgs::solve(problem, lam, opts, target),
+        Method::Split => split::solve(problem, lam, opts, target, true),
+        Method::BlockGs => split::solve(problem, lam, opts, target, false),
+    }
+}

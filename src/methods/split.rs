@@ -1,0 +1,181 @@
+//! N. Pop's dual splitting (design.md section 3) and the plain block Gauss-Seidel
+//! variant: the tangential and the normal multipliers are solved in alternation,
+//! each sub-problem by projected Gauss-Seidel.
+//!
+//! Schur variant, one outer iteration:
+//! 1. tangential step on S = A22 - A21[:,a] A11[a,a]^-1 A12[a,:] with
+//!    b_T' = b_T - A21[:,a] A11[a,a]^-1 b_N[a], a the contacts with lambda_N > 0
+//!    (all of them at the start), bound from the previous lambda_N (Coulomb);
+//! 2. normal step on A11 with b_N - A12 lambda_T, lambda_N >= 0.
+//!
+//! The block variant uses S = A22 and b_T' = b_T - A21 lambda_N. When A11[a,a] is
+//! numerically singular (redundant contacts), the Schur variant takes the block
+//! step for that iteration.
+
+use super::pgs::SubQp;
+use super::{DualProblem, Outcome};
+use crate::options::Options;
+use faer::prelude::Solve;
+use faer::{Mat, Side};
+
+/// The Schur complement data of one contact set.
+struct Schur {
+    active: Vec<bool>,
+    s: Vec<f64>,
+    /// b_T - A21[:,a] A11[a,a]^-1 b_N[a].
+    q: Vec<f64>,
+}
+
+/// Builds S and b_T' for the contact set `active`; None when A11[a,a] is not
+/// numerically positive definite.
+fn schur(problem: &DualProblem<'_>, active: &[bool]) -> Option<Schur> {
+    let dual = problem.dual;
+    let (m, c) = (dual.m, dual.c);
+    let ct = c - m;
+    let idx: Vec<usize> = (0..m).filter(|&i| active[i]).collect();
+    let na = idx.len();
+    let a11 = Mat::from_fn(na, na, |r, s| dual.a[idx[r] + idx[s] * c]);
+    // Columns: A12[a,:] (ct columns) then b_N[a].
+    let rhs = Mat::from_fn(na, ct + 1, |r, s| {
+        if s < ct {
+            dual.a[idx[r] + (m + s) * c]
+        } else {
+            problem.b[idx[r]]
+        }
+    });
+    let x = if na > 0 {
+        let llt = a11.llt(Side::Lower).ok()?;
+        let x = llt.solve(&rhs);
+        if !x.as_ref().is_all_finite() {
+            return None;
+        }
+        x
+    } else {
+        rhs.clone()
+    };
+    let mut s = vec![0.0; ct * ct];
+    let mut q = vec![0.0; ct];
+    for j in 0..ct {
+        for i in 0..ct {
+            let mut acc = dual.a[(m + i) + (m + j) * c];
+            for r in 0..na {
+                acc -= rhs[(r, i)] * x[(r, j)];
+            }
+            s[i + j * ct] = acc;
+        }
+        let mut acc = problem.b[m + j];
+        for r in 0..na {
+            acc -= rhs[(r, j)] * x[(r, ct)];
+        }
+        q[j] = acc;
+    }
+    // Exact symmetry for the Gauss-Seidel sweeps.
+    for j in 0..ct {
+        for i in 0..j {
+            let v = 0.5 * (s[i + j * ct] + s[j + i * ct]);
+            s[i + j * ct] = v;
+            s[j + i * ct] = v;
+        }
+    }
+    Some(Schur {
+        active: active.to_vec(),
+        s,
+        q,
+    })
+}
+
+/// Runs the splitting from `lam`; `use_schur` selects Pop's Schur variant.
+pub(super) fn solve(
+    problem: &DualProblem<'_>,
+    lam: &mut [f64],
+    opts: &Options,
+    target: f64,
+    use_schur: bool,
+) -> Outcome {
+    let dual = problem.dual;
+    let (m, d, c) = (dual.m, dual.d, dual.c);
+    let ct = c - m;
+    let inner_tol = 0.1 * target;
+    let mut out = Outcome::default();
+    let mut w = vec![0.0; c];
+    let mut p = vec![0.0; m];
+    let mut v = vec![0.0; c];
+    let mut wsub = vec![0.0; c];
+    let mut qn = vec![0.0; m];
+    let mut qt = vec![0.0; ct];
+    let normal_step = |lam: &mut [f64], qn: &mut [f64], wsub: &mut [f64]| -> usize {
+        // q_N = b_N - A12 lambda_T
+        qn.copy_from_slice(&problem.b[..m]);
+        for j in 0..ct {
+            let lt = lam[m + j];
+            if lt != 0.0 {
+                let col = &dual.col(m + j)[..m];
+                qn.iter_mut().zip(col).for_each(|(q, a)| *q -= a * lt);
+            }
+        }
+        let sub = SubQp {
+            h: &dual.a,
+            ld: c,
+            k: m,
+            q: qn,
+            block: 1,
+            radii: None,
+        };
+        sub.solve(&mut lam[..m], &mut wsub[..m], inner_tol, opts.max_inner)
+    };
+    // Start: lambda_N of the frictionless problem unless warm-started.
+    if lam.iter().all(|&x| x == 0.0) {
+        out.inner += normal_step(lam, &mut qn, &mut wsub);
+    }
+    let mut cache: Option<Schur> = None;
+    let mut active = vec![true; m];
+    loop {
+        problem.gradient(lam, &mut w);
+        out.dual_err = problem.error(lam, &w, &mut p, &mut v);
+        if out.dual_err <= target || out.outer >= opts.max_outer {
+            return out;
+        }
+        // Tangential step.
+        problem.law.bounds(&lam[..m], &mut p);
+        if ct > 0 {
+            if use_schur && cache.as_ref().is_none_or(|s| s.active != active) {
+                cache = schur(problem, &active);
+            }
+            let sub = match (&cache, use_schur) {
+                (Some(sc), true) => SubQp {
+                    h: &sc.s,
+                    ld: ct,
+                    k: ct,
+                    q: &sc.q,
+                    block: d - 1,
+                    radii: Some(&p),
+                },
+                _ => {
+                    // q_T = b_T - A21 lambda_N
+                    qt.copy_from_slice(&problem.b[m..]);
+                    for i in 0..m {
+                        if lam[i] != 0.0 {
+                            let col = &dual.col(i)[m..];
+                            qt.iter_mut().zip(col).for_each(|(q, a)| *q -= a * lam[i]);
+                        }
+                    }
+                    SubQp {
+                        h: &dual.a[m + m * c..],
+                        ld: c,
+                        k: ct,
+                        q: &qt,
+                        block: d - 1,
+                        radii: Some(&p),
+                    }
+                }
+            };
+            out.inner += sub.solve(&mut lam[m..], &mut wsub[..ct], inner_tol, opts.max_inner);
+        }
+        // Normal step.
+        out.inner += normal_step(lam, &mut qn, &mut wsub);
+        for i in 0..m {
+            active[i] = lam[i] > 0.0;
+        }
+        out.outer += 1;
+    }
+}

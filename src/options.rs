@@ -1,0 +1,60 @@
+//! Solver options: which method, tolerances and iteration limits.
+
+/// The iterative method run on the condensed dual problem.
+#[derive(Copy, Clone, Debug, PartialEq, Eq)]
+pub enum Method {
+    /// Pop's dual splitting, Schur complement variant (design.md section 3): the
+    /// tangential step on S = A22 - A21 A11^-1 A12 over the current contact set,
+    /// then the normal step on A11; both sub-problems by projected Gauss-Seidel.
+    Split,
+    /// Plain block Gauss-Seidel on (lambda_N, lambda_T): tangential step on A22,
+    /// normal step on A11, both by projected Gauss-Seidel.
+    BlockGs,
+    /// Projected Gauss-Seidel on the whole dual, contact by contact (Siconos NSGS).
+    Pgs,
+}
+
+impl Method {
+    /// Every method, in the order of the C enum.
+    pub const ALL: [Method; 3] = [Method::Split, Method::BlockGs, Method::Pgs];
+
+    /// Short lower-case name ("split", "block-gs", "pgs").
+    pub fn name(self) -> &'static str {
+        match self {
+            Method::Split => "split",
+            Method::BlockGs => "block-gs",
+            Method::Pgs => "pgs",
+        }
+    }
+
+    /// Parses a name as returned by [`Method::name`].
+    pub fn from_name(s: &str) -> Option<Method> {
+        Method::ALL.into_iter().find(|m| m.name() == s)
+    }
+}
+
+/// Options of one solve. `Options::default()` gives the documented defaults.
+#[derive(Copy, Clone, Debug, PartialEq)]
+pub struct Options {
+    /// Method (default `Split`).
+    pub method: Method,
+    /// Stop when err (design.md section 5) is at most `tol` (default 1e-10).
+    pub tol: f64,
+    /// Maximum number of outer iterations: sweeps for `Pgs`, normal/tangential
+    /// alternations for `Split` and `BlockGs` (default 10_000).
+    pub max_outer: usize,
+    /// Maximum number of projected Gauss-Seidel sweeps per sub-problem in `Split`
+    /// and `BlockGs` (default 1_000).
+    pub max_inner: usize,
+}
+
+impl Default for Options {
+    fn default() -> Self {
+        Options {
+            method: Method::Split,
+            tol: 1e-10,
+            max_outer: 10_000,
+            max_inner: 1_000,
+        }
+    }
+}

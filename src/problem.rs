@@ -1,0 +1,385 @@
+//! The contact problem of one body: K's factor, the contact matrices, the condensed
+//! dual, and the history of a quasistatic simulation. This is the safe Rust API that
+//! the C boundary wraps.
+
+use crate::dual::Dual;
+use crate::error::{ErrorKind, Result, fail};
+use crate::factor::Factor;
+use crate::methods::{self, DualProblem, Law};
+use crate::options::Options;
+use crate::report::Report;
+use crate::report::{SolveStatus, contact_states, natural_map_error};
+use crate::sparse::{Csc, MatrixView};
+use std::time::Instant;
+
+/// Friction law of one increment.
+#[derive(Copy, Clone, Debug)]
+pub enum Friction<'a> {
+    /// Given slip bound p_i >= 0 per contact (force units), length m.
+    Tresca(&'a [f64]),
+    /// Coulomb coefficient mu_i >= 0 per contact (dimensionless), length m:
+    /// the bound is p_i = mu_i lambda_N,i, found by fixed point.
+    Coulomb(&'a [f64]),
+}
+
+/// The result of one solve.
+#[derive(Clone, Debug)]
+pub struct Solution {
+    /// Displacement, length n.
+    pub u: Vec<f64>,
+    /// Normal contact forces (compressive >= 0), length m.
+    pub lambda_n: Vec<f64>,
+    /// Tangential contact forces, length (d-1) m, contact by contact.
+    pub lambda_t: Vec<f64>,
+    /// Error measure, counts, timings, status.
+    pub report: Report,
+}
+
+/// One contact problem: K factored once, N and T, the condensed dual, and the
+/// history of a quasistatic simulation (the accumulated u and the last multipliers).
+pub struct ContactProblem {
+    d: usize,
+    k: Csc,
+    n: Csc,
+    t: Csc,
+    factor: Factor,
+    dual: Dual,
+    /// History: u_k, and the last converged multipliers [lambda_N; lambda_T].
+    u_hist: Vec<f64>,
+    lam_hist: Vec<f64>,
+}
+
+/// Times the dual error is tightened when the error measured on the recovered u
+/// misses the tolerance although the dual one met it (rounding in A).
+const REFINEMENTS: usize = 3;
+
+fn check_d(d: usize) -> Result<()> {
+    if d == 2 || d == 3 {
+        Ok(())
+    } else {
+        fail(
+            ErrorKind::BadArgument,
+            format!("d = {d}: the contact dimension must be 2 or 3"),
+        )
+    }
+}
+
+fn check_vec(name: &str, x: &[f64], len: usize) -> Result<()> {
+    if x.len() != len {
+        return fail(
+            ErrorKind::BadSize,
+            format!("{name} has length {}, expected {len}", x.len()),
+        );
+    }
+    if let Some(i) = x.iter().position(|v| !v.is_finite()) {
+        return fail(
+            ErrorKind::NotFinite,
+            format!("{name}[{i}] = {} is not finite", x[i]),
+        );
+    }
+    Ok(())
+}
+
+fn norm(x: &[f64]) -> f64 {
+    x.iter().map(|v| v * v).sum::<f64>().sqrt()
+}
+
+impl ContactProblem {
+    /// Validates K (symmetric, any storage), N (m x n) and T ((d-1) m x n), factors
+    /// K and builds the condensed dual. d must be 2 or 3.
+    ///
+    /// Errors: `BadArgument` (d), `BadSize` (shapes), `BadIndex`, `NotFinite`,
+    /// `NotSymmetric`, `NotPositiveDefinite`, `OutOfMemory`.
+    pub fn new(
+        d: usize,
+        k: &MatrixView<'_>,
+        n: &MatrixView<'_>,
+        t: &MatrixView<'_>,
+    ) -> Result<Self> {
+        check_d(d)?;
+        let k = Csc::symmetric_from_view(k, "K")?;
+        let n = Csc::from_view(n, "N")?;
+        let t = Csc::from_view(t, "T")?;
+        Self::from_csc(d, k, n, t)
+    }
+
+    /// As [`ContactProblem::new`], from matrices already in internal form (`k` holds
+    /// both triangles).
+    pub fn from_csc(d: usize, k: Csc, n: Csc, t: Csc) -> Result<Self> {
+        check_d(d)?;
+        if k.nrows != k.ncols {
+            return fail(
+                ErrorKind::BadSize,
+                format!("K is {} x {}, not square", k.nrows, k.ncols),
+            );
+        }
+        let factor = Factor::new(&k)?;
+        let dual = Dual::build(&factor, &n, &t, d)?;
+        let ndof = k.nrows;
+        let c = dual.c;
+        Ok(ContactProblem {
+            d,
+            k,
+            n,
+            t,
+            factor,
+            dual,
+            u_hist: vec![0.0; ndof],
+            lam_hist: vec![0.0; c],
+        })
+    }
+
+    /// Refactors K with new values and the same sparsity pattern (same storage);
+    /// rebuilds the condensed dual. On error the problem is unchanged.
+    ///
+    /// Errors: those of `new`, and `BadArgument` if the pattern differs.
+    pub fn refactor(&mut self, k: &MatrixView<'_>) -> Result<()> {
+        let k = Csc::symmetric_from_view(k, "K")?;
+        if !self.factor.same_pattern(&k) {
+            return fail(
+                ErrorKind::BadArgument,
+                "K: the sparsity pattern differs from the one the problem was created with",
+            );
+        }
+        let previous = self.factor.refactor(&k)?;
+        match Dual::build(&self.factor, &self.n, &self.t, self.d) {
+            Ok(dual) => {
+                self.dual = dual;
+                self.k = k;
+                Ok(())
+            }
+            Err(e) => {
+                self.factor.restore(previous);
+                Err(e)
+            }
+        }
+    }
+
+    /// Replaces N and T (m may change) without refactoring K; rebuilds the condensed
+    /// dual. The warm start is kept when m is unchanged. On error the problem is
+    /// unchanged.
+    pub fn set_contacts(&mut self, n: &MatrixView<'_>, t: &MatrixView<'_>) -> Result<()> {
+        let n = Csc::from_view(n, "N")?;
+        let t = Csc::from_view(t, "T")?;
+        let dual = Dual::build(&self.factor, &n, &t, self.d)?;
+        if dual.c != self.dual.c {
+            self.lam_hist = vec![0.0; dual.c];
+        }
+        self.dual = dual;
+        self.n = n;
+        self.t = t;
+        Ok(())
+    }
+
+    fn check_friction(&self, friction: Friction<'_>) -> Result<()> {
+        let m = self.n_contacts();
+        let (name, x) = match friction {
+            Friction::Tresca(p) => ("p", p),
+            Friction::Coulomb(mu) => ("mu", mu),
+        };
+        check_vec(name, x, m)?;
+        if let Some(i) = x.iter().position(|&v| v < 0.0) {
+            return fail(
+                ErrorKind::NegativeFriction,
+                format!("{name}[{i}] = {} is negative", x[i]),
+            );
+        }
+        Ok(())
+    }
+
+    fn check_options(opts: &Options) -> Result<()> {
+        if !(opts.tol.is_finite() && opts.tol > 0.0) {
+            return fail(
+                ErrorKind::BadArgument,
+                format!("tol = {} must be positive and finite", opts.tol),
+            );
+        }
+        if opts.max_inner == 0 {
+            return fail(ErrorKind::BadArgument, "max_inner must be at least 1");
+        }
+        Ok(())
+    }
+
+    /// Solves one increment exactly as given (design.md section 1): f (n), g (m),
+    /// and the friction bound. Does not touch the history.
+    ///
+    /// Errors: `BadSize`, `NotFinite`, `NegativeFriction`, `BadArgument` (options).
+    /// Non-convergence is not an error here: it is `report.status`.
+    pub fn solve(
+        &mut self,
+        f: &[f64],
+        g: &[f64],
+        friction: Friction<'_>,
+        opts: &Options,
+    ) -> Result<Solution> {
+        let mut lam = vec![0.0; self.dual.c];
+        self.solve_from(f, g, friction, opts, &mut lam)
+    }
+
+    /// The increment solve, starting from the multipliers in `lam`.
+    fn solve_from(
+        &self,
+        f: &[f64],
+        g: &[f64],
+        friction: Friction<'_>,
+        opts: &Options,
+        lam: &mut [f64],
+    ) -> Result<Solution> {
+        let start = Instant::now();
+        let (ndof, m, c) = (self.n_dofs(), self.n_contacts(), self.dual.c);
+        check_vec("f", f, ndof)?;
+        check_vec("g", g, m)?;
+        self.check_friction(friction)?;
+        Self::check_options(opts)?;
+        let law = match friction {
+            Friction::Tresca(p) => Law::Tresca(p),
+            Friction::Coulomb(mu) => Law::Coulomb(mu),
+        };
+        // b = B K^-1 f - [g; 0]
+        let mut u0 = f.to_vec();
+        self.factor.solve_vec(&mut u0);
+        let mut b = vec![0.0; c];
+        self.dual.b.mul_vec(&u0, &mut b);
+        for i in 0..m {
+            b[i] -= g[i];
+        }
+        let problem = DualProblem {
+            dual: &self.dual,
+            b: &b,
+            law,
+        };
+        let mut target = opts.tol;
+        let mut outer = 0;
+        let mut inner = 0;
+        let mut u = vec![0.0; ndof];
+        let mut bt_lam = vec![0.0; ndof];
+        let mut v = vec![0.0; c];
+        let mut p = vec![0.0; m];
+        let mut err = f64::INFINITY;
+        for _ in 0..=REFINEMENTS {
+            let local = Options {
+                max_outer: opts.max_outer.saturating_sub(outer),
+                ..*opts
+            };
+            let o = methods::run(&problem, lam, &local, target);
+            outer += o.outer;
+            inner += o.inner;
+            // u = K^-1 (f - B^T lambda), and the error measured on it.
+            self.dual.b.mul_t_vec(lam, &mut bt_lam);
+            for i in 0..ndof {
+                u[i] = f[i] - bt_lam[i];
+            }
+            self.factor.solve_vec(&mut u);
+            self.dual.b.mul_vec(&u, &mut v);
+            for i in 0..m {
+                v[i] -= g[i];
+            }
+            law.bounds(&lam[..m], &mut p);
+            err = natural_map_error(lam, &v, &self.dual.rho, &b, &p, self.d);
+            if err <= opts.tol || o.dual_err > target || outer >= opts.max_outer {
+                break;
+            }
+            target *= 0.1;
+        }
+        // Equilibrium residual |K u - f + B^T lambda| / |f|.
+        let mut ku = vec![0.0; ndof];
+        self.k.mul_vec(&u, &mut ku);
+        let res: Vec<f64> = (0..ndof).map(|i| ku[i] - f[i] + bt_lam[i]).collect();
+        let denom = {
+            let nf = norm(f);
+            if nf > 0.0 {
+                nf
+            } else {
+                norm(&ku).max(norm(&bt_lam))
+            }
+        };
+        let rn = norm(&res);
+        let equilibrium_residual = if rn == 0.0 { 0.0 } else { rn / denom };
+        let (n_open, n_stick, n_slip) = contact_states(lam, &p, self.d);
+        let status = if err <= opts.tol {
+            SolveStatus::Converged
+        } else {
+            SolveStatus::NotConverged
+        };
+        Ok(Solution {
+            u,
+            lambda_n: lam[..m].to_vec(),
+            lambda_t: lam[m..].to_vec(),
+            report: Report {
+                status,
+                method: opts.method,
+                err,
+                equilibrium_residual,
+                outer_iterations: outer,
+                inner_iterations: inner,
+                n_open,
+                n_stick,
+                n_slip,
+                factor_seconds: self.factor.factor_seconds,
+                condense_seconds: self.dual.condense_seconds,
+                solve_seconds: start.elapsed().as_secs_f64(),
+            },
+        })
+    }
+
+    /// One step of a quasistatic history (design.md section 1): with the held u_k,
+    /// solves the increment with f := f_total - K u_k, g := g0 - N u_k, friction on
+    /// the tangential increment, warm-started from the last multipliers; returns
+    /// u_k+1 = u_k + du and the total multipliers. The history advances only when
+    /// the solve converged.
+    ///
+    /// Errors: as [`ContactProblem::solve`].
+    pub fn step(
+        &mut self,
+        f_total: &[f64],
+        g0: &[f64],
+        friction: Friction<'_>,
+        opts: &Options,
+    ) -> Result<Solution> {
+        let (ndof, m) = (self.n_dofs(), self.n_contacts());
+        check_vec("f_total", f_total, ndof)?;
+        check_vec("g0", g0, m)?;
+        let mut ku = vec![0.0; ndof];
+        self.k.mul_vec(&self.u_hist, &mut ku);
+        let f: Vec<f64> = (0..ndof).map(|i| f_total[i] - ku[i]).collect();
+        let mut nu = vec![0.0; m];
+        self.n.mul_vec(&self.u_hist, &mut nu);
+        let g: Vec<f64> = (0..m).map(|i| g0[i] - nu[i]).collect();
+        let mut lam = self.lam_hist.clone();
+        let mut sol = self.solve_from(&f, &g, friction, opts, &mut lam)?;
+        for (ui, uh) in sol.u.iter_mut().zip(&self.u_hist) {
+            *ui += uh;
+        }
+        if sol.report.status == SolveStatus::Converged {
+            self.u_hist.copy_from_slice(&sol.u);
+            self.lam_hist = lam;
+        }
+        Ok(sol)
+    }
+
+    /// Forgets the history: u_0 = 0 and no warm start.
+    pub fn reset_history(&mut self) {
+        self.u_hist.iter_mut().for_each(|v| *v = 0.0);
+        self.lam_hist.iter_mut().for_each(|v| *v = 0.0);
+    }
+
+    /// Contact dimension d (2 or 3).
+    pub fn dim(&self) -> usize {
+        self.d
+    }
+
+    /// Number of DOFs n.
+    pub fn n_dofs(&self) -> usize {
+        self.k.nrows
+    }
+
+    /// Number of contacts m.
+    pub fn n_contacts(&self) -> usize {
+        self.n.nrows
+    }
+
+    /// The condensed dual operator (for diagnostics and tests).
+    pub fn dual(&self) -> &Dual {
+        &self.dual
+    }
+}

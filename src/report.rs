@@ -1,0 +1,117 @@
+//! The report of a solve: the error measure of design.md section 5, the equilibrium
+//! residual, the contact states, iteration counts and timings.
+
+use crate::options::Method;
+
+/// Outcome of a solve.
+#[derive(Copy, Clone, Debug, PartialEq, Eq)]
+pub enum SolveStatus {
+    /// err <= tol was reached (checked on the recovered u, not only in the dual).
+    Converged,
+    /// The iteration limit was reached first; the iterate is the last one.
+    NotConverged,
+}
+
+/// Everything a solve reports besides u and the multipliers.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Report {
+    /// Converged or not.
+    pub status: SolveStatus,
+    /// The method that ran.
+    pub method: Method,
+    /// |r| / max(|lambda|, |rho . b|), design.md section 5 (dimensionless).
+    pub err: f64,
+    /// |K u - f + N^T lambda_N + T^T lambda_T| / |f| (dimensionless; when f = 0 the
+    /// denominator is max(|K u|, |B^T lambda|), and 0 when all three vanish).
+    pub equilibrium_residual: f64,
+    /// Outer iterations (see `Options::max_outer`).
+    pub outer_iterations: usize,
+    /// Total projected Gauss-Seidel sweeps of the sub-problems (equal to the outer
+    /// count for `Pgs`).
+    pub inner_iterations: usize,
+    /// Contacts with lambda_N = 0.
+    pub n_open: usize,
+    /// Closed contacts with |lambda_T| < p.
+    pub n_stick: usize,
+    /// Closed contacts with |lambda_T| = p (frictionless closed contacts count here).
+    pub n_slip: usize,
+    /// Seconds spent in the last numeric factorisation of K.
+    pub factor_seconds: f64,
+    /// Seconds spent building the condensed dual (A and its diagonal) last time.
+    pub condense_seconds: f64,
+    /// Seconds of this solve: right-hand side, iterations and recovery of u.
+    pub solve_seconds: f64,
+}
+
+/// The natural-map error of design.md section 5 for the dual unknowns
+/// `lam` = [lambda_N; lambda_T] (length d m):
+///
+/// r_N,i = lambda_N,i - max(0, lambda_N,i + rho_i v_N,i),
+/// r_T,i = lambda_T,i - proj_{|x| <= p_i}(lambda_T,i + rho_i v_T,i),
+/// err = |r| / max(|lambda|, |rho . b|)  (0 when r = 0),
+///
+/// with v = [N u - g; T u] (length d m), `b` the dual linear term, `rho` one value
+/// per contact and `p` the slip bound per contact (mu_i lambda_N,i for Coulomb).
+pub fn natural_map_error(
+    lam: &[f64],
+    v: &[f64],
+    rho: &[f64],
+    b: &[f64],
+    p: &[f64],
+    d: usize,
+) -> f64 {
+    let m = rho.len();
+    let mut r2 = 0.0;
+    let mut l2 = 0.0;
+    let mut rb2 = 0.0;
+    let mut y = [0.0; 2];
+    for i in 0..m {
+        let ln = lam[i];
+        let rn = ln - (ln + rho[i] * v[i]).max(0.0);
+        r2 += rn * rn;
+        l2 += ln * ln;
+        rb2 += (rho[i] * b[i]).powi(2);
+        let t0 = m + (d - 1) * i;
+        let k = d - 1;
+        for s in 0..k {
+            y[s] = lam[t0 + s] + rho[i] * v[t0 + s];
+        }
+        crate::methods::project_disk(&mut y[..k], p[i]);
+        for s in 0..k {
+            let lt = lam[t0 + s];
+            r2 += (lt - y[s]).powi(2);
+            l2 += lt * lt;
+            rb2 += (rho[i] * b[t0 + s]).powi(2);
+        }
+    }
+    if r2 == 0.0 {
+        return 0.0;
+    }
+    r2.sqrt() / l2.max(rb2).sqrt()
+}
+
+/// Counts of (open, stick, slip) contacts. A contact is open when lambda_N,i = 0,
+/// slipping when closed and |lambda_T,i| >= (1 - 1e-9) p_i (this includes
+/// frictionless closed contacts, p_i = 0), sticking otherwise.
+pub fn contact_states(lam: &[f64], p: &[f64], d: usize) -> (usize, usize, usize) {
+    let m = p.len();
+    let (mut open, mut stick, mut slip) = (0, 0, 0);
+    for i in 0..m {
+        if lam[i] <= 0.0 {
+            open += 1;
+            continue;
+        }
+        let t0 = m + (d - 1) * i;
+        let norm = lam[t0..t0 + d - 1]
+            .iter()
+            .map(|x| x * x)
+            .sum::<f64>()
+            .sqrt();
+        if norm >= (1.0 - 1e-9) * p[i] {
+            slip += 1;
+        } else {
+            stick += 1;
+        }
+    }
+    (open, stick, slip)
+}
