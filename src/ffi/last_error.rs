@@ -41,7 +41,7 @@ pub(crate) fn get() -> String {
 }
 
 /// The message of the last error on the calling thread, NUL-terminated, e.g.
-/// "ds_solve: argument f is NULL but must point to n = 12 values". Never NULL:
+/// "ds_solve: argument f is NULL but must point to 12 values". Never NULL:
 /// "" when the last fallible call on this thread succeeded (every function returning
 /// DsStatus clears it on entry). The string is owned by the library: do not free it;
 /// it stays valid until the next ds_ call on the same thread.

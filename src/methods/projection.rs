@@ -47,9 +47,7 @@ pub fn solve_disk_qp(h00: f64, h01: f64, h11: f64, c: [f64; 2], r: f64) -> [f64;
     let mut nu = hi;
     for _ in 0..200 {
         let n = norm_at(nu);
-        if !n.is_finite() {
-            lo = nu;
-        } else if n > r {
+        if !n.is_finite() || n > r {
             lo = nu;
         } else {
             hi = nu;
@@ -61,7 +59,7 @@ pub fn solve_disk_qp(h00: f64, h01: f64, h11: f64, c: [f64; 2], r: f64) -> [f64;
         let phi = 1.0 / r - 1.0 / n;
         let dphi = dn / (n * n);
         let mut next = nu - phi / dphi;
-        if !(next > lo && next < hi) || !next.is_finite() {
+        if !(next > lo && next < hi && next.is_finite()) {
             next = 0.5 * (lo + hi);
         }
         if (next - nu).abs() <= 1e-15 * nu.abs().max(f64::MIN_POSITIVE) || hi - lo <= 1e-15 * hi {

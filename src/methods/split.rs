@@ -15,8 +15,9 @@
 use super::pgs::SubQp;
 use super::{DualProblem, Outcome};
 use crate::options::Options;
+use faer::linalg::matmul::matmul;
 use faer::prelude::Solve;
-use faer::{Mat, Side};
+use faer::{Accum, Mat, Par, Side};
 
 /// The Schur complement data of one contact set.
 struct Schur {
@@ -53,22 +54,31 @@ fn schur(problem: &DualProblem<'_>, active: &[bool]) -> Option<Schur> {
     } else {
         rhs.clone()
     };
+    // [S, b_T'] = [A22, b_T] - A21[:,a] [X, y] with one matrix product.
+    let mut sq = Mat::from_fn(ct, ct + 1, |i, j| {
+        if j < ct {
+            dual.a[(m + i) + (m + j) * c]
+        } else {
+            problem.b[m + i]
+        }
+    });
+    if na > 0 {
+        matmul(
+            sq.as_mut(),
+            Accum::Add,
+            rhs.subcols(0, ct).transpose(),
+            x.as_ref(),
+            -1.0,
+            Par::Seq,
+        );
+    }
     let mut s = vec![0.0; ct * ct];
-    let mut q = vec![0.0; ct];
     for j in 0..ct {
         for i in 0..ct {
-            let mut acc = dual.a[(m + i) + (m + j) * c];
-            for r in 0..na {
-                acc -= rhs[(r, i)] * x[(r, j)];
-            }
-            s[i + j * ct] = acc;
+            s[i + j * ct] = sq[(i, j)];
         }
-        let mut acc = problem.b[m + j];
-        for r in 0..na {
-            acc -= rhs[(r, j)] * x[(r, ct)];
-        }
-        q[j] = acc;
     }
+    let q: Vec<f64> = (0..ct).map(|i| sq[(i, ct)]).collect();
     // Exact symmetry for the Gauss-Seidel sweeps.
     for j in 0..ct {
         for i in 0..j {
@@ -153,10 +163,10 @@ pub(super) fn solve(
                 _ => {
                     // q_T = b_T - A21 lambda_N
                     qt.copy_from_slice(&problem.b[m..]);
-                    for i in 0..m {
-                        if lam[i] != 0.0 {
+                    for (i, &ln) in lam[..m].iter().enumerate() {
+                        if ln != 0.0 {
                             let col = &dual.col(i)[m..];
-                            qt.iter_mut().zip(col).for_each(|(q, a)| *q -= a * lam[i]);
+                            qt.iter_mut().zip(col).for_each(|(q, a)| *q -= a * ln);
                         }
                     }
                     SubQp {
@@ -173,8 +183,8 @@ pub(super) fn solve(
         }
         // Normal step.
         out.inner += normal_step(lam, &mut qn, &mut wsub);
-        for i in 0..m {
-            active[i] = lam[i] > 0.0;
+        for (a, &ln) in active.iter_mut().zip(&lam[..m]) {
+            *a = ln > 0.0;
         }
         out.outer += 1;
     }
