@@ -7,6 +7,9 @@ use crate::error::{ErrorKind, Result, fail};
 use crate::factor::Factor;
 use crate::sparse::Csc;
 use faer::dyn_stack::{MemBuffer, MemStack};
+use faer::linalg::matmul::matmul;
+use faer::linalg::triangular_solve::solve_lower_triangular_in_place;
+use faer::{Accum, Mat, MatMut, Par};
 use std::time::Instant;
 
 /// Number of right-hand sides solved together while forming A.
@@ -29,6 +32,25 @@ pub struct Dual {
     pub b: Csc,
     /// Seconds spent forming A.
     pub condense_seconds: f64,
+    /// How A was formed.
+    pub condensation: Condensation,
+}
+
+/// How the condensed dual operator was formed.
+#[derive(Copy, Clone, Debug, PartialEq, Eq)]
+pub enum Condensation {
+    /// From the trailing block L_CC of K's factor with the contact DOFs C ordered
+    /// last: A = W^T W with W = L_CC^-1 B_C^T (one dense triangular solve).
+    TrailingBlock,
+    /// One forward and back solve with K's factor per dual unknown.
+    Solves,
+}
+
+/// The DOFs (columns of B) that B touches, in increasing order.
+pub fn contact_dofs(b: &Csc) -> Vec<usize> {
+    (0..b.ncols)
+        .filter(|&j| b.col_ptr[j + 1] > b.col_ptr[j])
+        .collect()
 }
 
 /// Stacks N (m x n) and T ((d-1) m x n) into B = [N; T].
@@ -59,11 +81,35 @@ pub fn stack_rows(n: &Csc, t: &Csc) -> Csc {
 }
 
 impl Dual {
-    /// Forms A = B K^-1 B^T with one solve per dual unknown (blocked).
+    /// Forms A = B K^-1 B^T: from the trailing block of the factor when every DOF
+    /// that B touches is among the DOFs the factor ordered last, by solves otherwise.
     ///
     /// Errors: `BadSize` if the shapes of N and T do not match d and K,
     /// `OutOfMemory` if A does not fit.
     pub fn build(factor: &Factor, n: &Csc, t: &Csc, d: usize) -> Result<Dual> {
+        let how = if !factor.last().is_empty() && {
+            let mut in_last = vec![false; factor.n()];
+            factor.last().iter().for_each(|&j| in_last[j] = true);
+            contact_dofs(&stack_rows(n, t))
+                .iter()
+                .all(|&j| j < in_last.len() && in_last[j])
+        } {
+            Condensation::TrailingBlock
+        } else {
+            Condensation::Solves
+        };
+        Self::build_with(factor, n, t, d, how)
+    }
+
+    /// Forms A in the way asked for (`TrailingBlock` requires the contact DOFs to be
+    /// among the factor's trailing DOFs).
+    pub fn build_with(
+        factor: &Factor,
+        n: &Csc,
+        t: &Csc,
+        d: usize,
+        how: Condensation,
+    ) -> Result<Dual> {
         let start = Instant::now();
         let ndof = factor.n();
         let m = n.nrows;
@@ -96,32 +142,9 @@ impl Dual {
             )
         })?;
         a.resize(c * c, 0.0);
-        let bt = b.transpose();
-        let width = BLOCK.min(c.max(1));
-        let mut rhs = faer::Mat::<f64>::zeros(ndof, width);
-        let mut mem = MemBuffer::new(factor.solve_scratch(width));
-        let mut col = vec![0.0; c];
-        let mut j0 = 0;
-        while j0 < c {
-            let w = width.min(c - j0);
-            rhs.fill(0.0);
-            for jj in 0..w {
-                let j = j0 + jj;
-                for k in bt.col_ptr[j]..bt.col_ptr[j + 1] {
-                    rhs[(bt.row_idx[k], jj)] = bt.values[k];
-                }
-            }
-            factor.solve_in_place(rhs.as_mut().subcols_mut(0, w), MemStack::new(&mut mem));
-            for jj in 0..w {
-                let z = rhs
-                    .col(jj)
-                    .try_as_col_major()
-                    .expect("contiguous")
-                    .as_slice();
-                b.mul_vec(z, &mut col);
-                a[(j0 + jj) * c..(j0 + jj + 1) * c].copy_from_slice(&col);
-            }
-            j0 += w;
+        match how {
+            Condensation::Solves => a_by_solves(factor, &b, &mut a),
+            Condensation::TrailingBlock => a_from_trailing_block(factor, &b, &mut a),
         }
         for j in 0..c {
             for i in 0..j {
@@ -148,6 +171,7 @@ impl Dual {
             rho,
             b,
             condense_seconds: start.elapsed().as_secs_f64(),
+            condensation: how,
         })
     }
 
@@ -166,6 +190,124 @@ impl Dual {
                     *yi += aij * xj;
                 }
             }
+        }
+    }
+}
+
+/// A := B K^-1 B^T by blocks of solves with K's factor (c x c, column-major).
+fn a_by_solves(factor: &Factor, b: &Csc, a: &mut [f64]) {
+    let (ndof, c) = (factor.n(), b.nrows);
+    let bt = b.transpose();
+    let width = BLOCK.min(c.max(1));
+    let mut rhs = faer::Mat::<f64>::zeros(ndof, width);
+    let mut mem = MemBuffer::new(factor.solve_scratch(width));
+    let mut col = vec![0.0; c];
+    let mut j0 = 0;
+    while j0 < c {
+        let w = width.min(c - j0);
+        rhs.fill(0.0);
+        for jj in 0..w {
+            let j = j0 + jj;
+            for k in bt.col_ptr[j]..bt.col_ptr[j + 1] {
+                rhs[(bt.row_idx[k], jj)] = bt.values[k];
+            }
+        }
+        factor.solve_in_place(rhs.as_mut().subcols_mut(0, w), MemStack::new(&mut mem));
+        for jj in 0..w {
+            let z = rhs
+                .col(jj)
+                .try_as_col_major()
+                .expect("contiguous")
+                .as_slice();
+            b.mul_vec(z, &mut col);
+            a[(j0 + jj) * c..(j0 + jj + 1) * c].copy_from_slice(&col);
+        }
+        j0 += w;
+    }
+}
+
+/// A := W^T W with W = L_CC^-1 B_C^T, L_CC the factor's trailing block.
+fn a_from_trailing_block(factor: &Factor, b: &Csc, a: &mut [f64]) {
+    let c = b.nrows;
+    let last = factor.last();
+    let nc = last.len();
+    let mut pos = vec![usize::MAX; factor.n()];
+    for (q, &j) in last.iter().enumerate() {
+        pos[j] = q;
+    }
+    let mut w = Mat::<f64>::zeros(nc, c);
+    for j in 0..b.ncols {
+        for k in b.col_ptr[j]..b.col_ptr[j + 1] {
+            w[(pos[j], b.row_idx[k])] = b.values[k];
+        }
+    }
+    let l = factor.trailing_block();
+    solve_lower_triangular_in_place(l.as_ref(), w.as_mut(), Par::Seq);
+    let out = MatMut::from_column_major_slice_mut(a, c, c);
+    matmul(
+        out,
+        Accum::Replace,
+        w.transpose(),
+        w.as_ref(),
+        1.0,
+        Par::Seq,
+    );
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A 2D grid Laplacian plus a small shift (SPD), nx x ny nodes, one DOF each.
+    fn grid(nx: usize, ny: usize) -> Csc {
+        let id = |i: usize, j: usize| i + nx * j;
+        let mut t = Vec::new();
+        for j in 0..ny {
+            for i in 0..nx {
+                t.push((id(i, j), id(i, j), 4.1));
+                if i + 1 < nx {
+                    t.push((id(i, j), id(i + 1, j), -1.0));
+                    t.push((id(i + 1, j), id(i, j), -1.0));
+                }
+                if j + 1 < ny {
+                    t.push((id(i, j), id(i, j + 1), -1.0));
+                    t.push((id(i, j + 1), id(i, j), -1.0));
+                }
+            }
+        }
+        Csc::from_triplets(nx * ny, nx * ny, &t)
+    }
+
+    #[test]
+    fn trailing_block_and_solves_give_the_same_a() {
+        let (nx, ny) = (9, 7);
+        let k = grid(nx, ny);
+        // Contacts on the bottom row, normals and tangents touching two DOFs each.
+        let m = 5;
+        let mut nt = Vec::new();
+        let mut tt = Vec::new();
+        for i in 0..m {
+            nt.push((i, 2 * i, -1.0));
+            nt.push((i, 2 * i + 1, 0.25));
+            tt.push((i, 2 * i + 1, 1.0));
+            tt.push((i, 2 * i, 0.5 + i as f64));
+        }
+        let n = Csc::from_triplets(m, nx * ny, &nt);
+        let t = Csc::from_triplets(m, nx * ny, &tt);
+        let last = contact_dofs(&stack_rows(&n, &t));
+        let f1 = Factor::with_last(&k, &last).unwrap();
+        let f0 = Factor::new(&k).unwrap();
+        let a1 = Dual::build(&f1, &n, &t, 2).unwrap();
+        assert_eq!(a1.condensation, Condensation::TrailingBlock);
+        let a0 = Dual::build(&f0, &n, &t, 2).unwrap();
+        assert_eq!(a0.condensation, Condensation::Solves);
+        let scale = a0.a.iter().fold(0.0f64, |s, v| s.max(v.abs()));
+        for (x, y) in a0.a.iter().zip(&a1.a) {
+            assert!((x - y).abs() <= 1e-13 * scale, "{x} vs {y}");
+        }
+        // And A is positive definite here: its diagonal is positive.
+        for j in 0..a0.c {
+            assert!(a0.a[j + j * a0.c] > 0.0);
         }
     }
 }

@@ -6,12 +6,16 @@ use crate::error::{ErrorKind, Result, fail};
 use crate::sparse::Csc;
 use faer::dyn_stack::{MemBuffer, MemStack, StackReq};
 use faer::linalg::cholesky::llt::factor::LltRegularization;
+use faer::perm::PermRef;
+use faer::sparse::linalg::SupernodalThreshold;
+use faer::sparse::linalg::amd;
+use faer::sparse::linalg::cholesky::supernodal::SupernodalLltRef;
 use faer::sparse::linalg::cholesky::{
-    CholeskySymbolicParams, LltRef, SymbolicCholesky, SymmetricOrdering,
+    CholeskySymbolicParams, LltRef, SymbolicCholesky, SymbolicCholeskyRaw, SymmetricOrdering,
     factorize_symbolic_cholesky,
 };
 use faer::sparse::{SparseColMatRef, SymbolicSparseColMatRef};
-use faer::{Conj, MatMut, Par, Side};
+use faer::{Conj, Mat, MatMut, Par, Side};
 use std::time::Instant;
 
 /// The numeric part of a factorisation, as handed back by [`Factor::refactor`].
@@ -27,6 +31,8 @@ pub struct Factor {
     l_values: Vec<f64>,
     col_ptr: Vec<usize>,
     row_idx: Vec<usize>,
+    /// The DOFs ordered last, in this order (empty for a plain AMD ordering).
+    last: Vec<usize>,
     /// Seconds of the last numeric factorisation.
     pub factor_seconds: f64,
 }
@@ -37,29 +43,93 @@ impl Factor {
     /// Errors: `NotPositiveDefinite` (non-positive pivot: K singular or indefinite),
     /// `OutOfMemory`.
     pub fn new(k: &Csc) -> Result<Factor> {
+        Self::with_last(k, &[])
+    }
+
+    /// Analyses and factors `k` with the DOFs `last` (distinct, in range) ordered
+    /// last, in the given order, and the others by AMD on their own block: the
+    /// trailing block of the factor then gives the Schur complement of K onto
+    /// `last` (see [`Factor::trailing_block`]).
+    ///
+    /// Errors: as [`Factor::new`].
+    pub fn with_last(k: &Csc, last: &[usize]) -> Result<Factor> {
         let n = k.nrows;
+        let oom = |what: &str| crate::Error::new(ErrorKind::OutOfMemory, format!("K: {what}"));
         let sym = SymbolicSparseColMatRef::new_checked(n, n, &k.col_ptr, None, &k.row_idx);
-        let symbolic = factorize_symbolic_cholesky(
-            sym,
-            Side::Lower,
-            SymmetricOrdering::Amd,
-            CholeskySymbolicParams::default(),
-        )
-        .map_err(|e| {
-            crate::Error::new(
-                ErrorKind::OutOfMemory,
-                format!("K: symbolic analysis: {e:?}"),
+        let symbolic = if last.is_empty() {
+            factorize_symbolic_cholesky(
+                sym,
+                Side::Lower,
+                SymmetricOrdering::Amd,
+                CholeskySymbolicParams::default(),
             )
-        })?;
+        } else {
+            let (fwd, inv) = ordering_with_last(k, last).ok_or_else(|| oom("AMD ordering"))?;
+            let params = CholeskySymbolicParams {
+                supernodal_flop_ratio_threshold: SupernodalThreshold::FORCE_SUPERNODAL,
+                ..Default::default()
+            };
+            factorize_symbolic_cholesky(
+                sym,
+                Side::Lower,
+                SymmetricOrdering::Custom(PermRef::new_checked(&fwd, &inv, n)),
+                params,
+            )
+        }
+        .map_err(|e| oom(&format!("symbolic analysis: {e:?}")))?;
         let mut f = Factor {
             l_values: Vec::new(),
             symbolic,
             col_ptr: k.col_ptr.clone(),
             row_idx: k.row_idx.clone(),
+            last: last.to_vec(),
             factor_seconds: 0.0,
         };
         f.refactor(k)?;
         Ok(f)
+    }
+
+    /// The DOFs ordered last (empty when the ordering is plain AMD).
+    pub fn last(&self) -> &[usize] {
+        &self.last
+    }
+
+    /// The trailing nc x nc block L_CC of the factor, nc = `last().len()`: with
+    /// C = `last`, L_CC L_CC^T is the Schur complement of K onto C, so
+    /// (K^-1)_CC = L_CC^-T L_CC^-1. Lower triangular, rows and columns in the order
+    /// of `last`.
+    pub fn trailing_block(&self) -> Mat<f64> {
+        let n = self.n();
+        let nc = self.last.len();
+        let first = n - nc;
+        let mut l = Mat::<f64>::zeros(nc, nc);
+        let SymbolicCholeskyRaw::Supernodal(sym) = self.symbolic.raw() else {
+            unreachable!("an ordering with trailing DOFs is always supernodal");
+        };
+        let llt = SupernodalLltRef::<usize, f64>::new(sym, &self.l_values);
+        for s in 0..sym.n_supernodes() {
+            let node = llt.supernode(s);
+            let start = node.start();
+            let val = node.val();
+            let width = val.ncols();
+            if start + width <= first {
+                continue;
+            }
+            let pattern = node.pattern();
+            for jl in 0..width {
+                let j = start + jl;
+                if j < first {
+                    continue;
+                }
+                for il in jl..width {
+                    l[(start + il - first, j - first)] = val[(il, jl)];
+                }
+                for (q, &row) in pattern.iter().enumerate() {
+                    l[(row - first, j - first)] = val[(width + q, jl)];
+                }
+            }
+        }
+        l
     }
 
     /// Number of rows of K.
@@ -156,4 +226,51 @@ impl Factor {
         let m = faer::MatMut::from_column_major_slice_mut(x, n, 1);
         self.solve_in_place(m, MemStack::new(&mut mem));
     }
+}
+
+/// The permutation (forward: new -> old, inverse: old -> new) that orders the DOFs
+/// outside `last` by AMD on their own block of K, then `last` in its order.
+/// None when the ordering runs out of memory.
+fn ordering_with_last(k: &Csc, last: &[usize]) -> Option<(Vec<usize>, Vec<usize>)> {
+    let n = k.nrows;
+    const NONE: usize = usize::MAX;
+    let mut local = vec![0usize; n];
+    for &j in last {
+        local[j] = NONE;
+    }
+    let interior: Vec<usize> = (0..n).filter(|&j| local[j] != NONE).collect();
+    for (q, &j) in interior.iter().enumerate() {
+        local[j] = q;
+    }
+    let ni = interior.len();
+    let mut col_ptr = Vec::with_capacity(ni + 1);
+    let mut row_idx = Vec::new();
+    col_ptr.push(0);
+    for &j in &interior {
+        for p in k.col_ptr[j]..k.col_ptr[j + 1] {
+            let r = local[k.row_idx[p]];
+            if r != NONE {
+                row_idx.push(r);
+            }
+        }
+        col_ptr.push(row_idx.len());
+    }
+    let mut perm = vec![0usize; ni];
+    let mut perm_inv = vec![0usize; ni];
+    let mut mem = MemBuffer::try_new(amd::order_scratch::<usize>(ni, row_idx.len())).ok()?;
+    amd::order(
+        &mut perm,
+        &mut perm_inv,
+        SymbolicSparseColMatRef::new_checked(ni, ni, &col_ptr, None, &row_idx),
+        amd::Control::default(),
+        MemStack::new(&mut mem),
+    )
+    .ok()?;
+    let mut fwd: Vec<usize> = perm.iter().map(|&q| interior[q]).collect();
+    fwd.extend_from_slice(last);
+    let mut inv = vec![0usize; n];
+    for (new, &old) in fwd.iter().enumerate() {
+        inv[old] = new;
+    }
+    Some((fwd, inv))
 }

@@ -2,7 +2,7 @@
 //! dual, and the history of a quasistatic simulation. This is the safe Rust API that
 //! the C boundary wraps.
 
-use crate::dual::Dual;
+use crate::dual::{Dual, contact_dofs, stack_rows};
 use crate::error::{ErrorKind, Result, fail};
 use crate::factor::Factor;
 use crate::methods::{self, DualProblem, Law};
@@ -113,7 +113,17 @@ impl ContactProblem {
                 format!("K is {} x {}, not square", k.nrows, k.ncols),
             );
         }
-        let factor = Factor::new(&k)?;
+        if n.ncols != k.nrows || t.ncols != k.nrows {
+            return fail(
+                ErrorKind::BadSize,
+                format!(
+                    "N has {} columns and T has {}, but K has {} rows",
+                    n.ncols, t.ncols, k.nrows
+                ),
+            );
+        }
+        // Contact DOFs last, so that the factor's trailing block condenses K onto them.
+        let factor = Factor::with_last(&k, &contact_dofs(&stack_rows(&n, &t)))?;
         let dual = Dual::build(&factor, &n, &t, d)?;
         let ndof = k.nrows;
         let c = dual.c;
