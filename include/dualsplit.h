@@ -47,8 +47,8 @@ typedef enum DsStatus {
    */
   DS_STATUS_BAD_SIZE = 2,
   /*
-   A sparse index is out of range, pointers are not monotone, an entry lies in the
-   wrong triangle, or `base` is not 0 or 1.
+   A sparse index is out of range, pointers do not start at the base or decrease,
+   or an entry of an UPPER or LOWER K lies in the wrong triangle.
    */
   DS_STATUS_BAD_INDEX = 3,
   /*
@@ -78,9 +78,10 @@ typedef enum DsStatus {
    */
   DS_STATUS_OUT_OF_MEMORY = 9,
   /*
-   An argument has an invalid value: unknown enum value, d not 2 or 3, options
-   with a wrong struct_size or out-of-range values, triangle storage for N or T,
-   a new K whose sparsity pattern differs from the factored one.
+   An argument has an invalid value: unknown enum value, d not 2 or 3, a matrix
+   base not 0 or 1, options with a wrong struct_size or out-of-range values,
+   triangle storage for N or T, a new K whose sparsity pattern differs from the
+   factored one, a misaligned pointer.
    */
   DS_STATUS_BAD_ARGUMENT = 10,
   /*
@@ -199,8 +200,8 @@ typedef struct DsProblem DsProblem;
  Passing NULL instead of a DsOptions uses the defaults.
 
  Errors when read: DS_STATUS_BAD_ARGUMENT if struct_size is not sizeof(DsOptions),
- method is not a DsMethod, tol is negative or not finite, or max_outer or max_inner
- is negative.
+ method is not a DsMethod, tol is not finite and positive, max_outer is negative
+ or max_inner is not positive.
  */
 typedef struct DsOptions {
   /*
@@ -214,7 +215,7 @@ typedef struct DsOptions {
   int32_t method;
   /*
    Stop when the relative error measure err (dimensionless, see DsReport) is at
-   most tol; >= 0 (default 1e-10).
+   most tol; > 0 (default 1e-10).
    */
   double tol;
   /*
@@ -224,7 +225,7 @@ typedef struct DsOptions {
   int64_t max_outer;
   /*
    Maximum number of projected Gauss-Seidel sweeps per sub-problem of SPLIT and
-   BLOCK_GS, >= 0 (default 1000).
+   BLOCK_GS, >= 1 (default 1000).
    */
   int64_t max_inner;
 } DsOptions;
@@ -238,7 +239,7 @@ typedef struct DsOptions {
  is DS_STORAGE_UPPER, -1 DS_STORAGE_LOWER, 0 DS_STORAGE_FULL.
 
  Errors when a matrix is read: DS_STATUS_BAD_ARGUMENT (unknown format, index_type
- or storage), DS_STATUS_BAD_INDEX (base not 0 or 1, last pointer below base, index
+ or storage, base not 0 or 1), DS_STATUS_BAD_INDEX (last pointer below base, index
  out of range, pointers not monotone), DS_STATUS_BAD_SIZE (negative nrows, ncols or
  COO nnz), DS_STATUS_NULL_POINTER (p, i or x NULL for a non-empty array),
  DS_STATUS_NOT_FINITE (NaN or infinity in x).

@@ -135,7 +135,13 @@ impl Dual {
         let b = stack_rows(n, t);
         let c = b.nrows;
         let mut a = Vec::new();
-        a.try_reserve_exact(c * c).map_err(|_| {
+        let cc = c.checked_mul(c).ok_or_else(|| {
+            crate::Error::new(
+                ErrorKind::OutOfMemory,
+                format!("condensed dual: {c} x {c} overflows"),
+            )
+        })?;
+        a.try_reserve_exact(cc).map_err(|_| {
             crate::Error::new(
                 ErrorKind::OutOfMemory,
                 format!("condensed dual: {c} x {c} dense matrix does not fit in memory"),

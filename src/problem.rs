@@ -305,7 +305,7 @@ impl ContactProblem {
         };
         let rn = norm(&res);
         let equilibrium_residual = if rn == 0.0 { 0.0 } else { rn / denom };
-        let (n_open, n_stick, n_slip) = contact_states(lam, &p, self.d);
+        let (n_open, n_stick, n_slip) = contact_states(lam, &v, &self.dual.rho, &p, self.d);
         let status = if err <= opts.tol {
             SolveStatus::Converged
         } else {

@@ -29,11 +29,11 @@ pub struct Report {
     /// Total projected Gauss-Seidel sweeps of the sub-problems (equal to the outer
     /// count for `Pgs`).
     pub inner_iterations: usize,
-    /// Contacts with lambda_N = 0.
+    /// Open contacts (see [`contact_states`]).
     pub n_open: usize,
-    /// Closed contacts with |lambda_T| < p.
+    /// Closed, sticking contacts.
     pub n_stick: usize,
-    /// Closed contacts with |lambda_T| = p (frictionless closed contacts count here).
+    /// Closed, slipping contacts (frictionless closed contacts count here).
     pub n_slip: usize,
     /// Seconds spent in the last numeric factorisation of K.
     pub factor_seconds: f64,
@@ -90,24 +90,31 @@ pub fn natural_map_error(
     r2.sqrt() / l2.max(rb2).sqrt()
 }
 
-/// Counts of (open, stick, slip) contacts. A contact is open when lambda_N,i = 0,
-/// slipping when closed and |lambda_T,i| >= (1 - 1e-9) p_i (this includes
-/// frictionless closed contacts, p_i = 0), sticking otherwise.
-pub fn contact_states(lam: &[f64], p: &[f64], d: usize) -> (usize, usize, usize) {
+/// Counts of (open, stick, slip) contacts, read off the natural map of the error
+/// measure so that the classification is as robust as err itself: contact i is open
+/// when lambda_N,i + rho_i v_N,i <= 0 (the normal projection is inactive), slipping
+/// when closed and |lambda_T,i + rho_i v_T,i| >= p_i (the friction projection is
+/// active; frictionless closed contacts count here), sticking otherwise.
+pub fn contact_states(
+    lam: &[f64],
+    v: &[f64],
+    rho: &[f64],
+    p: &[f64],
+    d: usize,
+) -> (usize, usize, usize) {
     let m = p.len();
     let (mut open, mut stick, mut slip) = (0, 0, 0);
     for i in 0..m {
-        if lam[i] <= 0.0 {
+        if lam[i] + rho[i] * v[i] <= 0.0 {
             open += 1;
             continue;
         }
         let t0 = m + (d - 1) * i;
-        let norm = lam[t0..t0 + d - 1]
-            .iter()
-            .map(|x| x * x)
+        let trial = (t0..t0 + d - 1)
+            .map(|j| (lam[j] + rho[i] * v[j]).powi(2))
             .sum::<f64>()
             .sqrt();
-        if norm >= (1.0 - 1e-9) * p[i] {
+        if trial >= p[i] {
             slip += 1;
         } else {
             stick += 1;

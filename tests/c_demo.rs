@@ -21,9 +21,11 @@ fn manifest_dir() -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR"))
 }
 
-/// target/<profile>/libdualsplit.a, found from the path of this test executable
-/// (target/<profile>/deps/c_demo-<hash>). Cargo builds every crate type of the
-/// library (cdylib, staticlib, rlib) before it builds the integration tests.
+/// The static library cargo built for this test run, found from the path of this
+/// test executable (target/<profile>/deps/c_demo-<hash>). Cargo builds every crate
+/// type of the library (cdylib, staticlib, rlib) before the integration tests, into
+/// target/<profile>/deps/; the copy it places in target/<profile>/ is not always
+/// refreshed by `cargo test`, so the newer of the two is used.
 fn static_lib() -> PathBuf {
     let exe = std::env::current_exe().expect("path of the test executable");
     let deps = exe
@@ -39,13 +41,19 @@ fn static_lib() -> PathBuf {
     } else {
         "libdualsplit.a"
     };
-    let lib = profile_dir.join(name);
-    assert!(
-        lib.is_file(),
-        "the static library {} does not exist: the test needs crate-type \"staticlib\" in \
-         Cargo.toml [lib] (cargo builds it before the integration tests)",
-        lib.display()
-    );
+    let modified = |p: &PathBuf| std::fs::metadata(p).and_then(|m| m.modified()).ok();
+    let lib = [deps.join(name), profile_dir.join(name)]
+        .into_iter()
+        .filter(|p| p.is_file())
+        .max_by_key(modified)
+        .unwrap_or_else(|| {
+            panic!(
+                "the static library {name} exists neither in {} nor in {}: the test needs \
+                 crate-type \"staticlib\" in Cargo.toml [lib]",
+                deps.display(),
+                profile_dir.display()
+            )
+        });
     lib
 }
 

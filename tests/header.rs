@@ -100,6 +100,109 @@ fn header_has_the_spec_names() {
         "ds_solve",
         "ds_step",
     ] {
-        assert!(h.contains(&format!("enum DsStatus {f}(")), "generated header lacks {f}");
+        assert!(
+            h.contains(&format!("enum DsStatus {f}(")),
+            "generated header lacks {f}"
+        );
+    }
+}
+
+/// The compiler named by `var` (default `default`), if it runs.
+fn compiler(var: &str, default: &str) -> Option<String> {
+    let cc = std::env::var(var).unwrap_or_else(|_| default.to_string());
+    let ok = std::process::Command::new(&cc)
+        .arg("--version")
+        .output()
+        .is_ok_and(|o| o.status.success());
+    ok.then_some(cc)
+}
+
+/// The header compiles as C11 and C++11, and its structs and enums have the sizes,
+/// field offsets and values of the Rust definitions (static assertions checked by
+/// the C compiler). Skipped when no compiler is found.
+#[test]
+fn header_compiles_and_matches_the_rust_layout() {
+    use dualsplit::ffi::*;
+    use std::mem::{offset_of, size_of};
+    let mut src = String::from(
+        "#include \"dualsplit.h\"\n#include <stddef.h>\n\
+         #ifdef __cplusplus\n#define DS_ASSERT(c) static_assert(c, #c)\n\
+         #else\n#define DS_ASSERT(c) _Static_assert(c, #c)\n#endif\n",
+    );
+    let mut check = |expr: String, value: usize| {
+        src.push_str(&format!("DS_ASSERT({expr} == {value});\n"));
+    };
+    check("sizeof(DsMatrix)".into(), size_of::<DsMatrix>());
+    check("sizeof(DsOptions)".into(), size_of::<DsOptions>());
+    check("sizeof(DsReport)".into(), size_of::<DsReport>());
+    check("sizeof(DsStatus)".into(), size_of::<DsStatus>());
+    macro_rules! offsets {
+        ($ty:ident: $($field:ident),*) => {
+            $(check(
+                format!("offsetof({}, {})", stringify!($ty), stringify!($field)),
+                offset_of!($ty, $field),
+            );)*
+        };
+    }
+    offsets!(DsMatrix: format, index_type, base, storage, nrows, ncols, nnz, p, i, x);
+    offsets!(DsOptions: struct_size, method, tol, max_outer, max_inner);
+    offsets!(DsReport: status, method, err, equilibrium_residual, outer_iterations,
+        inner_iterations, n_open, n_stick, n_slip, factor_seconds, condense_seconds,
+        solve_seconds);
+    check("DS_STATUS_PANIC".into(), DsStatus::Panic as usize);
+    check("DS_STATUS_IO_ERROR".into(), DsStatus::IoError as usize);
+    check("DS_FORMAT_COO".into(), DsFormat::Coo as usize);
+    check("DS_INDEX_TYPE_I64".into(), DsIndexType::I64 as usize);
+    check("DS_STORAGE_LOWER".into(), DsStorage::Lower as usize);
+    check("DS_METHOD_PGS".into(), DsMethod::Pgs as usize);
+    check("DS_FRICTION_COULOMB".into(), DsFriction::Coulomb as usize);
+    // The functions have the spec's C types.
+    src.push_str(
+        "static void signatures(void) {\n\
+         DsStatus (*a)(int32_t, const DsMatrix *, const DsMatrix *, const DsMatrix *, DsProblem **) = ds_problem_new;\n\
+         DsStatus (*b)(DsProblem *, const DsOptions *, int32_t, const double *, const double *, const double *, double *, double *, double *, DsReport *) = ds_solve;\n\
+         DsStatus (*c)(DsProblem *, const DsOptions *, int32_t, const double *, const double *, const double *, double *, double *, double *, DsReport *) = ds_step;\n\
+         DsStatus (*d)(const DsProblem *, int64_t *, int64_t *, int32_t *) = ds_problem_sizes;\n\
+         const char *(*e)(int32_t) = ds_status_string;\n\
+         const char *(*f)(void) = ds_last_error_message;\n\
+         void (*g)(DsOptions *) = ds_options_default;\n\
+         (void)a; (void)b; (void)c; (void)d; (void)e; (void)f; (void)g;\n}\n\
+         int main(void) { signatures(); return 0; }\n",
+    );
+    let dir = PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join("header_check");
+    std::fs::create_dir_all(&dir).unwrap();
+    // The freshly generated header (equal to the checked-in one when
+    // header_is_up_to_date passes), so that blessing in parallel cannot race.
+    std::fs::write(dir.join("dualsplit.h"), generate()).unwrap();
+    let include = dir.clone();
+    for (var, default, file, std) in [
+        ("CC", "cc", "check.c", "-std=c11"),
+        ("CXX", "c++", "check.cpp", "-std=c++11"),
+    ] {
+        let Some(cc) = compiler(var, default) else {
+            eprintln!("skipped: no {default} compiler");
+            continue;
+        };
+        let path = dir.join(file);
+        std::fs::write(&path, &src).unwrap();
+        let out = std::process::Command::new(&cc)
+            .args([
+                std,
+                "-Wall",
+                "-Wextra",
+                "-Werror",
+                "-pedantic",
+                "-fsyntax-only",
+                "-I",
+            ])
+            .arg(&include)
+            .arg(&path)
+            .output()
+            .unwrap();
+        assert!(
+            out.status.success(),
+            "{cc} rejects include/dualsplit.h:\n{}",
+            String::from_utf8_lossy(&out.stderr)
+        );
     }
 }

@@ -109,8 +109,11 @@ pub(crate) unsafe fn slice_in<'a, T>(ptr: *const T, len: usize, what: &str) -> R
 /// Holding the raw pointer (instead of a `&mut [T]`) allows outputs to alias inputs
 /// that are no longer read when the outputs are written.
 pub(crate) struct OutArray<T> {
+    /// The caller's array (NULL allowed when `len` is 0).
     ptr: *mut T,
+    /// Number of values the caller's array holds.
     len: usize,
+    /// The argument's name, for messages.
     what: &'static str,
 }
 

@@ -30,6 +30,7 @@ pub(crate) fn clear() {
 }
 
 /// This thread's last error message, for Rust callers and tests.
+#[cfg(test)]
 pub(crate) fn get() -> String {
     LAST_ERROR
         .try_with(|cell| {

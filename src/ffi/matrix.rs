@@ -15,7 +15,7 @@ use std::ffi::c_void;
 /// is DS_STORAGE_UPPER, -1 DS_STORAGE_LOWER, 0 DS_STORAGE_FULL.
 ///
 /// Errors when a matrix is read: DS_STATUS_BAD_ARGUMENT (unknown format, index_type
-/// or storage), DS_STATUS_BAD_INDEX (base not 0 or 1, last pointer below base, index
+/// or storage, base not 0 or 1), DS_STATUS_BAD_INDEX (last pointer below base, index
 /// out of range, pointers not monotone), DS_STATUS_BAD_SIZE (negative nrows, ncols or
 /// COO nnz), DS_STATUS_NULL_POINTER (p, i or x NULL for a non-empty array),
 /// DS_STATUS_NOT_FINITE (NaN or infinity in x).
@@ -99,7 +99,7 @@ impl DsMatrix {
             1 => 1,
             b => {
                 return Err(Error::new(
-                    ErrorKind::BadIndex,
+                    ErrorKind::BadArgument,
                     format!("{what}: base = {b} is not 0 or 1"),
                 ));
             }
@@ -197,6 +197,7 @@ mod tests {
     fn header_errors() {
         let (p, i, x) = ([0i64, 1, 3], [0i64, 0, 1], [1.0, 2.0, 3.0]);
         let good = csc(&p, &i, &x, 0);
+        let zeros = [0i64; 3];
         let cases: Vec<(DsMatrix, ErrorKind, &str)> = vec![
             (
                 DsMatrix { format: 3, ..good },
@@ -218,7 +219,7 @@ mod tests {
             ),
             (
                 DsMatrix { base: 2, ..good },
-                ErrorKind::BadIndex,
+                ErrorKind::BadArgument,
                 "base = 2",
             ),
             (
@@ -247,9 +248,13 @@ mod tests {
                 "K.x",
             ),
             (
-                DsMatrix { base: 1, ..good },
+                DsMatrix {
+                    base: 1,
+                    p: zeros.as_ptr().cast(),
+                    ..good
+                },
                 ErrorKind::BadIndex,
-                "p[2] = 3",
+                "p[2] = 0 is below base 1",
             ),
         ];
         for (m, kind, text) in cases {
@@ -277,6 +282,7 @@ mod tests {
         // SAFETY: no array is read (nnz = 0).
         let v = unsafe { m.view("N") }.unwrap();
         assert_eq!((v.nrows, v.ncols, v.x.len()), (0, 5, 0));
+        // SAFETY: a negative nnz is rejected before any read.
         let e = unsafe { DsMatrix { nnz: -1, ..m }.view("N") }.unwrap_err();
         assert_eq!(e.kind, ErrorKind::BadSize);
         // SAFETY: nnz = 1 with NULL arrays is rejected before any read.

@@ -10,8 +10,8 @@ use std::panic::{AssertUnwindSafe, catch_unwind};
 /// Passing NULL instead of a DsOptions uses the defaults.
 ///
 /// Errors when read: DS_STATUS_BAD_ARGUMENT if struct_size is not sizeof(DsOptions),
-/// method is not a DsMethod, tol is negative or not finite, or max_outer or max_inner
-/// is negative.
+/// method is not a DsMethod, tol is not finite and positive, max_outer is negative
+/// or max_inner is not positive.
 #[repr(C)]
 #[derive(Copy, Clone, Debug, PartialEq)]
 pub struct DsOptions {
@@ -21,13 +21,13 @@ pub struct DsOptions {
     /// A DsMethod value (default DS_METHOD_SPLIT).
     pub method: i32,
     /// Stop when the relative error measure err (dimensionless, see DsReport) is at
-    /// most tol; >= 0 (default 1e-10).
+    /// most tol; > 0 (default 1e-10).
     pub tol: f64,
     /// Maximum number of outer iterations, >= 0 (default 10000): sweeps for PGS,
     /// normal/tangential alternations for SPLIT and BLOCK_GS.
     pub max_outer: i64,
     /// Maximum number of projected Gauss-Seidel sweeps per sub-problem of SPLIT and
-    /// BLOCK_GS, >= 0 (default 1000).
+    /// BLOCK_GS, >= 1 (default 1000).
     pub max_inner: i64,
 }
 
@@ -46,23 +46,27 @@ impl DsOptions {
     /// Validates the fields and converts to [`Options`].
     ///
     /// Errors: `BadArgument` (see [`DsOptions`]).
-    pub(crate) fn to_options(&self) -> Result<Options> {
+    pub(crate) fn to_options(self) -> Result<Options> {
         let bad = |msg: String| Error::new(ErrorKind::BadArgument, msg);
         let method = DsMethod::parse(self.method, "opts.method")?;
-        if !(self.tol.is_finite() && self.tol >= 0.0) {
+        if !(self.tol.is_finite() && self.tol > 0.0) {
             return Err(bad(format!(
-                "opts.tol = {} must be finite and >= 0",
+                "opts.tol = {} must be finite and positive",
                 self.tol
             )));
         }
-        let count = |v: i64, name: &str| {
-            usize::try_from(v).map_err(|_| bad(format!("opts.{name} = {v} is negative")))
+        let count = |v: i64, name: &str, min: i64| {
+            if v < min {
+                Err(bad(format!("opts.{name} = {v} must be at least {min}")))
+            } else {
+                usize::try_from(v).map_err(|_| bad(format!("opts.{name} = {v} is too large")))
+            }
         };
         Ok(Options {
             method: method.into(),
             tol: self.tol,
-            max_outer: count(self.max_outer, "max_outer")?,
-            max_inner: count(self.max_inner, "max_inner")?,
+            max_outer: count(self.max_outer, "max_outer", 0)?,
+            max_inner: count(self.max_inner, "max_inner", 1)?,
         })
     }
 
@@ -148,18 +152,15 @@ mod tests {
         assert_eq!(o.method, DsMethod::Split as i32);
         assert_eq!((o.tol, o.max_outer, o.max_inner), (1e-10, 10_000, 1_000));
         // SAFETY: o is a valid DsOptions.
-        assert_eq!(unsafe { DsOptions::read(&o) }.unwrap(), Options::default());
+        let read = unsafe { DsOptions::read(&o) };
+        assert_eq!(read.unwrap(), Options::default());
         // SAFETY: NULL means defaults.
-        assert_eq!(
-            unsafe { DsOptions::read(std::ptr::null()) }.unwrap(),
-            Options::default()
-        );
+        let read = unsafe { DsOptions::read(std::ptr::null()) };
+        assert_eq!(read.unwrap(), Options::default());
         let pgs = DsOptions { method: 2, ..o };
         // SAFETY: pgs is a valid DsOptions.
-        assert_eq!(
-            unsafe { DsOptions::read(&pgs) }.unwrap().method,
-            Method::Pgs
-        );
+        let read = unsafe { DsOptions::read(&pgs) };
+        assert_eq!(read.unwrap().method, Method::Pgs);
     }
 
     #[test]

@@ -20,6 +20,7 @@ use std::panic::{AssertUnwindSafe, catch_unwind};
 /// ds_problem_new, freed by ds_problem_free. A handle may be used from any thread,
 /// but by one thread at a time.
 pub struct DsProblem {
+    /// The safe Rust problem this handle owns.
     inner: ContactProblem,
 }
 

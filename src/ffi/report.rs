@@ -38,6 +38,7 @@ pub struct DsReport {
     pub solve_seconds: f64,
 }
 
+/// A count as int64_t (saturating, never reached in practice).
 fn count(v: usize) -> i64 {
     i64::try_from(v).unwrap_or(i64::MAX)
 }

@@ -17,8 +17,8 @@ pub enum DsStatus {
     /// A dimension or length is negative or inconsistent (e.g. N has a column count
     /// different from K's size, T does not have (d-1) m rows).
     BadSize = 2,
-    /// A sparse index is out of range, pointers are not monotone, an entry lies in the
-    /// wrong triangle, or `base` is not 0 or 1.
+    /// A sparse index is out of range, pointers do not start at the base or decrease,
+    /// or an entry of an UPPER or LOWER K lies in the wrong triangle.
     BadIndex = 3,
     /// A NaN or infinity in a matrix or vector input.
     NotFinite = 4,
@@ -34,9 +34,10 @@ pub enum DsStatus {
     NotConverged = 8,
     /// An allocation failed.
     OutOfMemory = 9,
-    /// An argument has an invalid value: unknown enum value, d not 2 or 3, options
-    /// with a wrong struct_size or out-of-range values, triangle storage for N or T,
-    /// a new K whose sparsity pattern differs from the factored one.
+    /// An argument has an invalid value: unknown enum value, d not 2 or 3, a matrix
+    /// base not 0 or 1, options with a wrong struct_size or out-of-range values,
+    /// triangle storage for N or T, a new K whose sparsity pattern differs from the
+    /// factored one, a misaligned pointer.
     BadArgument = 10,
     /// A file could not be read or written, or is malformed.
     IoError = 11,

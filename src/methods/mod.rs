@@ -1,6 +1,8 @@
 //! The iterative methods on the condensed dual
 //!
-//!     min 1/2 lambda^T A lambda - lambda^T b,  lambda_N >= 0,  |lambda_T,i| <= p_i,
+//! ```text
+//! min 1/2 lambda^T A lambda - lambda^T b,  lambda_N >= 0,  |lambda_T,i| <= p_i,
+//! ```
 //!
 //! all behind one entry point, [`run`], so that every method runs on the same data.
 //! Projections onto the friction sets and the small local problems live in

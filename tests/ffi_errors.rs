@@ -1,0 +1,1263 @@
+//! Every status of the C API, produced through the `extern "C"` entry points with raw
+//! pointers exactly as a C caller would pass them. After each error: the status is
+//! the expected one, `ds_last_error_message()` is non-empty and names the culprit,
+//! the output arrays still hold their sentinel, and the same handle then solves a
+//! valid problem.
+//!
+//! Not producible through the C API today (covered elsewhere or not reachable):
+//! - DS_STATUS_IO_ERROR: no entry point of the C API reads or writes files yet.
+//! - DS_STATUS_PANIC: no input makes the core panic on purpose; the boundary's
+//!   catch_unwind is unit-tested in src/ffi/boundary.rs (a panic inside an entry
+//!   point gives DS_STATUS_PANIC and a message, never an abort).
+//! - DS_STATUS_OUT_OF_MEMORY is produced here with absurd dimensions (the core
+//!   reports failed allocations of caller-sized arrays instead of aborting).
+
+use dualsplit::ffi::*;
+use std::ffi::CStr;
+use std::ptr::{null, null_mut};
+
+const SENTINEL: f64 = -777.25;
+
+/// The signature shared by ds_solve and ds_step.
+type SolveFn = unsafe extern "C" fn(
+    *mut DsProblem,
+    *const DsOptions,
+    i32,
+    *const f64,
+    *const f64,
+    *const f64,
+    *mut f64,
+    *mut f64,
+    *mut f64,
+    *mut DsReport,
+) -> DsStatus;
+
+// ---------------------------------------------------------------------------------
+// Matrices owned by the test, handed to the library as DsMatrix (CSC, int64, base 0
+// unless a test edits the fields).
+
+/// A CSC matrix with int64 indices, base 0.
+#[derive(Clone, Debug)]
+struct Owned {
+    nrows: i64,
+    ncols: i64,
+    p: Vec<i64>,
+    i: Vec<i64>,
+    x: Vec<f64>,
+}
+
+impl Owned {
+    /// From a dense row-major array: stores the entries where `keep(r, c, v)`.
+    fn from_dense(
+        nrows: usize,
+        ncols: usize,
+        a: &[f64],
+        keep: impl Fn(usize, usize, f64) -> bool,
+    ) -> Owned {
+        assert_eq!(a.len(), nrows * ncols);
+        let (mut p, mut i, mut x) = (vec![0i64], vec![], vec![]);
+        for c in 0..ncols {
+            for r in 0..nrows {
+                let v = a[r * ncols + c];
+                if keep(r, c, v) {
+                    i.push(r as i64);
+                    x.push(v);
+                }
+            }
+            p.push(i.len() as i64);
+        }
+        Owned {
+            nrows: nrows as i64,
+            ncols: ncols as i64,
+            p,
+            i,
+            x,
+        }
+    }
+
+    /// Every entry stored (a dense pattern).
+    fn dense(nrows: usize, ncols: usize, a: &[f64]) -> Owned {
+        Owned::from_dense(nrows, ncols, a, |_, _, _| true)
+    }
+
+    /// Only the nonzeros stored.
+    fn sparse(nrows: usize, ncols: usize, a: &[f64]) -> Owned {
+        Owned::from_dense(nrows, ncols, a, |_, _, v| v != 0.0)
+    }
+
+    fn ds(&self) -> DsMatrix {
+        DsMatrix {
+            format: DsFormat::Csc as i32,
+            index_type: DsIndexType::I64 as i32,
+            base: 0,
+            storage: DsStorage::Full as i32,
+            nrows: self.nrows,
+            ncols: self.ncols,
+            nnz: 0,
+            p: self.p.as_ptr().cast(),
+            i: self.i.as_ptr().cast(),
+            x: self.x.as_ptr(),
+        }
+    }
+}
+
+// ---------------------------------------------------------------------------------
+// The small problem: two 2D nodes (DOFs x0, y0, x1, y1), a dense 4 x 4 SPD K with
+// coupling, two contacts with normal -e_y (N u = -u_y <= g) and tangent e_x.
+
+const N_DOFS: usize = 4;
+const M: usize = 2;
+
+/// K = 3 I + ones(4): SPD (eigenvalues 3, 3, 3, 7), every entry stored.
+fn k_values(diag: f64, off: f64) -> Vec<f64> {
+    (0..16)
+        .map(|e| if e / 4 == e % 4 { diag } else { off })
+        .collect()
+}
+
+fn k_good() -> Owned {
+    Owned::dense(4, 4, &k_values(4.0, 1.0))
+}
+
+fn n_good() -> Owned {
+    #[rustfmt::skip]
+    let a = [0.0, -1.0, 0.0, 0.0,
+             0.0, 0.0, 0.0, -1.0];
+    Owned::sparse(2, 4, &a)
+}
+
+fn t_good() -> Owned {
+    #[rustfmt::skip]
+    let a = [1.0, 0.0, 0.0, 0.0,
+             0.0, 0.0, 1.0, 0.0];
+    Owned::sparse(2, 4, &a)
+}
+
+/// Loads that push both nodes onto the foundation and sideways.
+const F: [f64; N_DOFS] = [0.2, -1.0, -0.3, -1.0];
+const G: [f64; M] = [0.0, 0.0];
+const P: [f64; M] = [0.1, 0.5];
+const MU: [f64; M] = [0.3, 0.3];
+
+/// Caller-owned outputs, filled with a sentinel.
+struct Outputs {
+    u: Vec<f64>,
+    lambda_n: Vec<f64>,
+    lambda_t: Vec<f64>,
+    report: DsReport,
+}
+
+fn sentinel_report() -> DsReport {
+    DsReport {
+        status: -99,
+        method: -99,
+        err: SENTINEL,
+        equilibrium_residual: SENTINEL,
+        outer_iterations: -99,
+        inner_iterations: -99,
+        n_open: -99,
+        n_stick: -99,
+        n_slip: -99,
+        factor_seconds: SENTINEL,
+        condense_seconds: SENTINEL,
+        solve_seconds: SENTINEL,
+    }
+}
+
+impl Outputs {
+    fn new(n: usize, m: usize, d: usize) -> Outputs {
+        Outputs {
+            u: vec![SENTINEL; n],
+            lambda_n: vec![SENTINEL; m],
+            lambda_t: vec![SENTINEL; (d - 1) * m],
+            report: sentinel_report(),
+        }
+    }
+
+    fn small() -> Outputs {
+        Outputs::new(N_DOFS, M, 2)
+    }
+
+    fn assert_untouched(&self, context: &str) {
+        let all = self.u.iter().chain(&self.lambda_n).chain(&self.lambda_t);
+        assert!(
+            all.into_iter().all(|&v| v == SENTINEL),
+            "{context}: an output array was written on error"
+        );
+        assert_eq!(
+            self.report,
+            sentinel_report(),
+            "{context}: report written on error"
+        );
+    }
+}
+
+/// The last error message of this thread.
+fn last_message() -> String {
+    let p = ds_last_error_message();
+    assert!(!p.is_null(), "ds_last_error_message returned NULL");
+    // SAFETY: non-NULL, NUL-terminated, valid until the next ds_ call on this thread.
+    unsafe { CStr::from_ptr(p) }.to_string_lossy().into_owned()
+}
+
+/// Whether `word` occurs in `msg` as a whole token (so "f" does not match "of").
+fn mentions(msg: &str, word: &str) -> bool {
+    let is_word = |c: char| c.is_alphanumeric() || c == '_';
+    msg.match_indices(word).any(|(at, _)| {
+        let before = msg[..at].chars().next_back();
+        let after = msg[at + word.len()..].chars().next();
+        !before.is_some_and(is_word) && !after.is_some_and(is_word)
+    })
+}
+
+/// Asserts an error status, a non-empty message that mentions every word of
+/// `culprits` (case-insensitive for words of more than one letter).
+#[track_caller]
+fn expect_error(status: DsStatus, expected: DsStatus, culprits: &[&str]) -> String {
+    let msg = last_message();
+    eprintln!("{expected:?}: {msg}");
+    assert_eq!(status, expected, "message: {msg}");
+    assert!(!msg.is_empty(), "no message for {expected:?}");
+    for word in culprits {
+        let found = if word.len() > 1 {
+            mentions(&msg.to_lowercase(), &word.to_lowercase())
+        } else {
+            mentions(&msg, word)
+        };
+        assert!(
+            found,
+            "message for {expected:?} does not mention `{word}`: {msg}"
+        );
+    }
+    msg
+}
+
+#[track_caller]
+fn expect_ok(status: DsStatus) {
+    let msg = last_message();
+    assert_eq!(status, DsStatus::Ok, "message: {msg}");
+    assert_eq!(msg, "", "a successful call leaves no message");
+}
+
+/// Creates the small problem.
+fn new_problem() -> *mut DsProblem {
+    let (k, n, t) = (k_good(), n_good(), t_good());
+    let mut out: *mut DsProblem = null_mut();
+    // SAFETY: the matrices live until the call returns; out is a valid location.
+    let s = unsafe { ds_problem_new(2, &k.ds(), &n.ds(), &t.ds(), &mut out) };
+    expect_ok(s);
+    assert!(!out.is_null());
+    out
+}
+
+/// ds_solve on caller arrays, Tresca by default.
+#[allow(clippy::too_many_arguments)]
+fn solve_raw(
+    problem: *mut DsProblem,
+    opts: *const DsOptions,
+    friction: i32,
+    f: *const f64,
+    g: *const f64,
+    bound: *const f64,
+    out: &mut Outputs,
+) -> DsStatus {
+    // SAFETY: every array is NULL or as long as the problem needs (the tests pass
+    // the small problem's sizes); report points to a DsReport.
+    unsafe {
+        ds_solve(
+            problem,
+            opts,
+            friction,
+            f,
+            g,
+            bound,
+            out.u.as_mut_ptr(),
+            out.lambda_n.as_mut_ptr(),
+            out.lambda_t.as_mut_ptr(),
+            &mut out.report,
+        )
+    }
+}
+
+fn solve_small(
+    problem: *mut DsProblem,
+    f: &[f64],
+    g: &[f64],
+    p: &[f64],
+    out: &mut Outputs,
+) -> DsStatus {
+    solve_raw(
+        problem,
+        null(),
+        DsFriction::Tresca as i32,
+        f.as_ptr(),
+        g.as_ptr(),
+        p.as_ptr(),
+        out,
+    )
+}
+
+/// Solves the valid small problem on `problem` and checks the answer: OK, the report
+/// written, Signorini and the friction bound satisfied.
+#[track_caller]
+fn assert_usable(problem: *mut DsProblem) -> Outputs {
+    let mut out = Outputs::small();
+    let s = solve_small(problem, &F, &G, &P, &mut out);
+    expect_ok(s);
+    assert_eq!(out.report.status, DsStatus::Ok as i32);
+    assert!(out.report.err <= 1e-10, "err = {}", out.report.err);
+    assert!(out.report.equilibrium_residual <= 1e-10);
+    for i in 0..M {
+        let nu = -out.u[2 * i + 1];
+        assert!(nu <= G[i] + 1e-9, "penetration at contact {i}");
+        assert!(out.lambda_n[i] >= 0.0);
+        assert!(out.lambda_t[i].abs() <= P[i] * (1.0 + 1e-9));
+    }
+    assert!(
+        out.lambda_n.iter().all(|&l| l > 0.0),
+        "both contacts are closed"
+    );
+    out
+}
+
+fn free(problem: *mut DsProblem) {
+    // SAFETY: problem came from ds_problem_new and is freed once.
+    unsafe { ds_problem_free(problem) };
+}
+
+fn options() -> DsOptions {
+    let mut o = DsOptions {
+        struct_size: 0,
+        method: 0,
+        tol: 0.0,
+        max_outer: 0,
+        max_inner: 0,
+    };
+    // SAFETY: o is a writable DsOptions.
+    unsafe { ds_options_default(&mut o) };
+    o
+}
+
+// ---------------------------------------------------------------------------------
+
+#[test]
+fn small_problem_solves_and_reports() {
+    let h = new_problem();
+    let (mut nd, mut nc, mut d) = (-1i64, -1i64, -1i32);
+    // SAFETY: h is live; the outputs are valid locations.
+    expect_ok(unsafe { ds_problem_sizes(h, &mut nd, &mut nc, &mut d) });
+    assert_eq!((nd, nc, d), (4, 2, 2));
+    let a = assert_usable(h);
+    // opts NULL and report NULL are accepted.
+    let mut b = Outputs::small();
+    // SAFETY: arrays sized for the problem; report NULL is allowed.
+    let s = unsafe {
+        ds_solve(
+            h,
+            null(),
+            DsFriction::Tresca as i32,
+            F.as_ptr(),
+            G.as_ptr(),
+            P.as_ptr(),
+            b.u.as_mut_ptr(),
+            b.lambda_n.as_mut_ptr(),
+            b.lambda_t.as_mut_ptr(),
+            null_mut(),
+        )
+    };
+    expect_ok(s);
+    assert_eq!(
+        (&a.u, &a.lambda_n, &a.lambda_t),
+        (&b.u, &b.lambda_n, &b.lambda_t)
+    );
+    assert_eq!(b.report, sentinel_report());
+    // ds_step from a reset history equals ds_solve (u_0 = 0).
+    // SAFETY: h is live.
+    expect_ok(unsafe { ds_history_reset(h) });
+    let mut c = Outputs::small();
+    let o = options();
+    // SAFETY: arrays sized for the problem.
+    let s = unsafe {
+        ds_step(
+            h,
+            &o,
+            DsFriction::Tresca as i32,
+            F.as_ptr(),
+            G.as_ptr(),
+            P.as_ptr(),
+            c.u.as_mut_ptr(),
+            c.lambda_n.as_mut_ptr(),
+            c.lambda_t.as_mut_ptr(),
+            &mut c.report,
+        )
+    };
+    expect_ok(s);
+    for (x, y) in a.u.iter().zip(&c.u) {
+        assert!((x - y).abs() <= 1e-12 * (1.0 + x.abs()), "{x} vs {y}");
+    }
+    free(h);
+    free(null_mut());
+}
+
+#[test]
+fn null_pointer_ds_problem_new() {
+    let (k, n, t) = (k_good(), n_good(), t_good());
+    let (kd, nd, td) = (k.ds(), n.ds(), t.ds());
+    let mut out: *mut DsProblem = null_mut();
+    // SAFETY: (every call below) the matrices outlive the call; NULL is what is tested.
+    unsafe {
+        expect_error(
+            ds_problem_new(2, null(), &nd, &td, &mut out),
+            DsStatus::NullPointer,
+            &["k"],
+        );
+        expect_error(
+            ds_problem_new(2, &kd, null(), &td, &mut out),
+            DsStatus::NullPointer,
+            &["n"],
+        );
+        expect_error(
+            ds_problem_new(2, &kd, &nd, null(), &mut out),
+            DsStatus::NullPointer,
+            &["t"],
+        );
+        expect_error(
+            ds_problem_new(2, &kd, &nd, &td, null_mut()),
+            DsStatus::NullPointer,
+            &["out"],
+        );
+        // Pointers inside the matrices.
+        for (which, culprit) in [
+            ("K.p", "K.p"),
+            ("K.i", "K.i"),
+            ("K.x", "K.x"),
+            ("N.p", "N.p"),
+            ("N.i", "N.i"),
+            ("N.x", "N.x"),
+            ("T.p", "T.p"),
+            ("T.i", "T.i"),
+            ("T.x", "T.x"),
+        ] {
+            let (mut k2, mut n2, mut t2) = (kd, nd, td);
+            let m = match &which[..1] {
+                "K" => &mut k2,
+                "N" => &mut n2,
+                _ => &mut t2,
+            };
+            match &which[2..] {
+                "p" => m.p = null(),
+                "i" => m.i = null(),
+                _ => m.x = null(),
+            }
+            let s = ds_problem_new(2, &k2, &n2, &t2, &mut out);
+            expect_error(s, DsStatus::NullPointer, &[culprit]);
+        }
+    }
+    assert!(out.is_null(), "out written on error");
+    // A problem without contacts: N and T with no rows, every array NULL.
+    let empty = DsMatrix {
+        format: DsFormat::Coo as i32,
+        index_type: DsIndexType::I32 as i32,
+        base: 0,
+        storage: DsStorage::Full as i32,
+        nrows: 0,
+        ncols: 4,
+        nnz: 0,
+        p: null(),
+        i: null(),
+        x: null(),
+    };
+    // SAFETY: no array of the empty matrices is read.
+    expect_ok(unsafe { ds_problem_new(2, &kd, &empty, &empty, &mut out) });
+    let mut u = vec![SENTINEL; 4];
+    let mut report = sentinel_report();
+    // SAFETY: m = 0, so g, bound, lambda_n, lambda_t may be NULL; f and u hold 4 values.
+    let s = unsafe {
+        ds_solve(
+            out,
+            null(),
+            DsFriction::Coulomb as i32,
+            F.as_ptr(),
+            null(),
+            null(),
+            u.as_mut_ptr(),
+            null_mut(),
+            null_mut(),
+            &mut report,
+        )
+    };
+    expect_ok(s);
+    // u = K^-1 f.
+    let kf: Vec<f64> = (0..4)
+        .map(|r| (0..4).map(|c| k_values(4.0, 1.0)[r * 4 + c] * u[c]).sum())
+        .collect();
+    for (a, b) in kf.iter().zip(F) {
+        assert!((a - b).abs() < 1e-12);
+    }
+    free(out);
+    // The handle-free failures leave nothing behind; a fresh handle works.
+    let h = new_problem();
+    assert_usable(h);
+    free(h);
+}
+
+#[test]
+fn null_pointer_handle_functions() {
+    let h = new_problem();
+    let (k, n, t) = (k_good(), n_good(), t_good());
+    let (kd, nd, td) = (k.ds(), n.ds(), t.ds());
+    // SAFETY: (every call below) valid or NULL pointers; NULL is what is tested.
+    unsafe {
+        expect_error(
+            ds_problem_refactor(null_mut(), &kd),
+            DsStatus::NullPointer,
+            &["problem"],
+        );
+        expect_error(
+            ds_problem_refactor(h, null()),
+            DsStatus::NullPointer,
+            &["k"],
+        );
+        assert_usable(h);
+        expect_error(
+            ds_problem_set_contacts(null_mut(), &nd, &td),
+            DsStatus::NullPointer,
+            &["problem"],
+        );
+        expect_error(
+            ds_problem_set_contacts(h, null(), &td),
+            DsStatus::NullPointer,
+            &["n"],
+        );
+        expect_error(
+            ds_problem_set_contacts(h, &nd, null()),
+            DsStatus::NullPointer,
+            &["t"],
+        );
+        assert_usable(h);
+        let (mut a, mut b, mut c) = (-5i64, -5i64, -5i32);
+        expect_error(
+            ds_problem_sizes(null(), &mut a, &mut b, &mut c),
+            DsStatus::NullPointer,
+            &["problem"],
+        );
+        expect_error(
+            ds_problem_sizes(h, null_mut(), &mut b, &mut c),
+            DsStatus::NullPointer,
+            &["n_dofs"],
+        );
+        expect_error(
+            ds_problem_sizes(h, &mut a, null_mut(), &mut c),
+            DsStatus::NullPointer,
+            &["n_contacts"],
+        );
+        expect_error(
+            ds_problem_sizes(h, &mut a, &mut b, null_mut()),
+            DsStatus::NullPointer,
+            &["d"],
+        );
+        assert_eq!((a, b, c), (-5, -5, -5), "sizes written on error");
+        expect_error(
+            ds_history_reset(null_mut()),
+            DsStatus::NullPointer,
+            &["problem"],
+        );
+    }
+    // ds_solve and ds_step: each pointer argument NULL in turn.
+    for step in [false, true] {
+        let names = if step {
+            [
+                "problem", "f_total", "g0", "bound", "u", "lambda_n", "lambda_t",
+            ]
+        } else {
+            ["problem", "f", "g", "bound", "u", "lambda_n", "lambda_t"]
+        };
+        for (which, culprit) in names.iter().enumerate() {
+            let mut out = Outputs::small();
+            let nul = |j: usize, p: *const f64| if j == which { null() } else { p };
+            let nul_mut = |j: usize, p: *mut f64| if j == which { null_mut() } else { p };
+            let problem = if which == 0 { null_mut() } else { h };
+            let entry: SolveFn = if step { ds_step } else { ds_solve };
+            // SAFETY: arrays sized for the problem, one of them NULL.
+            let s = unsafe {
+                entry(
+                    problem,
+                    null(),
+                    DsFriction::Tresca as i32,
+                    nul(1, F.as_ptr()),
+                    nul(2, G.as_ptr()),
+                    nul(3, P.as_ptr()),
+                    nul_mut(4, out.u.as_mut_ptr()),
+                    nul_mut(5, out.lambda_n.as_mut_ptr()),
+                    nul_mut(6, out.lambda_t.as_mut_ptr()),
+                    &mut out.report,
+                )
+            };
+            expect_error(s, DsStatus::NullPointer, &[culprit]);
+            out.assert_untouched(culprit);
+            assert_usable(h);
+        }
+    }
+    free(h);
+}
+
+#[test]
+fn bad_size() {
+    let h = new_problem();
+    let (k, n, t) = (k_good(), n_good(), t_good());
+    let mut out: *mut DsProblem = null_mut();
+    // Negative dimensions, caught at the boundary.
+    for field in ["nrows", "ncols"] {
+        let mut kd = k.ds();
+        if field == "nrows" {
+            kd.nrows = -4;
+        } else {
+            kd.ncols = -1;
+        }
+        // SAFETY: valid matrices apart from the tested field.
+        let s = unsafe { ds_problem_new(2, &kd, &n.ds(), &t.ds(), &mut out) };
+        expect_error(s, DsStatus::BadSize, &["K", field]);
+        // SAFETY: h is live.
+        let s = unsafe { ds_problem_refactor(h, &kd) };
+        expect_error(s, DsStatus::BadSize, &["K", field]);
+        assert_usable(h);
+    }
+    // COO with a negative nnz.
+    let coo = DsMatrix {
+        format: DsFormat::Coo as i32,
+        nnz: -3,
+        ..n.ds()
+    };
+    // SAFETY: rejected before any array is read.
+    let s = unsafe { ds_problem_set_contacts(h, &coo, &t.ds()) };
+    expect_error(s, DsStatus::BadSize, &["N", "nnz"]);
+    assert_usable(h);
+    // K not square.
+    let k45 = Owned::dense(4, 5, &[1.0; 20]);
+    // SAFETY: valid matrices.
+    let s = unsafe { ds_problem_new(2, &k45.ds(), &n.ds(), &t.ds(), &mut out) };
+    expect_error(s, DsStatus::BadSize, &["K"]);
+    // SAFETY: valid matrix.
+    let s = unsafe { ds_problem_refactor(h, &k45.ds()) };
+    expect_error(s, DsStatus::BadSize, &["K"]);
+    assert_usable(h);
+    // N with 3 columns for 4 DOFs; T with 1 row for 2 contacts.
+    let n3 = Owned::sparse(2, 3, &[0.0, -1.0, 0.0, 0.0, 0.0, -1.0]);
+    let t1 = Owned::sparse(1, 4, &[1.0, 0.0, 0.0, 0.0]);
+    // SAFETY: valid matrices.
+    unsafe {
+        expect_error(
+            ds_problem_set_contacts(h, &n3.ds(), &t.ds()),
+            DsStatus::BadSize,
+            &["N"],
+        );
+        expect_error(
+            ds_problem_set_contacts(h, &n.ds(), &t1.ds()),
+            DsStatus::BadSize,
+            &["T"],
+        );
+        expect_error(
+            ds_problem_new(2, &k.ds(), &n3.ds(), &t.ds(), &mut out),
+            DsStatus::BadSize,
+            &["N"],
+        );
+        expect_error(
+            ds_problem_new(3, &k.ds(), &n.ds(), &t.ds(), &mut out),
+            DsStatus::BadSize,
+            &["T"],
+        );
+    }
+    assert!(out.is_null());
+    assert_usable(h);
+    free(h);
+}
+
+#[test]
+fn bad_index() {
+    let h = new_problem();
+    let (k, n, t) = (k_good(), n_good(), t_good());
+    let mut out: *mut DsProblem = null_mut();
+    // A row index of N beyond its 2 rows.
+    let mut n_bad = n.clone();
+    n_bad.i[1] = 2;
+    // SAFETY: valid arrays; the index value is what is tested.
+    let s = unsafe { ds_problem_set_contacts(h, &n_bad.ds(), &t.ds()) };
+    expect_error(s, DsStatus::BadIndex, &["N"]);
+    assert_usable(h);
+    // A negative row index in T.
+    let mut t_bad = t.clone();
+    t_bad.i[0] = -1;
+    // SAFETY: as above.
+    let s = unsafe { ds_problem_set_contacts(h, &n.ds(), &t_bad.ds()) };
+    expect_error(s, DsStatus::BadIndex, &["T"]);
+    assert_usable(h);
+    // Decreasing column pointers of K (p[last] still = nnz).
+    let mut k_bad = k.clone();
+    k_bad.p[2] = 1;
+    // SAFETY: as above.
+    let s = unsafe { ds_problem_refactor(h, &k_bad.ds()) };
+    expect_error(s, DsStatus::BadIndex, &["K"]);
+    // SAFETY: as above.
+    let s = unsafe { ds_problem_new(2, &k_bad.ds(), &n.ds(), &t.ds(), &mut out) };
+    expect_error(s, DsStatus::BadIndex, &["K"]);
+    assert_usable(h);
+    // Last pointer below the base: p[ncols] - base < 0, caught at the boundary.
+    let mut k_neg = k.clone();
+    k_neg.p[4] = -2;
+    // SAFETY: rejected before i and x are read.
+    let s = unsafe { ds_problem_refactor(h, &k_neg.ds()) };
+    expect_error(s, DsStatus::BadIndex, &["K"]);
+    assert_usable(h);
+    // K declared UPPER but holding entries below the diagonal.
+    let upper = DsMatrix {
+        storage: DsStorage::Upper as i32,
+        ..k.ds()
+    };
+    // SAFETY: valid arrays.
+    let s = unsafe { ds_problem_new(2, &upper, &n.ds(), &t.ds(), &mut out) };
+    expect_error(s, DsStatus::BadIndex, &["K"]);
+    assert!(out.is_null());
+    assert_usable(h);
+    free(h);
+}
+
+#[test]
+fn not_finite() {
+    let h = new_problem();
+    let (k, n, t) = (k_good(), n_good(), t_good());
+    let mut out: *mut DsProblem = null_mut();
+    // In K, at creation and at refactorisation (same pattern).
+    let mut k_nan = k.clone();
+    k_nan.x[5] = f64::NAN;
+    // SAFETY: valid arrays.
+    unsafe {
+        expect_error(
+            ds_problem_new(2, &k_nan.ds(), &n.ds(), &t.ds(), &mut out),
+            DsStatus::NotFinite,
+            &["K"],
+        );
+        expect_error(
+            ds_problem_refactor(h, &k_nan.ds()),
+            DsStatus::NotFinite,
+            &["K"],
+        );
+    }
+    assert!(out.is_null());
+    let before = assert_usable(h);
+    // In N.
+    let mut n_inf = n.clone();
+    n_inf.x[0] = f64::INFINITY;
+    // SAFETY: valid arrays.
+    let s = unsafe { ds_problem_set_contacts(h, &n_inf.ds(), &t.ds()) };
+    expect_error(s, DsStatus::NotFinite, &["N"]);
+    let after = assert_usable(h);
+    assert_eq!(before.u, after.u, "a failed call changed the handle");
+    // In f, g and p.
+    let mut out = Outputs::small();
+    let mut f = F;
+    f[2] = f64::NAN;
+    expect_error(
+        solve_small(h, &f, &G, &P, &mut out),
+        DsStatus::NotFinite,
+        &["f"],
+    );
+    out.assert_untouched("NaN in f");
+    let mut g = G;
+    g[1] = f64::NEG_INFINITY;
+    expect_error(
+        solve_small(h, &F, &g, &P, &mut out),
+        DsStatus::NotFinite,
+        &["g"],
+    );
+    out.assert_untouched("-inf in g");
+    let mut p = P;
+    p[0] = f64::NAN;
+    expect_error(
+        solve_small(h, &F, &G, &p, &mut out),
+        DsStatus::NotFinite,
+        &["p"],
+    );
+    out.assert_untouched("NaN in p");
+    // ds_step names its own arguments.
+    // SAFETY: arrays sized for the problem.
+    let s = unsafe {
+        ds_step(
+            h,
+            null(),
+            DsFriction::Tresca as i32,
+            f.as_ptr(),
+            G.as_ptr(),
+            P.as_ptr(),
+            out.u.as_mut_ptr(),
+            out.lambda_n.as_mut_ptr(),
+            out.lambda_t.as_mut_ptr(),
+            &mut out.report,
+        )
+    };
+    expect_error(s, DsStatus::NotFinite, &["f_total"]);
+    out.assert_untouched("NaN in f_total");
+    let after = assert_usable(h);
+    assert_eq!(before.u, after.u);
+    free(h);
+}
+
+#[test]
+fn not_symmetric() {
+    let h = new_problem();
+    let (k, n, t) = (k_good(), n_good(), t_good());
+    let mut out: *mut DsProblem = null_mut();
+    // K(0,1) = 1 but K(1,0) = 1.5 (column 0 holds row 1 at position 1).
+    let mut k_bad = k.clone();
+    k_bad.x[1] = 1.5;
+    // SAFETY: valid arrays.
+    unsafe {
+        expect_error(
+            ds_problem_new(2, &k_bad.ds(), &n.ds(), &t.ds(), &mut out),
+            DsStatus::NotSymmetric,
+            &["K"],
+        );
+        expect_error(
+            ds_problem_refactor(h, &k_bad.ds()),
+            DsStatus::NotSymmetric,
+            &["K"],
+        );
+    }
+    assert!(out.is_null());
+    assert_usable(h);
+    free(h);
+}
+
+#[test]
+fn not_positive_definite() {
+    let h = new_problem();
+    let before = assert_usable(h);
+    let (n, t) = (n_good(), t_good());
+    let mut out: *mut DsProblem = null_mut();
+    // Indefinite: I + 2 (ones - I), eigenvalues 7 and -1 (three times).
+    // Singular: ones(4), rank 1; every Cholesky order meets an exact 0 pivot.
+    for (what, k_bad) in [
+        ("indefinite", Owned::dense(4, 4, &k_values(1.0, 2.0))),
+        ("singular", Owned::dense(4, 4, &k_values(1.0, 1.0))),
+        (
+            "negative definite",
+            Owned::dense(4, 4, &k_values(-4.0, -1.0)),
+        ),
+    ] {
+        // SAFETY: valid arrays.
+        unsafe {
+            let s = ds_problem_new(2, &k_bad.ds(), &n.ds(), &t.ds(), &mut out);
+            expect_error(s, DsStatus::NotPositiveDefinite, &["K"]);
+            assert!(out.is_null(), "{what}");
+            let s = ds_problem_refactor(h, &k_bad.ds());
+            expect_error(s, DsStatus::NotPositiveDefinite, &["K"]);
+        }
+        // The old factor is kept: the same answer, bit for bit.
+        let after = assert_usable(h);
+        assert_eq!(
+            before.u, after.u,
+            "{what}: refactor failure changed the handle"
+        );
+        assert_eq!(before.lambda_n, after.lambda_n);
+        assert_eq!(before.lambda_t, after.lambda_t);
+    }
+    // A successful refactorisation with the same pattern still works afterwards.
+    let k2 = Owned::dense(4, 4, &k_values(8.0, 2.0));
+    // SAFETY: valid arrays.
+    expect_ok(unsafe { ds_problem_refactor(h, &k2.ds()) });
+    // SAFETY: valid arrays.
+    expect_ok(unsafe { ds_problem_refactor(h, &k_good().ds()) });
+    assert_usable(h);
+    free(h);
+}
+
+#[test]
+fn negative_friction() {
+    let h = new_problem();
+    let mut out = Outputs::small();
+    let p = [0.1, -0.5];
+    expect_error(
+        solve_small(h, &F, &G, &p, &mut out),
+        DsStatus::NegativeFriction,
+        &["p"],
+    );
+    out.assert_untouched("negative p");
+    let mu = [-0.3, 0.3];
+    let s = solve_raw(
+        h,
+        null(),
+        DsFriction::Coulomb as i32,
+        F.as_ptr(),
+        G.as_ptr(),
+        mu.as_ptr(),
+        &mut out,
+    );
+    expect_error(s, DsStatus::NegativeFriction, &["mu"]);
+    out.assert_untouched("negative mu");
+    // Coulomb with valid mu works on the same handle.
+    let s = solve_raw(
+        h,
+        null(),
+        DsFriction::Coulomb as i32,
+        F.as_ptr(),
+        G.as_ptr(),
+        MU.as_ptr(),
+        &mut out,
+    );
+    expect_ok(s);
+    for ((lt, ln), mu) in out.lambda_t.iter().zip(&out.lambda_n).zip(MU) {
+        assert!(lt.abs() <= mu * ln * (1.0 + 1e-8) + 1e-14);
+    }
+    assert_usable(h);
+    free(h);
+}
+
+#[test]
+fn bad_argument() {
+    let h = new_problem();
+    let (k, n, t) = (k_good(), n_good(), t_good());
+    let (kd, nd, td) = (k.ds(), n.ds(), t.ds());
+    let mut out: *mut DsProblem = null_mut();
+    // d not 2 or 3.
+    for d in [4, 1, 0, -2] {
+        // SAFETY: valid matrices.
+        let s = unsafe { ds_problem_new(d, &kd, &nd, &td, &mut out) };
+        expect_error(s, DsStatus::BadArgument, &["d"]);
+    }
+    // Enum fields of a matrix, and the base.
+    for (field, edit) in [
+        (
+            "format",
+            (|m: &mut DsMatrix| m.format = 9) as fn(&mut DsMatrix),
+        ),
+        ("format", |m| m.format = -1),
+        ("index_type", |m| m.index_type = 2),
+        ("storage", |m| m.storage = 3),
+        ("base", |m| m.base = 2),
+    ] {
+        let mut k2 = kd;
+        edit(&mut k2);
+        // SAFETY: rejected before any array is read.
+        let s = unsafe { ds_problem_new(2, &k2, &nd, &td, &mut out) };
+        expect_error(s, DsStatus::BadArgument, &["K", field]);
+        // SAFETY: as above.
+        let s = unsafe { ds_problem_refactor(h, &k2) };
+        expect_error(s, DsStatus::BadArgument, &["K", field]);
+        let mut n2 = nd;
+        edit(&mut n2);
+        // SAFETY: as above.
+        let s = unsafe { ds_problem_set_contacts(h, &n2, &td) };
+        expect_error(s, DsStatus::BadArgument, &["N", field]);
+        assert_usable(h);
+    }
+    // Triangle storage for N.
+    let n_upper = DsMatrix {
+        storage: DsStorage::Upper as i32,
+        ..nd
+    };
+    // SAFETY: valid arrays.
+    let s = unsafe { ds_problem_set_contacts(h, &n_upper, &td) };
+    expect_error(s, DsStatus::BadArgument, &["N"]);
+    // A K whose pattern differs from the factored one.
+    let k_diag = Owned::sparse(4, 4, &k_values(4.0, 0.0));
+    // SAFETY: valid arrays.
+    let s = unsafe { ds_problem_refactor(h, &k_diag.ds()) };
+    expect_error(s, DsStatus::BadArgument, &["K", "pattern"]);
+    assert_usable(h);
+    assert!(out.is_null());
+    // Friction enum.
+    let mut o = Outputs::small();
+    for friction in [2, -1, 1000] {
+        let s = solve_raw(
+            h,
+            null(),
+            friction,
+            F.as_ptr(),
+            G.as_ptr(),
+            P.as_ptr(),
+            &mut o,
+        );
+        expect_error(s, DsStatus::BadArgument, &["friction"]);
+        o.assert_untouched("bad friction");
+    }
+    // Options: struct_size, method, tol, iteration limits.
+    let good = options();
+    for (field, opts) in [
+        (
+            "struct_size",
+            DsOptions {
+                struct_size: good.struct_size - 8,
+                ..good
+            },
+        ),
+        (
+            "struct_size",
+            DsOptions {
+                struct_size: 0,
+                ..good
+            },
+        ),
+        ("method", DsOptions { method: 3, ..good }),
+        ("method", DsOptions { method: -1, ..good }),
+        ("tol", DsOptions { tol: -1e-8, ..good }),
+        (
+            "tol",
+            DsOptions {
+                tol: f64::NAN,
+                ..good
+            },
+        ),
+        ("tol", DsOptions { tol: 0.0, ..good }),
+        (
+            "max_outer",
+            DsOptions {
+                max_outer: -1,
+                ..good
+            },
+        ),
+        (
+            "max_inner",
+            DsOptions {
+                max_inner: 0,
+                ..good
+            },
+        ),
+    ] {
+        let s = solve_raw(
+            h,
+            &opts,
+            DsFriction::Tresca as i32,
+            F.as_ptr(),
+            G.as_ptr(),
+            P.as_ptr(),
+            &mut o,
+        );
+        expect_error(s, DsStatus::BadArgument, &[field]);
+        o.assert_untouched(field);
+        assert_usable(h);
+    }
+    // Every method with valid options works on the same handle.
+    for method in [DsMethod::Split, DsMethod::BlockGs, DsMethod::Pgs] {
+        let opts = DsOptions {
+            method: method as i32,
+            ..good
+        };
+        let mut o = Outputs::small();
+        let s = solve_raw(
+            h,
+            &opts,
+            DsFriction::Tresca as i32,
+            F.as_ptr(),
+            G.as_ptr(),
+            P.as_ptr(),
+            &mut o,
+        );
+        expect_ok(s);
+        assert_eq!(o.report.method, method as i32);
+    }
+    free(h);
+}
+
+#[test]
+fn out_of_memory() {
+    let h = new_problem();
+    let (n, t) = (n_good(), t_good());
+    let mut out: *mut DsProblem = null_mut();
+    // An empty K with absurd dimensions: its column pointers cannot be allocated.
+    let huge = DsMatrix {
+        format: DsFormat::Coo as i32,
+        index_type: DsIndexType::I64 as i32,
+        base: 0,
+        storage: DsStorage::Full as i32,
+        nrows: i64::MAX / 2,
+        ncols: i64::MAX / 2,
+        nnz: 0,
+        p: null(),
+        i: null(),
+        x: null(),
+    };
+    // SAFETY: nnz = 0, so no array is read.
+    let s = unsafe { ds_problem_new(2, &huge, &n.ds(), &t.ds(), &mut out) };
+    expect_error(s, DsStatus::OutOfMemory, &[]);
+    assert!(out.is_null());
+    // SAFETY: as above.
+    let s = unsafe { ds_problem_refactor(h, &huge) };
+    let msg = last_message();
+    assert!(
+        s == DsStatus::OutOfMemory || s == DsStatus::BadArgument,
+        "{s:?}: {msg}"
+    );
+    assert_usable(h);
+    free(h);
+}
+
+// ---------------------------------------------------------------------------------
+// DS_STATUS_NOT_CONVERGED on a problem with several closed contacts.
+
+/// A 2D chain of 6 nodes on the foundation (see tests/ffi_formats.rs): inclined
+/// ground springs and bars couple x and y; every node is a contact.
+fn chain() -> (Owned, Owned, Owned, Vec<f64>, Vec<f64>, Vec<f64>) {
+    let nodes = 6;
+    let ndof = 2 * nodes;
+    let mut k = vec![0.0; ndof * ndof];
+    let mut add = |dofs: &[usize], c: &[f64], stiffness: f64, sign: &[f64]| {
+        for (a, &ra) in dofs.iter().enumerate() {
+            for (b, &rb) in dofs.iter().enumerate() {
+                k[ra * ndof + rb] += stiffness * ((sign[a] * c[a]) * (sign[b] * c[b]));
+            }
+        }
+    };
+    for j in 0..nodes {
+        let (x, y) = (2 * j, 2 * j + 1);
+        add(&[x, y], &[1.0, 0.0], 1.0 + 0.1 * j as f64, &[1.0, 1.0]);
+        add(&[x, y], &[0.0, 1.0], 2.0, &[1.0, 1.0]);
+        add(&[x, y], &[0.6, 0.8], 1.5, &[1.0, 1.0]);
+        if j + 1 < nodes {
+            let (x2, y2) = (x + 2, y + 2);
+            add(&[x, x2], &[1.0, 1.0], 4.0, &[1.0, -1.0]);
+            add(
+                &[x, y, x2, y2],
+                &[0.6, 0.8, 0.6, 0.8],
+                3.0,
+                &[1.0, 1.0, -1.0, -1.0],
+            );
+            add(&[y, y2], &[1.0, 1.0], 2.5, &[1.0, -1.0]);
+        }
+    }
+    let k = Owned::sparse(ndof, ndof, &k);
+    let mut nm = vec![0.0; nodes * ndof];
+    let mut tm = vec![0.0; nodes * ndof];
+    for j in 0..nodes {
+        nm[j * ndof + 2 * j + 1] = -1.0;
+        tm[j * ndof + 2 * j] = 1.0;
+    }
+    let f: Vec<f64> = (0..nodes)
+        .flat_map(|j| [[0.6, 0.1, -0.3, 0.9, 0.0, 0.2][j], -2.0])
+        .collect();
+    let g = vec![0.0, 0.01, 0.0, 0.02, 3.0, 0.0];
+    let p = vec![0.2, 1.0, 1.0, 0.3, 1.0, 0.5];
+    (
+        k,
+        Owned::sparse(nodes, ndof, &nm),
+        Owned::sparse(nodes, ndof, &tm),
+        f,
+        g,
+        p,
+    )
+}
+
+#[test]
+fn not_converged() {
+    let (k, n, t, f, g, p) = chain();
+    let (ndof, m) = (f.len(), g.len());
+    let mut h: *mut DsProblem = null_mut();
+    // SAFETY: valid matrices; h is a valid location.
+    expect_ok(unsafe { ds_problem_new(2, &k.ds(), &n.ds(), &t.ds(), &mut h) });
+    let run = |entry: SolveFn, opts: &DsOptions, out: &mut Outputs| {
+        // SAFETY: arrays sized for the chain problem.
+        unsafe {
+            entry(
+                h,
+                opts,
+                DsFriction::Tresca as i32,
+                f.as_ptr(),
+                g.as_ptr(),
+                p.as_ptr(),
+                out.u.as_mut_ptr(),
+                out.lambda_n.as_mut_ptr(),
+                out.lambda_t.as_mut_ptr(),
+                &mut out.report,
+            )
+        }
+    };
+    let good = options();
+    // The converged answer first, to know the contacts are closed.
+    let mut reference = Outputs::new(ndof, m, 2);
+    expect_ok(run(ds_solve, &good, &mut reference));
+    let closed = reference.lambda_n.iter().filter(|&&l| l > 0.0).count();
+    assert!(closed >= 4, "only {closed} contacts closed");
+    for method in [DsMethod::Split, DsMethod::BlockGs, DsMethod::Pgs] {
+        let tight = DsOptions {
+            method: method as i32,
+            tol: 1e-15,
+            max_outer: 1,
+            ..good
+        };
+        let entries: [(&str, SolveFn); 2] = [("ds_solve", ds_solve), ("ds_step", ds_step)];
+        for (name, entry) in entries {
+            let mut out = Outputs::new(ndof, m, 2);
+            let s = run(entry, &tight, &mut out);
+            expect_error(s, DsStatus::NotConverged, &[name]);
+            assert!(last_message().contains("converge"), "{}", last_message());
+            // Only the report is written.
+            let all = out.u.iter().chain(&out.lambda_n).chain(&out.lambda_t);
+            assert!(
+                all.into_iter().all(|&v| v == SENTINEL),
+                "{name}: outputs written"
+            );
+            assert_eq!(out.report.status, DsStatus::NotConverged as i32);
+            assert_eq!(out.report.method, method as i32);
+            assert!(out.report.outer_iterations <= 1);
+            assert!(out.report.err > 1e-15);
+        }
+    }
+    // The failed ds_step calls did not advance the history: the next step from the
+    // same handle equals the first step of a fresh handle, and the same handle still
+    // solves.
+    let mut stepped = Outputs::new(ndof, m, 2);
+    expect_ok(run(ds_step, &good, &mut stepped));
+    let mut fresh: *mut DsProblem = null_mut();
+    // SAFETY: valid matrices.
+    expect_ok(unsafe { ds_problem_new(2, &k.ds(), &n.ds(), &t.ds(), &mut fresh) });
+    let mut first = Outputs::new(ndof, m, 2);
+    // SAFETY: arrays sized for the chain problem.
+    let s = unsafe {
+        ds_step(
+            fresh,
+            &good,
+            DsFriction::Tresca as i32,
+            f.as_ptr(),
+            g.as_ptr(),
+            p.as_ptr(),
+            first.u.as_mut_ptr(),
+            first.lambda_n.as_mut_ptr(),
+            first.lambda_t.as_mut_ptr(),
+            &mut first.report,
+        )
+    };
+    expect_ok(s);
+    assert_eq!(
+        stepped.u, first.u,
+        "a non-converged ds_step advanced the history"
+    );
+    let mut again = Outputs::new(ndof, m, 2);
+    expect_ok(run(ds_solve, &good, &mut again));
+    assert_eq!(again.u, reference.u);
+    free(fresh);
+    free(h);
+}
+
+#[test]
+fn status_strings_and_messages() {
+    for v in 0..=12 {
+        let p = ds_status_string(v);
+        assert!(!p.is_null());
+        // SAFETY: static NUL-terminated string.
+        let s = unsafe { CStr::from_ptr(p) }.to_str().unwrap();
+        assert!(!s.is_empty() && s != "unknown status", "{v}");
+    }
+    // SAFETY: static NUL-terminated string.
+    let s = unsafe { CStr::from_ptr(ds_status_string(13)) };
+    assert_eq!(s.to_str().unwrap(), "unknown status");
+    // The message is per thread, and cleared by the next successful call.
+    let h = new_problem();
+    // SAFETY: NULL is what is tested.
+    let s = unsafe { ds_history_reset(null_mut()) };
+    expect_error(s, DsStatus::NullPointer, &["ds_history_reset", "problem"]);
+    std::thread::spawn(|| assert_eq!(last_message(), ""))
+        .join()
+        .unwrap();
+    assert!(!last_message().is_empty());
+    // SAFETY: h is live.
+    expect_ok(unsafe { ds_history_reset(h) });
+    free(h);
+}
