@@ -169,6 +169,11 @@ typedef enum DsMethod {
    Projected Gauss-Seidel on the whole dual, contact by contact (Siconos NSGS).
    */
   DS_METHOD_PGS = 2,
+  /*
+   Semismooth Newton (primal-dual active set) on the condensed dual, globalised
+   by a fallback to Gauss-Seidel sweeps: the high-accuracy method.
+   */
+  DS_METHOD_NEWTON = 3,
 } DsMethod;
 
 /*

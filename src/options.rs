@@ -12,18 +12,24 @@ pub enum Method {
     BlockGs,
     /// Projected Gauss-Seidel on the whole dual, contact by contact (Siconos NSGS).
     Pgs,
+    /// Semismooth Newton (primal-dual active set) on the condensed dual with the
+    /// generalised Jacobian of the friction projections, globalised by a fallback
+    /// to Gauss-Seidel sweeps when a step does not lower err. One outer iteration is
+    /// one Newton step (a dense LU on the free unknowns).
+    Newton,
 }
 
 impl Method {
     /// Every method, in the order of the C enum.
-    pub const ALL: [Method; 3] = [Method::Split, Method::BlockGs, Method::Pgs];
+    pub const ALL: [Method; 4] = [Method::Split, Method::BlockGs, Method::Pgs, Method::Newton];
 
-    /// Short lower-case name ("split", "block-gs", "pgs").
+    /// Short lower-case name ("split", "block-gs", "pgs", "newton").
     pub fn name(self) -> &'static str {
         match self {
             Method::Split => "split",
             Method::BlockGs => "block-gs",
             Method::Pgs => "pgs",
+            Method::Newton => "newton",
         }
     }
 

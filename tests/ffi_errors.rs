@@ -996,7 +996,7 @@ fn bad_argument() {
                 ..good
             },
         ),
-        ("method", DsOptions { method: 3, ..good }),
+        ("method", DsOptions { method: 4, ..good }),
         ("method", DsOptions { method: -1, ..good }),
         ("tol", DsOptions { tol: -1e-8, ..good }),
         (
@@ -1036,7 +1036,12 @@ fn bad_argument() {
         assert_usable(h);
     }
     // Every method with valid options works on the same handle.
-    for method in [DsMethod::Split, DsMethod::BlockGs, DsMethod::Pgs] {
+    for method in [
+        DsMethod::Split,
+        DsMethod::BlockGs,
+        DsMethod::Pgs,
+        DsMethod::Newton,
+    ] {
         let opts = DsOptions {
             method: method as i32,
             ..good
@@ -1175,7 +1180,12 @@ fn not_converged() {
     expect_ok(run(ds_solve, &good, &mut reference));
     let closed = reference.lambda_n.iter().filter(|&&l| l > 0.0).count();
     assert!(closed >= 4, "only {closed} contacts closed");
-    for method in [DsMethod::Split, DsMethod::BlockGs, DsMethod::Pgs] {
+    for method in [
+        DsMethod::Split,
+        DsMethod::BlockGs,
+        DsMethod::Pgs,
+        DsMethod::Newton,
+    ] {
         let tight = DsOptions {
             method: method as i32,
             tol: 1e-15,

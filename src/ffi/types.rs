@@ -59,6 +59,9 @@ pub enum DsMethod {
     BlockGs = 1,
     /// Projected Gauss-Seidel on the whole dual, contact by contact (Siconos NSGS).
     Pgs = 2,
+    /// Semismooth Newton (primal-dual active set) on the condensed dual, globalised
+    /// by a fallback to Gauss-Seidel sweeps: the high-accuracy method.
+    Newton = 3,
 }
 
 /// Friction law of one increment (the `friction` argument of ds_solve / ds_step).
@@ -140,6 +143,7 @@ impl CEnum for DsMethod {
         (DsMethod::Split, "DS_METHOD_SPLIT"),
         (DsMethod::BlockGs, "DS_METHOD_BLOCK_GS"),
         (DsMethod::Pgs, "DS_METHOD_PGS"),
+        (DsMethod::Newton, "DS_METHOD_NEWTON"),
     ];
 }
 
@@ -177,6 +181,7 @@ impl From<DsMethod> for Method {
             DsMethod::Split => Method::Split,
             DsMethod::BlockGs => Method::BlockGs,
             DsMethod::Pgs => Method::Pgs,
+            DsMethod::Newton => Method::Newton,
         }
     }
 }
@@ -187,6 +192,7 @@ impl From<Method> for DsMethod {
             Method::Split => DsMethod::Split,
             Method::BlockGs => DsMethod::BlockGs,
             Method::Pgs => DsMethod::Pgs,
+            Method::Newton => DsMethod::Newton,
         }
     }
 }

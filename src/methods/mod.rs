@@ -9,6 +9,7 @@
 //! `projection`; the projected Gauss-Seidel sweeps in `pgs`; Pop's splitting and
 //! the block Gauss-Seidel variant in `split`.
 
+mod newton;
 mod pgs;
 mod projection;
 mod split;
@@ -95,5 +96,6 @@ pub fn run(problem: &DualProblem<'_>, lam: &mut [f64], opts: &Options, target: f
         Method::Pgs => pgs::solve(problem, lam, opts, target),
         Method::Split => split::solve(problem, lam, opts, target, true),
         Method::BlockGs => split::solve(problem, lam, opts, target, false),
+        Method::Newton => newton::solve(problem, lam, opts, target),
     }
 }

@@ -150,7 +150,7 @@ pub(super) fn solve(
     target: f64,
 ) -> Outcome {
     let dual = problem.dual;
-    let (m, d, c) = (dual.m, dual.d, dual.c);
+    let (m, c) = (dual.m, dual.c);
     let mut w = vec![0.0; c];
     let mut p = vec![0.0; m];
     let mut v = vec![0.0; c];
@@ -167,54 +167,74 @@ pub(super) fn solve(
         if e <= target || out.outer >= opts.max_outer {
             return out;
         }
-        for i in 0..m {
-            let ann = dual.a[i + i * c];
-            if ann > 0.0 {
-                let y = (lam[i] - w[i] / ann).max(0.0);
-                let delta = y - lam[i];
-                if delta != 0.0 {
-                    lam[i] = y;
-                    axpy(&mut w, delta, dual.col(i));
-                }
-            }
-            let r = problem.law.bound(i, lam[i]);
-            let t = m + (d - 1) * i;
-            if d == 2 {
-                let att = dual.a[t + t * c];
-                if att > 0.0 {
-                    let mut y = [lam[t] - w[t] / att];
-                    project_disk(&mut y, r);
-                    let delta = y[0] - lam[t];
-                    if delta != 0.0 {
-                        lam[t] = y[0];
-                        axpy(&mut w, delta, dual.col(t));
-                    }
-                } else if lam[t].abs() > r {
-                    let y = lam[t].clamp(-r, r);
-                    axpy(&mut w, y - lam[t], dual.col(t));
-                    lam[t] = y;
-                }
-            } else {
-                let (h00, h01, h11) = (
-                    dual.a[t + t * c],
-                    dual.a[t + (t + 1) * c],
-                    dual.a[t + 1 + (t + 1) * c],
-                );
-                let cc = [
-                    h00 * lam[t] + h01 * lam[t + 1] - w[t],
-                    h01 * lam[t] + h11 * lam[t + 1] - w[t + 1],
-                ];
-                let y = solve_disk_qp(h00, h01, h11, cc, r);
-                for s in 0..2 {
-                    let delta = y[s] - lam[t + s];
-                    if delta != 0.0 {
-                        lam[t + s] = y[s];
-                        axpy(&mut w, delta, dual.col(t + s));
-                    }
-                }
-            }
-        }
+        sweep(problem, lam, &mut w);
         out.outer += 1;
         out.inner += 1;
     }
+}
+
+/// One PGS sweep over all contacts, keeping w = A lam - b current.
+fn sweep(problem: &DualProblem<'_>, lam: &mut [f64], w: &mut [f64]) {
+    let dual = problem.dual;
+    let (m, d, c) = (dual.m, dual.d, dual.c);
+    for i in 0..m {
+        let ann = dual.a[i + i * c];
+        if ann > 0.0 {
+            let y = (lam[i] - w[i] / ann).max(0.0);
+            let delta = y - lam[i];
+            if delta != 0.0 {
+                lam[i] = y;
+                axpy(w, delta, dual.col(i));
+            }
+        }
+        let r = problem.law.bound(i, lam[i]);
+        let t = m + (d - 1) * i;
+        if d == 2 {
+            let att = dual.a[t + t * c];
+            if att > 0.0 {
+                let mut y = [lam[t] - w[t] / att];
+                project_disk(&mut y, r);
+                let delta = y[0] - lam[t];
+                if delta != 0.0 {
+                    lam[t] = y[0];
+                    axpy(w, delta, dual.col(t));
+                }
+            } else if lam[t].abs() > r {
+                let y = lam[t].clamp(-r, r);
+                axpy(w, y - lam[t], dual.col(t));
+                lam[t] = y;
+            }
+        } else {
+            let (h00, h01, h11) = (
+                dual.a[t + t * c],
+                dual.a[t + (t + 1) * c],
+                dual.a[t + 1 + (t + 1) * c],
+            );
+            let cc = [
+                h00 * lam[t] + h01 * lam[t + 1] - w[t],
+                h01 * lam[t] + h11 * lam[t + 1] - w[t + 1],
+            ];
+            let y = solve_disk_qp(h00, h01, h11, cc, r);
+            for s in 0..2 {
+                let delta = y[s] - lam[t + s];
+                if delta != 0.0 {
+                    lam[t + s] = y[s];
+                    axpy(w, delta, dual.col(t + s));
+                }
+            }
+        }
+    }
+}
+
+/// `count` PGS sweeps from lam (w = A lam - b on entry and exit); returns `count`.
+pub(super) fn sweeps(
+    problem: &DualProblem<'_>,
+    lam: &mut [f64],
+    w: &mut [f64],
+    count: usize,
+) -> usize {
+    for _ in 0..count {
+        sweep(problem, lam, w);
+    }
+    count
 }
