@@ -142,8 +142,8 @@ fn linearise(
         if normal_free {
             let mut u = Reduced::unit(i, -f[i] / rho);
             if let Some(cp) = coupling {
-                for s in 0..d - 1 {
-                    u.dir[1 + s] = (jt + s, cp[s]);
+                for (s, &cs) in cp[..d - 1].iter().enumerate() {
+                    u.dir[1 + s] = (jt + s, cs);
                 }
                 u.n_dir = d;
             }
