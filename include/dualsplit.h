@@ -93,6 +93,11 @@ typedef enum DsStatus {
    the message). The handle stays valid.
    */
   DS_STATUS_PANIC = 12,
+  /*
+   The monitor callback asked to stop. ds_solve / ds_step write the last iterate
+   to u, lambda_n, lambda_t and the report; the history does not advance.
+   */
+  DS_STATUS_STOPPED = 13,
 } DsStatus;
 
 /*
@@ -354,6 +359,54 @@ typedef struct DsReport {
   double solve_seconds;
 } DsReport;
 
+/*
+ What the monitor callback receives after every outer iteration.
+ */
+typedef struct DsProgress {
+  /*
+   Outer iterations done so far in this solve (1 after the first).
+   */
+  int64_t iteration;
+  /*
+   The current err (design.md section 5), measured on the dual gradient;
+   dimensionless.
+   */
+  double err;
+  /*
+   Open contacts at the current iterate.
+   */
+  int64_t n_open;
+  /*
+   Sticking contacts at the current iterate.
+   */
+  int64_t n_stick;
+  /*
+   Slipping contacts at the current iterate.
+   */
+  int64_t n_slip;
+  /*
+   Seconds since the solve started.
+   */
+  double elapsed_seconds;
+} DsProgress;
+
+/*
+ A monitor callback: called after every outer iteration of ds_solve / ds_step
+ with the progress and the user pointer given to ds_problem_set_monitor. Return 0
+ to go on, any other value to stop: the solve then returns DS_STATUS_STOPPED with
+ the last iterate. The callback must not call back into the same handle, and must
+ not longjmp out (or throw a C++ exception through) the library: that skips Rust
+ frames and is undefined behaviour.
+ */
+typedef int32_t (*DsMonitorFn)(const struct DsProgress *progress, void *user_data);
+
+/*
+ A log sink: receives each message (a NUL-terminated line without newline, valid
+ only during the call), its level (1 = one summary per solve, 2 = one line per
+ outer iteration) and the user pointer given to ds_problem_set_log.
+ */
+typedef void (*DsLogFn)(int32_t level, const char *message, void *user_data);
+
 #ifdef __cplusplus
 extern "C" {
 #endif // __cplusplus
@@ -529,6 +582,42 @@ enum DsStatus ds_step(struct DsProblem *problem,
  `problem` must be NULL or a live handle.
  */
 enum DsStatus ds_history_reset(struct DsProblem *problem);
+
+/*
+ Sets (or, with monitor = NULL, clears) the monitor callback of the handle: it is
+ called after every outer iteration of ds_solve and ds_step with a DsProgress and
+ `user_data`; a nonzero return stops the solve, which then returns
+ DS_STATUS_STOPPED with the last iterate written to u, lambda_n, lambda_t and the
+ report (the history of ds_step does not advance). See DsMonitorFn for what the
+ callback must not do.
+
+ Returns DS_STATUS_OK or DS_STATUS_NULL_POINTER (problem).
+
+ # Safety
+ `problem` must be NULL or a live handle; `monitor` NULL or a function that is
+ safe to call with any DsProgress and `user_data` while the handle is in use.
+ */
+enum DsStatus ds_problem_set_monitor(struct DsProblem *problem,
+                                     DsMonitorFn monitor,
+                                     void *user_data);
+
+/*
+ Sets the log level and sink of the handle. level: 0 silent (the default: the
+ library never prints unless asked), 1 one summary line per solve, 2 also one
+ line per outer iteration. Lines go to `log(level, message, user_data)`, or to
+ stderr when `log` is NULL.
+
+ Returns DS_STATUS_OK, DS_STATUS_NULL_POINTER (problem) or DS_STATUS_BAD_ARGUMENT
+ (level not 0, 1 or 2; nothing changed).
+
+ # Safety
+ `problem` must be NULL or a live handle; `log` NULL or a function that is safe to
+ call with any level, message and `user_data` while the handle is in use.
+ */
+enum DsStatus ds_problem_set_log(struct DsProblem *problem,
+                                 int32_t level,
+                                 DsLogFn log,
+                                 void *user_data);
 
 /*
  A static, NUL-terminated description of a status value (e.g. "K is not

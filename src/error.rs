@@ -30,6 +30,8 @@ pub enum ErrorKind {
     Io,
     /// A panic was caught at the C boundary (a bug in the library).
     Panic,
+    /// The monitor callback asked to stop the solve.
+    Stopped,
 }
 
 /// An error with a message that says which argument and which entry is at fault.

@@ -11,12 +11,14 @@ pub mod error;
 pub mod factor;
 pub mod ffi;
 pub mod methods;
+pub mod mtx;
 pub mod options;
 pub mod problem;
 pub mod report;
 pub mod sparse;
 
 pub use error::{Error, ErrorKind, Result};
+pub use methods::{Monitor, Progress};
 pub use options::{Method, Options};
 pub use problem::{ContactProblem, Friction, Solution};
 pub use report::{Report, SolveStatus};

@@ -5,7 +5,7 @@
 use crate::dual::{Dual, contact_dofs, stack_rows};
 use crate::error::{ErrorKind, Result, fail};
 use crate::factor::Factor;
-use crate::methods::{self, DualProblem, Law};
+use crate::methods::{self, DualProblem, Law, Monitor, Progress};
 use crate::options::Options;
 use crate::report::Report;
 use crate::report::{SolveStatus, contact_states, natural_map_error};
@@ -222,8 +222,22 @@ impl ContactProblem {
         friction: Friction<'_>,
         opts: &Options,
     ) -> Result<Solution> {
+        self.solve_monitored(f, g, friction, opts, None)
+    }
+
+    /// As [`ContactProblem::solve`], calling `monitor` after every outer iteration;
+    /// when it returns false the solve stops with `SolveStatus::Stopped` and the
+    /// last iterate.
+    pub fn solve_monitored(
+        &mut self,
+        f: &[f64],
+        g: &[f64],
+        friction: Friction<'_>,
+        opts: &Options,
+        monitor: Option<Monitor<'_>>,
+    ) -> Result<Solution> {
         let mut lam = vec![0.0; self.dual.c];
-        self.solve_from(f, g, friction, opts, &mut lam)
+        self.solve_from(f, g, friction, opts, &mut lam, monitor)
     }
 
     /// The increment solve, starting from the multipliers in `lam`.
@@ -234,6 +248,7 @@ impl ContactProblem {
         friction: Friction<'_>,
         opts: &Options,
         lam: &mut [f64],
+        mut monitor: Option<Monitor<'_>>,
     ) -> Result<Solution> {
         let start = Instant::now();
         let (ndof, m, c) = (self.n_dofs(), self.n_contacts(), self.dual.c);
@@ -253,12 +268,26 @@ impl ContactProblem {
         for i in 0..m {
             b[i] -= g[i];
         }
+        // The monitor sees iteration numbers and times of the whole solve.
+        let base = std::cell::Cell::new(0usize);
+        let mut relay = |p: &Progress| -> bool {
+            match monitor.as_mut() {
+                Some(user) => user(&Progress {
+                    iteration: base.get() + p.iteration,
+                    elapsed_seconds: start.elapsed().as_secs_f64(),
+                    ..*p
+                }),
+                None => true,
+            }
+        };
         let problem = DualProblem {
             dual: &self.dual,
             b: &b,
             law,
+            monitor: Some(std::cell::RefCell::new(&mut relay)),
         };
         let mut target = opts.tol;
+        let mut stopped = false;
         let mut outer = 0;
         let mut inner = 0;
         let mut u = vec![0.0; ndof];
@@ -274,6 +303,8 @@ impl ContactProblem {
             let o = methods::run(&problem, lam, &local, target);
             outer += o.outer;
             inner += o.inner;
+            base.set(outer);
+            stopped = o.stopped;
             // u = K^-1 (f - B^T lambda), and the error measured on it.
             self.dual.b.mul_t_vec(lam, &mut bt_lam);
             for i in 0..ndof {
@@ -286,7 +317,7 @@ impl ContactProblem {
             }
             law.bounds(&lam[..m], &mut p);
             err = natural_map_error(lam, &v, &self.dual.rho, &b, &p, self.d);
-            if err <= opts.tol || o.dual_err > target || outer >= opts.max_outer {
+            if stopped || err <= opts.tol || o.dual_err > target || outer >= opts.max_outer {
                 break;
             }
             target *= 0.1;
@@ -306,7 +337,9 @@ impl ContactProblem {
         let rn = norm(&res);
         let equilibrium_residual = if rn == 0.0 { 0.0 } else { rn / denom };
         let (n_open, n_stick, n_slip) = contact_states(lam, &v, &self.dual.rho, &p, self.d);
-        let status = if err <= opts.tol {
+        let status = if stopped {
+            SolveStatus::Stopped
+        } else if err <= opts.tol {
             SolveStatus::Converged
         } else {
             SolveStatus::NotConverged
@@ -346,6 +379,20 @@ impl ContactProblem {
         friction: Friction<'_>,
         opts: &Options,
     ) -> Result<Solution> {
+        self.step_monitored(f_total, g0, friction, opts, None)
+    }
+
+    /// As [`ContactProblem::step`], with a monitor as in
+    /// [`ContactProblem::solve_monitored`]. A stopped step does not advance the
+    /// history.
+    pub fn step_monitored(
+        &mut self,
+        f_total: &[f64],
+        g0: &[f64],
+        friction: Friction<'_>,
+        opts: &Options,
+        monitor: Option<Monitor<'_>>,
+    ) -> Result<Solution> {
         let (ndof, m) = (self.n_dofs(), self.n_contacts());
         check_vec("f_total", f_total, ndof)?;
         check_vec("g0", g0, m)?;
@@ -356,7 +403,7 @@ impl ContactProblem {
         self.n.mul_vec(&self.u_hist, &mut nu);
         let g: Vec<f64> = (0..m).map(|i| g0[i] - nu[i]).collect();
         let mut lam = self.lam_hist.clone();
-        let mut sol = self.solve_from(&f, &g, friction, opts, &mut lam)?;
+        let mut sol = self.solve_from(&f, &g, friction, opts, &mut lam, monitor)?;
         for (ui, uh) in sol.u.iter_mut().zip(&self.u_hist) {
             *ui += uh;
         }

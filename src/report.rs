@@ -10,6 +10,8 @@ pub enum SolveStatus {
     Converged,
     /// The iteration limit was reached first; the iterate is the last one.
     NotConverged,
+    /// The monitor callback asked to stop; the iterate is the last one.
+    Stopped,
 }
 
 /// Everything a solve reports besides u and the multipliers.

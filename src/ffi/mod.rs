@@ -18,6 +18,7 @@
 mod boundary;
 mod last_error;
 mod matrix;
+mod monitor;
 mod options;
 mod problem;
 mod report;
@@ -26,10 +27,12 @@ mod types;
 
 pub use last_error::ds_last_error_message;
 pub use matrix::DsMatrix;
+pub use monitor::{DsLogFn, DsMonitorFn, DsProgress};
 pub use options::{DsOptions, ds_options_default};
 pub use problem::{
     DsProblem, ds_history_reset, ds_problem_free, ds_problem_new, ds_problem_refactor,
-    ds_problem_set_contacts, ds_problem_sizes, ds_solve, ds_step,
+    ds_problem_set_contacts, ds_problem_set_log, ds_problem_set_monitor, ds_problem_sizes,
+    ds_solve, ds_step,
 };
 pub use report::DsReport;
 pub use status::{DsStatus, ds_status_string};

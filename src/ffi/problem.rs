@@ -6,6 +6,7 @@
 
 use super::boundary::{OutArray, entry, ref_in, ref_mut, slice_in};
 use super::matrix::DsMatrix;
+use super::monitor::{DsLogFn, DsMonitorFn, LOG_ITERATIONS, LOG_SILENT, Watch};
 use super::options::DsOptions;
 use super::report::DsReport;
 use super::status::DsStatus;
@@ -22,6 +23,8 @@ use std::panic::{AssertUnwindSafe, catch_unwind};
 pub struct DsProblem {
     /// The safe Rust problem this handle owns.
     inner: ContactProblem,
+    /// Monitor callback and log settings.
+    watch: Watch,
 }
 
 /// The contact dimension d as `usize`, or `BadArgument`.
@@ -80,7 +83,10 @@ pub unsafe extern "C" fn ds_problem_new(
         // SAFETY: the matrices' arrays match their fields (contract).
         let (kv, nv, tv) = unsafe { (k.view("K")?, n.view("N")?, t.view("T")?) };
         let inner = ContactProblem::new(d, &kv, &nv, &tv)?;
-        *out = Box::into_raw(Box::new(DsProblem { inner }));
+        *out = Box::into_raw(Box::new(DsProblem {
+            inner,
+            watch: Watch::default(),
+        }));
         Ok(())
     })
 }
@@ -260,13 +266,25 @@ unsafe fn solve_impl(
         DsFriction::Tresca => Friction::Tresca(bound),
         DsFriction::Coulomb => Friction::Coulomb(bound),
     };
+    let watch = &problem.watch;
+    let name = options.method.name();
+    let mut hook = |p: &crate::methods::Progress| watch.on_iteration(name, p);
+    let monitor: Option<crate::methods::Monitor<'_>> =
+        if watch.monitor.is_some() || watch.level >= LOG_ITERATIONS {
+            Some(&mut hook)
+        } else {
+            None
+        };
     let solution: Solution = match mode {
-        Mode::Solve => problem.inner.solve(f, g, law, &options)?,
-        Mode::Step => problem.inner.step(f, g, law, &options)?,
+        Mode::Solve => problem
+            .inner
+            .solve_monitored(f, g, law, &options, monitor)?,
+        Mode::Step => problem.inner.step_monitored(f, g, law, &options, monitor)?,
     };
+    problem.watch.on_done(&solution.report);
     let ds_report = DsReport::from(&solution.report);
     match solution.report.status {
-        SolveStatus::Converged => {
+        SolveStatus::Converged | SolveStatus::Stopped => {
             u.check_len(&solution.u)?;
             lambda_n.check_len(&solution.lambda_n)?;
             lambda_t.check_len(&solution.lambda_t)?;
@@ -279,6 +297,18 @@ unsafe fn solve_impl(
                 if let Some(r) = &report {
                     r.write(&[ds_report])?;
                 }
+            }
+            if solution.report.status == SolveStatus::Stopped {
+                return Err(Error::new(
+                    ErrorKind::Stopped,
+                    format!(
+                        "{} stopped by the monitor callback after {} outer iterations \
+                         (err = {:.3e}); the last iterate was written",
+                        options.method.name(),
+                        solution.report.outer_iterations,
+                        solution.report.err
+                    ),
+                ));
             }
             Ok(())
         }
@@ -420,6 +450,67 @@ pub unsafe extern "C" fn ds_history_reset(problem: *mut DsProblem) -> DsStatus {
         // SAFETY: NULL is rejected; otherwise a live handle (contract).
         let problem = unsafe { ref_mut(problem, "problem")? };
         problem.inner.reset_history();
+        Ok(())
+    })
+}
+
+/// Sets (or, with monitor = NULL, clears) the monitor callback of the handle: it is
+/// called after every outer iteration of ds_solve and ds_step with a DsProgress and
+/// `user_data`; a nonzero return stops the solve, which then returns
+/// DS_STATUS_STOPPED with the last iterate written to u, lambda_n, lambda_t and the
+/// report (the history of ds_step does not advance). See DsMonitorFn for what the
+/// callback must not do.
+///
+/// Returns DS_STATUS_OK or DS_STATUS_NULL_POINTER (problem).
+///
+/// # Safety
+/// `problem` must be NULL or a live handle; `monitor` NULL or a function that is
+/// safe to call with any DsProgress and `user_data` while the handle is in use.
+#[unsafe(no_mangle)]
+pub unsafe extern "C" fn ds_problem_set_monitor(
+    problem: *mut DsProblem,
+    monitor: DsMonitorFn,
+    user_data: *mut std::ffi::c_void,
+) -> DsStatus {
+    entry("ds_problem_set_monitor", || {
+        // SAFETY: NULL is rejected; otherwise a live handle (contract).
+        let problem = unsafe { ref_mut(problem, "problem")? };
+        problem.watch.monitor = monitor;
+        problem.watch.monitor_data = user_data;
+        Ok(())
+    })
+}
+
+/// Sets the log level and sink of the handle. level: 0 silent (the default: the
+/// library never prints unless asked), 1 one summary line per solve, 2 also one
+/// line per outer iteration. Lines go to `log(level, message, user_data)`, or to
+/// stderr when `log` is NULL.
+///
+/// Returns DS_STATUS_OK, DS_STATUS_NULL_POINTER (problem) or DS_STATUS_BAD_ARGUMENT
+/// (level not 0, 1 or 2; nothing changed).
+///
+/// # Safety
+/// `problem` must be NULL or a live handle; `log` NULL or a function that is safe to
+/// call with any level, message and `user_data` while the handle is in use.
+#[unsafe(no_mangle)]
+pub unsafe extern "C" fn ds_problem_set_log(
+    problem: *mut DsProblem,
+    level: i32,
+    log: DsLogFn,
+    user_data: *mut std::ffi::c_void,
+) -> DsStatus {
+    entry("ds_problem_set_log", || {
+        // SAFETY: NULL is rejected; otherwise a live handle (contract).
+        let problem = unsafe { ref_mut(problem, "problem")? };
+        if !(LOG_SILENT..=LOG_ITERATIONS).contains(&level) {
+            return Err(Error::new(
+                ErrorKind::BadArgument,
+                format!("level = {level}: the log level must be 0, 1 or 2"),
+            ));
+        }
+        problem.watch.level = level;
+        problem.watch.log = log;
+        problem.watch.log_data = user_data;
         Ok(())
     })
 }

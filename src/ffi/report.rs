@@ -49,6 +49,7 @@ impl From<&Report> for DsReport {
             status: match r.status {
                 SolveStatus::Converged => DsStatus::Ok,
                 SolveStatus::NotConverged => DsStatus::NotConverged,
+                SolveStatus::Stopped => DsStatus::Stopped,
             } as i32,
             method: DsMethod::from(r.method) as i32,
             err: r.err,

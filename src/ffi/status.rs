@@ -44,6 +44,9 @@ pub enum DsStatus {
     /// A panic was caught at the boundary: a bug in dualsplit (please report it with
     /// the message). The handle stays valid.
     Panic = 12,
+    /// The monitor callback asked to stop. ds_solve / ds_step write the last iterate
+    /// to u, lambda_n, lambda_t and the report; the history does not advance.
+    Stopped = 13,
 }
 
 impl From<ErrorKind> for DsStatus {
@@ -61,13 +64,14 @@ impl From<ErrorKind> for DsStatus {
             ErrorKind::BadArgument => DsStatus::BadArgument,
             ErrorKind::Io => DsStatus::IoError,
             ErrorKind::Panic => DsStatus::Panic,
+            ErrorKind::Stopped => DsStatus::Stopped,
         }
     }
 }
 
 impl DsStatus {
     /// Every status, in the order of their values (index = value).
-    pub const ALL: [DsStatus; 13] = [
+    pub const ALL: [DsStatus; 14] = [
         DsStatus::Ok,
         DsStatus::NullPointer,
         DsStatus::BadSize,
@@ -81,6 +85,7 @@ impl DsStatus {
         DsStatus::BadArgument,
         DsStatus::IoError,
         DsStatus::Panic,
+        DsStatus::Stopped,
     ];
 
     /// The status with C value `v`, if any.
@@ -106,6 +111,7 @@ impl DsStatus {
             DsStatus::BadArgument => c"an argument has an invalid value",
             DsStatus::IoError => c"a file could not be read or written",
             DsStatus::Panic => c"internal error (panic caught at the C boundary)",
+            DsStatus::Stopped => c"stopped by the caller (monitor callback)",
         }
     }
 }
@@ -132,7 +138,7 @@ mod tests {
             assert_eq!(DsStatus::from_i32(i as i32), Some(*s));
         }
         assert_eq!(DsStatus::from_i32(-1), None);
-        assert_eq!(DsStatus::from_i32(13), None);
+        assert_eq!(DsStatus::from_i32(14), None);
     }
 
     #[test]
@@ -150,6 +156,7 @@ mod tests {
             ErrorKind::BadArgument,
             ErrorKind::Io,
             ErrorKind::Panic,
+            ErrorKind::Stopped,
         ];
         let mapped: Vec<DsStatus> = kinds.iter().map(|&k| DsStatus::from(k)).collect();
         assert_eq!(&mapped[..], &DsStatus::ALL[1..]);

@@ -18,7 +18,8 @@ pub use projection::{project_disk, solve_disk_qp};
 
 use crate::dual::Dual;
 use crate::options::{Method, Options};
-use crate::report::natural_map_error;
+use crate::report::{contact_states, natural_map_error};
+use std::cell::RefCell;
 
 /// The friction bound of one solve, per contact.
 #[derive(Copy, Clone, Debug)]
@@ -56,7 +57,29 @@ pub struct Outcome {
     pub inner: usize,
     /// The error measured on the dual gradient at the last iterate.
     pub dual_err: f64,
+    /// The monitor asked to stop.
+    pub stopped: bool,
 }
+
+/// What the monitor sees after every outer iteration.
+#[derive(Copy, Clone, Debug, PartialEq)]
+pub struct Progress {
+    /// Outer iterations done so far in this solve (1 after the first).
+    pub iteration: usize,
+    /// The current err (design.md section 5), measured on the dual gradient.
+    pub err: f64,
+    /// Open contacts at the current iterate.
+    pub n_open: usize,
+    /// Sticking contacts at the current iterate.
+    pub n_stick: usize,
+    /// Slipping contacts at the current iterate.
+    pub n_slip: usize,
+    /// Seconds since the solve started.
+    pub elapsed_seconds: f64,
+}
+
+/// A progress callback: returns true to go on, false to stop the solve.
+pub type Monitor<'a> = &'a mut dyn FnMut(&Progress) -> bool;
 
 /// The dual data of one increment: operator, linear term and friction law.
 pub struct DualProblem<'a> {
@@ -66,9 +89,45 @@ pub struct DualProblem<'a> {
     pub b: &'a [f64],
     /// Friction bound.
     pub law: Law<'a>,
+    /// Called after every outer iteration with the iteration number relative to
+    /// this run; None for no monitoring.
+    pub monitor: Option<RefCell<Monitor<'a>>>,
 }
 
 impl DualProblem<'_> {
+    /// The common end-of-iteration test of every method: reports progress to the
+    /// monitor (after the first iteration), then says whether to stop: the monitor
+    /// asked to (`out.stopped`), `out.dual_err <= target`, or the iteration limit.
+    /// `p` and `v` are the bounds and v = -(A lam - b) left by [`DualProblem::error`].
+    pub fn should_stop(
+        &self,
+        out: &mut Outcome,
+        lam: &[f64],
+        p: &[f64],
+        v: &[f64],
+        target: f64,
+        opts: &Options,
+    ) -> bool {
+        if out.outer > 0
+            && let Some(cell) = &self.monitor
+        {
+            let (n_open, n_stick, n_slip) = contact_states(lam, v, &self.dual.rho, p, self.dual.d);
+            let progress = Progress {
+                iteration: out.outer,
+                err: out.dual_err,
+                n_open,
+                n_stick,
+                n_slip,
+                elapsed_seconds: 0.0,
+            };
+            if !(cell.borrow_mut())(&progress) {
+                out.stopped = true;
+                return true;
+            }
+        }
+        out.dual_err <= target || out.outer >= opts.max_outer
+    }
+
     /// w := A lam - b (the negative of v = [N u - g; T u]).
     pub fn gradient(&self, lam: &[f64], w: &mut [f64]) {
         self.dual.apply(lam, w);

@@ -240,7 +240,7 @@ pub(super) fn solve(
     let mut err = problem.error(lam, &w, &mut p, &mut v);
     loop {
         out.dual_err = err;
-        if err <= target || out.outer >= opts.max_outer {
+        if problem.should_stop(&mut out, lam, &p, &v, target, opts) {
             return out;
         }
         out.outer += 1;

@@ -164,7 +164,7 @@ pub(super) fn solve(
             e = problem.error(lam, &w, &mut p, &mut v);
         }
         out.dual_err = e;
-        if e <= target || out.outer >= opts.max_outer {
+        if problem.should_stop(&mut out, lam, &p, &v, target, opts) {
             return out;
         }
         sweep(problem, lam, &mut w);

@@ -142,7 +142,7 @@ pub(super) fn solve(
     loop {
         problem.gradient(lam, &mut w);
         out.dual_err = problem.error(lam, &w, &mut p, &mut v);
-        if out.dual_err <= target || out.outer >= opts.max_outer {
+        if problem.should_stop(&mut out, lam, &p, &v, target, opts) {
             return out;
         }
         // Tangential step.
