@@ -42,3 +42,94 @@ $(OUTDIR):
 
 clean-c:
 	rm -rf $(OUTDIR)
+
+# ---------------------------------------------------------------------------------
+# Installing like a C library, and the Fortran and SuiteSparse examples
+# ---------------------------------------------------------------------------------
+#
+#   make install PREFIX=/opt/dualsplit    build (release) and install:
+#       $(LIBDIR)/libdualsplit.so.$(VERSION), soname libdualsplit.so.$(SOVERSION),
+#       with the links libdualsplit.so.$(SOVERSION) and libdualsplit.so
+#       $(LIBDIR)/libdualsplit.a
+#       $(INCLUDEDIR)/dualsplit.h and $(INCLUDEDIR)/dualsplit.f90 (Fortran module source)
+#       $(PKGCONFIGDIR)/dualsplit.pc   (pkg-config --cflags --libs dualsplit)
+#   make install DESTDIR=/tmp/stage       staged install (packaging)
+#   make uninstall PREFIX=...
+#   make fortran-demo [DEMO_ARGS=...]     build and run c_examples/block2d.f90 (gfortran)
+#   make fortran-minimal                  build and run c_examples/minimal.f90 (gfortran)
+#   make suitesparse-demo [DEMO_ARGS=...] build and run c_examples/suitesparse_block2d.c
+#                                         (CHOLMOD + CXSparse: libsuitesparse-dev)
+#
+# The shared library gets its soname from one extra linker argument given to the
+# final rustc call only (`cargo rustc --lib -- -C link-arg=-Wl,-soname,...`):
+# dependencies are not rebuilt (RUSTFLAGS would rebuild all of them, and again at
+# every switch between `make demo` and `make install`). ELF platforms (Linux, BSD).
+# CARGO_TARGET_DIR is honoured; PROFILE=dev installs a debug build.
+
+PREFIX       ?= /usr/local
+LIBDIR       ?= $(PREFIX)/lib
+INCLUDEDIR   ?= $(PREFIX)/include
+PKGCONFIGDIR ?= $(LIBDIR)/pkgconfig
+DESTDIR      ?=
+PROFILE      ?= release
+INSTALL      ?= install
+
+VERSION   := $(shell sed -n 's/^version *= *"\([^"]*\)".*/\1/p' Cargo.toml | head -n 1)
+SOVERSION := $(firstword $(subst ., ,$(VERSION)))
+SONAME    := libdualsplit.so.$(SOVERSION)
+BUILDDIR   = $(or $(CARGO_TARGET_DIR),target)/$(if $(filter dev,$(PROFILE)),debug,$(PROFILE))
+
+ifeq ($(origin FC),default)
+FC = gfortran
+endif
+FFLAGS   ?= -O2
+FOUTDIR   = $(OUTDIR)/fortran
+SUITESPARSE_CFLAGS ?= -I/usr/include/suitesparse
+SUITESPARSE_LIBS   ?= -lcholmod -lcxsparse -lsuitesparseconfig
+
+.PHONY: install install-lib uninstall fortran-demo fortran-minimal suitesparse-demo
+
+# Builds libdualsplit.{so,a,rlib} in one rustc call; the link argument only affects
+# the shared library.
+install-lib:
+	$(CARGO) rustc --lib --profile $(PROFILE) -- -C link-arg=-Wl,-soname,$(SONAME)
+
+install: install-lib
+	$(INSTALL) -d $(DESTDIR)$(LIBDIR) $(DESTDIR)$(INCLUDEDIR) $(DESTDIR)$(PKGCONFIGDIR)
+	$(INSTALL) -m 755 $(BUILDDIR)/libdualsplit.so $(DESTDIR)$(LIBDIR)/libdualsplit.so.$(VERSION)
+	ln -sf libdualsplit.so.$(VERSION) $(DESTDIR)$(LIBDIR)/$(SONAME)
+	ln -sf $(SONAME) $(DESTDIR)$(LIBDIR)/libdualsplit.so
+	$(INSTALL) -m 644 $(BUILDDIR)/libdualsplit.a $(DESTDIR)$(LIBDIR)/libdualsplit.a
+	$(INSTALL) -m 644 include/dualsplit.h include/dualsplit.f90 $(DESTDIR)$(INCLUDEDIR)/
+	sed -e 's|@PREFIX@|$(PREFIX)|g' -e 's|@LIBDIR@|$(LIBDIR)|g' \
+	    -e 's|@INCLUDEDIR@|$(INCLUDEDIR)|g' -e 's|@VERSION@|$(VERSION)|g' \
+	    dualsplit.pc.in > $(DESTDIR)$(PKGCONFIGDIR)/dualsplit.pc
+	chmod 644 $(DESTDIR)$(PKGCONFIGDIR)/dualsplit.pc
+
+uninstall:
+	rm -f $(DESTDIR)$(LIBDIR)/libdualsplit.so $(DESTDIR)$(LIBDIR)/$(SONAME) \
+	      $(DESTDIR)$(LIBDIR)/libdualsplit.so.$(VERSION) $(DESTDIR)$(LIBDIR)/libdualsplit.a \
+	      $(DESTDIR)$(INCLUDEDIR)/dualsplit.h $(DESTDIR)$(INCLUDEDIR)/dualsplit.f90 \
+	      $(DESTDIR)$(PKGCONFIGDIR)/dualsplit.pc
+
+# The Fortran module is compiled with the programs (gfortran writes dualsplit.mod
+# into -J's folder).
+$(FOUTDIR)/dualsplit.o: include/dualsplit.f90 | $(OUTDIR)
+	mkdir -p $(FOUTDIR)
+	$(FC) $(FFLAGS) -J$(FOUTDIR) -c include/dualsplit.f90 -o $@
+
+$(FOUTDIR)/%_f: c_examples/%.f90 $(FOUTDIR)/dualsplit.o $(LIBDS)
+	$(FC) $(FFLAGS) -J$(FOUTDIR) -o $@ $< $(FOUTDIR)/dualsplit.o $(LIBDS) $(LDFLAGS) $(LDLIBS)
+
+fortran-demo: $(FOUTDIR)/block2d_f
+	./$(FOUTDIR)/block2d_f $(DEMO_ARGS)
+
+fortran-minimal: $(FOUTDIR)/minimal_f
+	./$(FOUTDIR)/minimal_f
+
+$(OUTDIR)/suitesparse_block2d: c_examples/suitesparse_block2d.c include/dualsplit.h $(LIBDS) | $(OUTDIR)
+	$(CC) $(CPPFLAGS) $(SUITESPARSE_CFLAGS) $(CFLAGS) -o $@ c_examples/suitesparse_block2d.c \
+	    $(LIBDS) $(SUITESPARSE_LIBS) $(LDFLAGS) $(LDLIBS)
+
+suitesparse-demo: $(OUTDIR)/suitesparse_block2d
+	./$(OUTDIR)/suitesparse_block2d $(DEMO_ARGS)

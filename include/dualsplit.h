@@ -179,6 +179,16 @@ typedef enum DsMethod {
    by a fallback to Gauss-Seidel sweeps: the high-accuracy method.
    */
   DS_METHOD_NEWTON = 3,
+  /*
+   Pop's splitting (Schur variant) with MPRGP / MPGP (Dostal) for the normal and
+   tangential sub-problems.
+   */
+  DS_METHOD_SPLIT_MPRGP = 4,
+  /*
+   MPRGP / MPGP on the whole dual; for Coulomb, the fixed point p = mu lambda_N
+   outside.
+   */
+  DS_METHOD_MPRGP = 5,
 } DsMethod;
 
 /*

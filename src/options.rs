@@ -17,19 +17,35 @@ pub enum Method {
     /// to Gauss-Seidel sweeps when a step does not lower err. One outer iteration is
     /// one Newton step (a dense LU on the free unknowns).
     Newton,
+    /// Pop's splitting (Schur variant) with MPRGP / MPGP for the sub-problems instead
+    /// of projected Gauss-Seidel.
+    SplitMprgp,
+    /// MPRGP / MPGP (Dostal) on the whole dual; for Coulomb, the fixed point
+    /// p = mu lambda_N outside (one outer iteration per Tresca solve).
+    Mprgp,
 }
 
 impl Method {
     /// Every method, in the order of the C enum.
-    pub const ALL: [Method; 4] = [Method::Split, Method::BlockGs, Method::Pgs, Method::Newton];
+    pub const ALL: [Method; 6] = [
+        Method::Split,
+        Method::BlockGs,
+        Method::Pgs,
+        Method::Newton,
+        Method::SplitMprgp,
+        Method::Mprgp,
+    ];
 
-    /// Short lower-case name ("split", "block-gs", "pgs", "newton").
+    /// Short lower-case name ("split", "block-gs", "pgs", "newton",
+    /// "split-mprgp", "mprgp").
     pub fn name(self) -> &'static str {
         match self {
             Method::Split => "split",
             Method::BlockGs => "block-gs",
             Method::Pgs => "pgs",
             Method::Newton => "newton",
+            Method::SplitMprgp => "split-mprgp",
+            Method::Mprgp => "mprgp",
         }
     }
 
@@ -49,8 +65,9 @@ pub struct Options {
     /// Maximum number of outer iterations: sweeps for `Pgs`, normal/tangential
     /// alternations for `Split` and `BlockGs` (default 10_000).
     pub max_outer: usize,
-    /// Maximum number of projected Gauss-Seidel sweeps per sub-problem in `Split`
-    /// and `BlockGs` (default 1_000).
+    /// Maximum number of inner iterations per sub-problem: Gauss-Seidel sweeps in
+    /// `Split` and `BlockGs`, MPRGP iterations in `SplitMprgp` and `Mprgp`
+    /// (default 1_000).
     pub max_inner: usize,
 }
 

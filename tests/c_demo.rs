@@ -42,7 +42,7 @@ fn static_lib() -> PathBuf {
         "libdualsplit.a"
     };
     let modified = |p: &PathBuf| std::fs::metadata(p).and_then(|m| m.modified()).ok();
-    let lib = [deps.join(name), profile_dir.join(name)]
+    [deps.join(name), profile_dir.join(name)]
         .into_iter()
         .filter(|p| p.is_file())
         .max_by_key(modified)
@@ -53,8 +53,7 @@ fn static_lib() -> PathBuf {
                 deps.display(),
                 profile_dir.display()
             )
-        });
-    lib
+        })
 }
 
 /// The target triple this test was compiled for, which the cc crate needs outside

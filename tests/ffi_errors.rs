@@ -996,7 +996,7 @@ fn bad_argument() {
                 ..good
             },
         ),
-        ("method", DsOptions { method: 4, ..good }),
+        ("method", DsOptions { method: 6, ..good }),
         ("method", DsOptions { method: -1, ..good }),
         ("tol", DsOptions { tol: -1e-8, ..good }),
         (

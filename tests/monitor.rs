@@ -162,8 +162,11 @@ fn stopping_after_k_iterations_stops_after_exactly_k() {
         let s =
             unsafe { ds_problem_set_monitor(h.0, Some(stop_at), (&mut stop as *mut i64).cast()) };
         assert_eq!(s, DsStatus::Ok);
-        let mut opts = dualsplit::ffi::DsOptions::default();
-        opts.method = 2; // PGS: many iterations on this scene
+        // PGS: many iterations on this scene.
+        let opts = dualsplit::ffi::DsOptions {
+            method: 2,
+            ..Default::default()
+        };
         let (mut u, mut ln, mut lt) = (
             vec![f64::NAN; sc.f.len()],
             vec![f64::NAN; sc.m()],

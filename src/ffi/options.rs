@@ -174,7 +174,7 @@ mod tests {
                 },
                 "struct_size = 8",
             ),
-            (DsOptions { method: 4, ..o }, "opts.method = 4"),
+            (DsOptions { method: 6, ..o }, "opts.method = 6"),
             (DsOptions { tol: -1.0, ..o }, "opts.tol"),
             (
                 DsOptions {

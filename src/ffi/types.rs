@@ -62,6 +62,12 @@ pub enum DsMethod {
     /// Semismooth Newton (primal-dual active set) on the condensed dual, globalised
     /// by a fallback to Gauss-Seidel sweeps: the high-accuracy method.
     Newton = 3,
+    /// Pop's splitting (Schur variant) with MPRGP / MPGP (Dostal) for the normal and
+    /// tangential sub-problems.
+    SplitMprgp = 4,
+    /// MPRGP / MPGP on the whole dual; for Coulomb, the fixed point p = mu lambda_N
+    /// outside.
+    Mprgp = 5,
 }
 
 /// Friction law of one increment (the `friction` argument of ds_solve / ds_step).
@@ -144,6 +150,8 @@ impl CEnum for DsMethod {
         (DsMethod::BlockGs, "DS_METHOD_BLOCK_GS"),
         (DsMethod::Pgs, "DS_METHOD_PGS"),
         (DsMethod::Newton, "DS_METHOD_NEWTON"),
+        (DsMethod::SplitMprgp, "DS_METHOD_SPLIT_MPRGP"),
+        (DsMethod::Mprgp, "DS_METHOD_MPRGP"),
     ];
 }
 
@@ -182,6 +190,8 @@ impl From<DsMethod> for Method {
             DsMethod::BlockGs => Method::BlockGs,
             DsMethod::Pgs => Method::Pgs,
             DsMethod::Newton => Method::Newton,
+            DsMethod::SplitMprgp => Method::SplitMprgp,
+            DsMethod::Mprgp => Method::Mprgp,
         }
     }
 }
@@ -193,6 +203,8 @@ impl From<Method> for DsMethod {
             Method::BlockGs => DsMethod::BlockGs,
             Method::Pgs => DsMethod::Pgs,
             Method::Newton => DsMethod::Newton,
+            Method::SplitMprgp => DsMethod::SplitMprgp,
+            Method::Mprgp => DsMethod::Mprgp,
         }
     }
 }

@@ -9,6 +9,7 @@
 //! `projection`; the projected Gauss-Seidel sweeps in `pgs`; Pop's splitting and
 //! the block Gauss-Seidel variant in `split`.
 
+mod mprgp;
 mod newton;
 mod pgs;
 mod projection;
@@ -153,8 +154,42 @@ impl DualProblem<'_> {
 pub fn run(problem: &DualProblem<'_>, lam: &mut [f64], opts: &Options, target: f64) -> Outcome {
     match opts.method {
         Method::Pgs => pgs::solve(problem, lam, opts, target),
-        Method::Split => split::solve(problem, lam, opts, target, true),
-        Method::BlockGs => split::solve(problem, lam, opts, target, false),
+        Method::Split => split::solve(problem, lam, opts, target, true, false),
+        Method::BlockGs => split::solve(problem, lam, opts, target, false, false),
+        Method::SplitMprgp => split::solve(problem, lam, opts, target, true, true),
+        Method::Mprgp => whole_mprgp(problem, lam, opts, target),
         Method::Newton => newton::solve(problem, lam, opts, target),
+    }
+}
+
+/// MPRGP / MPGP on the whole dual, with the Coulomb fixed point p = mu lambda_N
+/// outside: each outer iteration solves the Tresca problem of the current bound
+/// (one outer iteration for Tresca).
+fn whole_mprgp(problem: &DualProblem<'_>, lam: &mut [f64], opts: &Options, target: f64) -> Outcome {
+    let dual = problem.dual;
+    let (m, c) = (dual.m, dual.c);
+    let mut out = Outcome::default();
+    let mut w = vec![0.0; c];
+    let mut p = vec![0.0; m];
+    let mut v = vec![0.0; c];
+    let mut radii = vec![0.0; m];
+    loop {
+        problem.gradient(lam, &mut w);
+        out.dual_err = problem.error(lam, &w, &mut p, &mut v);
+        if problem.should_stop(&mut out, lam, &p, &v, target, opts) {
+            return out;
+        }
+        problem.law.bounds(&lam[..m], &mut radii);
+        let qp = mprgp::ConvexQp {
+            h: &dual.a,
+            ld: c,
+            k: c,
+            q: problem.b,
+            n_nonneg: m,
+            block: dual.d - 1,
+            radii: &radii,
+        };
+        out.inner += qp.solve(lam, 0.1 * target, opts.max_inner);
+        out.outer += 1;
     }
 }

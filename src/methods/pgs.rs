@@ -5,6 +5,7 @@
 //! Every sweep keeps w = H x - q current by rank-one updates, so a sweep costs one
 //! column of H per changed unknown and the stopping test costs O(k).
 
+use super::mprgp::ConvexQp;
 use super::projection::{project_disk, solve_disk_qp};
 use super::{DualProblem, Outcome};
 use crate::options::Options;
@@ -30,7 +31,40 @@ pub(super) struct SubQp<'a> {
     pub radii: Option<&'a [f64]>,
 }
 
-impl SubQp<'_> {
+impl<'a> SubQp<'a> {
+    /// The same sub-problem for MPRGP.
+    pub fn as_convex(&self) -> ConvexQp<'a> {
+        let (n_nonneg, radii): (usize, &'a [f64]) = match self.radii {
+            None => (self.k, &[]),
+            Some(r) => (0, r),
+        };
+        ConvexQp {
+            h: self.h,
+            ld: self.ld,
+            k: self.k,
+            q: self.q,
+            n_nonneg,
+            block: self.block,
+            radii,
+        }
+    }
+
+    /// Solves by projected Gauss-Seidel (`mprgp` false) or MPRGP; returns the
+    /// sweeps or iterations. `w` is scratch of length k.
+    pub fn solve_with(
+        &self,
+        mprgp: bool,
+        x: &mut [f64],
+        w: &mut [f64],
+        tol: f64,
+        max: usize,
+    ) -> usize {
+        if mprgp {
+            self.as_convex().solve(x, tol, max)
+        } else {
+            self.solve(x, w, tol, max)
+        }
+    }
     #[inline]
     fn col(&self, j: usize) -> &[f64] {
         &self.h[j * self.ld..j * self.ld + self.k]

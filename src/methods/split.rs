@@ -101,6 +101,7 @@ pub(super) fn solve(
     opts: &Options,
     target: f64,
     use_schur: bool,
+    mprgp: bool,
 ) -> Outcome {
     let dual = problem.dual;
     let (m, d, c) = (dual.m, dual.d, dual.c);
@@ -131,7 +132,13 @@ pub(super) fn solve(
             block: 1,
             radii: None,
         };
-        sub.solve(&mut lam[..m], &mut wsub[..m], inner_tol, opts.max_inner)
+        sub.solve_with(
+            mprgp,
+            &mut lam[..m],
+            &mut wsub[..m],
+            inner_tol,
+            opts.max_inner,
+        )
     };
     // Start: lambda_N of the frictionless problem unless warm-started.
     if lam.iter().all(|&x| x == 0.0) {
@@ -179,7 +186,13 @@ pub(super) fn solve(
                     }
                 }
             };
-            out.inner += sub.solve(&mut lam[m..], &mut wsub[..ct], inner_tol, opts.max_inner);
+            out.inner += sub.solve_with(
+                mprgp,
+                &mut lam[m..],
+                &mut wsub[..ct],
+                inner_tol,
+                opts.max_inner,
+            );
         }
         // Normal step.
         out.inner += normal_step(lam, &mut qn, &mut wsub);

@@ -1,0 +1,694 @@
+!> dualsplit -- Fortran 2003 interface (ISO_C_BINDING) to the C API of include/dualsplit.h.
+!>
+!> Frictional contact of an elastic body on a rigid foundation, one load increment at a
+!> time, by N. Pop's dual splitting on the condensed dual problem. Every C function,
+!> enum and struct of dualsplit.h has its Fortran counterpart here; tests/fortran.rs
+!> fails when this file and the header drift apart.
+!>
+!> Sign conventions (as in the header):
+!>   K u = f - N^T lambda_N - T^T lambda_T     (equilibrium)
+!>   N u <= g,  lambda_N >= 0,  lambda_N,i (g_i - (N u)_i) = 0
+!>   |lambda_T,i| <= p_i (Tresca)  or  <= mu_i lambda_N,i (Coulomb)
+!>
+!> Usage from Fortran 90 style code (1-based CSR of default INTEGER, REAL(8) vectors):
+!>
+!>     use dualsplit
+!>     type(DsMatrix)  :: k, n, t
+!>     type(DsOptions) :: opts
+!>     type(DsReport)  :: rep
+!>     type(c_ptr)     :: pb = c_null_ptr     ! the handle (DsProblem *)
+!>     integer         :: st
+!>     k = ds_matrix_csr(neq, neq, ia, ja, a, storage=DS_STORAGE_UPPER)   ! base 1
+!>     n = ds_matrix_csr(m, neq, ian, jan, an)
+!>     t = ds_matrix_csr(m, neq, iat, jat, at)
+!>     st = ds_problem_new(2, k, n, t, pb)
+!>     if (st /= DS_STATUS_OK) print *, ds_status_string(st), ': ', ds_last_error_message()
+!>     call ds_options_default(opts)
+!>     st = ds_step(pb, opts, DS_FRICTION_COULOMB, f, g0, mu, u, lam_n, lam_t, rep)
+!>     call ds_problem_free(pb)                ! pb is c_null_ptr afterwards
+!>
+!> A DsMatrix only borrows the caller's arrays (the library reads them during the
+!> ds_problem_new / ds_problem_refactor / ds_problem_set_contacts call and keeps
+!> nothing): give them the TARGET attribute (or make them ALLOCATABLE, TARGET) and
+!> pass whole contiguous arrays, so that the addresses ds_matrix_csr / _csc / _coo
+!> store stay valid until that call. Index arrays may be default INTEGER (int32,
+!> DS_INDEX_TYPE_I32) or INTEGER(8) (DS_INDEX_TYPE_I64); the helpers pick the type.
+!>
+!> Callbacks (ds_problem_set_monitor, ds_problem_set_log) are BIND(C) procedures of a
+!> module with the interfaces ds_monitor_fn and ds_log_fn; a log callback converts its
+!> message with ds_string_from_c.
+!>
+!> Every function returning a status returns one of the DS_STATUS_* values; on error
+!> the outputs are untouched (DS_STATUS_NOT_CONVERGED writes the report only,
+!> DS_STATUS_STOPPED the last iterate and the report) and the handle stays usable. Compile this file with the
+!> program (gfortran -c dualsplit.f90) and link with libdualsplit (see README.md).
+module dualsplit
+   use, intrinsic :: iso_c_binding, only: c_int, c_int32_t, c_int64_t, c_double, &
+      c_ptr, c_null_ptr, c_char, c_size_t, c_associated, c_f_pointer, c_loc, c_funptr, &
+      c_null_funptr, c_funloc
+   implicit none
+   private
+
+   ! The handle is a TYPE(C_PTR); re-exported so that `use dualsplit` is enough.
+   public :: c_ptr, c_null_ptr, c_associated
+
+   ! ---------------------------------------------------------------------------------
+   ! Enums (C enum values; the C API passes them as int32_t)
+   ! ---------------------------------------------------------------------------------
+
+   !> DsStatus: result of a call. DS_STATUS_OK is 0, every other value an error.
+   integer(c_int32_t), parameter, public :: DS_STATUS_OK = 0
+   integer(c_int32_t), parameter, public :: DS_STATUS_NULL_POINTER = 1
+   integer(c_int32_t), parameter, public :: DS_STATUS_BAD_SIZE = 2
+   integer(c_int32_t), parameter, public :: DS_STATUS_BAD_INDEX = 3
+   integer(c_int32_t), parameter, public :: DS_STATUS_NOT_FINITE = 4
+   integer(c_int32_t), parameter, public :: DS_STATUS_NOT_SYMMETRIC = 5
+   integer(c_int32_t), parameter, public :: DS_STATUS_NOT_POSITIVE_DEFINITE = 6
+   integer(c_int32_t), parameter, public :: DS_STATUS_NEGATIVE_FRICTION = 7
+   integer(c_int32_t), parameter, public :: DS_STATUS_NOT_CONVERGED = 8
+   integer(c_int32_t), parameter, public :: DS_STATUS_OUT_OF_MEMORY = 9
+   integer(c_int32_t), parameter, public :: DS_STATUS_BAD_ARGUMENT = 10
+   integer(c_int32_t), parameter, public :: DS_STATUS_IO_ERROR = 11
+   integer(c_int32_t), parameter, public :: DS_STATUS_PANIC = 12
+   integer(c_int32_t), parameter, public :: DS_STATUS_STOPPED = 13
+
+   !> DsFormat: layout of a DsMatrix (CSparse naming).
+   integer(c_int32_t), parameter, public :: DS_FORMAT_CSR = 0
+   integer(c_int32_t), parameter, public :: DS_FORMAT_CSC = 1
+   integer(c_int32_t), parameter, public :: DS_FORMAT_COO = 2
+
+   !> DsIndexType: integer width of a DsMatrix's p and i arrays.
+   integer(c_int32_t), parameter, public :: DS_INDEX_TYPE_I32 = 0
+   integer(c_int32_t), parameter, public :: DS_INDEX_TYPE_I64 = 1
+
+   !> DsStorage: which part of a symmetric K is stored (N and T must be FULL).
+   integer(c_int32_t), parameter, public :: DS_STORAGE_FULL = 0
+   integer(c_int32_t), parameter, public :: DS_STORAGE_UPPER = 1
+   integer(c_int32_t), parameter, public :: DS_STORAGE_LOWER = 2
+
+   !> DsMethod: the iterative method on the condensed dual (DsOptions%method).
+   integer(c_int32_t), parameter, public :: DS_METHOD_SPLIT = 0
+   integer(c_int32_t), parameter, public :: DS_METHOD_BLOCK_GS = 1
+   integer(c_int32_t), parameter, public :: DS_METHOD_PGS = 2
+   integer(c_int32_t), parameter, public :: DS_METHOD_NEWTON = 3
+   integer(c_int32_t), parameter, public :: DS_METHOD_SPLIT_MPRGP = 4
+   integer(c_int32_t), parameter, public :: DS_METHOD_MPRGP = 5
+
+   !> DsFriction: what the `bound` array of ds_solve / ds_step holds.
+   integer(c_int32_t), parameter, public :: DS_FRICTION_TRESCA = 0
+   integer(c_int32_t), parameter, public :: DS_FRICTION_COULOMB = 1
+
+   ! ---------------------------------------------------------------------------------
+   ! Structs: component order and types exactly as in dualsplit.h
+   ! ---------------------------------------------------------------------------------
+
+   !> Options of ds_solve / ds_step. Fill with ds_options_default, then change fields.
+   type, bind(C), public :: DsOptions
+      integer(c_int32_t) :: struct_size   !< uint32_t in C: sizeof(DsOptions), set by ds_options_default
+      integer(c_int32_t) :: method        !< a DS_METHOD_* value (default DS_METHOD_SPLIT)
+      real(c_double)     :: tol           !< stop when err <= tol (default 1e-10)
+      integer(c_int64_t) :: max_outer     !< outer iterations, >= 0 (default 10000)
+      integer(c_int64_t) :: max_inner     !< Gauss-Seidel sweeps per sub-problem, >= 1 (default 1000)
+   end type DsOptions
+
+   !> A sparse matrix borrowed from the caller (CSparse naming); see ds_matrix_csr.
+   type, bind(C), public :: DsMatrix
+      integer(c_int32_t) :: format        !< DS_FORMAT_CSR, DS_FORMAT_CSC or DS_FORMAT_COO
+      integer(c_int32_t) :: index_type    !< DS_INDEX_TYPE_I32 or DS_INDEX_TYPE_I64
+      integer(c_int32_t) :: base          !< 0 (C) or 1 (Fortran)
+      integer(c_int32_t) :: storage       !< DS_STORAGE_FULL, _UPPER or _LOWER (K only)
+      integer(c_int64_t) :: nrows
+      integer(c_int64_t) :: ncols
+      integer(c_int64_t) :: nnz           !< COO: number of triplets; CSR/CSC: ignored
+      type(c_ptr)        :: p             !< CSR row / CSC column pointers; COO column indices
+      type(c_ptr)        :: i             !< CSR column / CSC row indices; COO row indices
+      type(c_ptr)        :: x             !< values (const double *)
+   end type DsMatrix
+
+   !> What a solve reports besides u and the multipliers.
+   type, bind(C), public :: DsReport
+      integer(c_int32_t) :: status        !< DS_STATUS_OK or DS_STATUS_NOT_CONVERGED
+      integer(c_int32_t) :: method        !< the DS_METHOD_* that ran
+      real(c_double)     :: err           !< relative KKT error (dimensionless)
+      real(c_double)     :: equilibrium_residual
+      integer(c_int64_t) :: outer_iterations
+      integer(c_int64_t) :: inner_iterations
+      integer(c_int64_t) :: n_open        !< contacts with lambda_N = 0
+      integer(c_int64_t) :: n_stick       !< closed, |lambda_T| < p
+      integer(c_int64_t) :: n_slip        !< closed, |lambda_T| = p (frictionless closed too)
+      real(c_double)     :: factor_seconds
+      real(c_double)     :: condense_seconds
+      real(c_double)     :: solve_seconds
+   end type DsReport
+
+   !> What the monitor callback receives after every outer iteration.
+   type, bind(C), public :: DsProgress
+      integer(c_int64_t) :: iteration     !< outer iterations done so far (1 after the first)
+      real(c_double)     :: err           !< the current err (dimensionless)
+      integer(c_int64_t) :: n_open
+      integer(c_int64_t) :: n_stick
+      integer(c_int64_t) :: n_slip
+      real(c_double)     :: elapsed_seconds
+   end type DsProgress
+
+   ! ---------------------------------------------------------------------------------
+   ! Callbacks (DsMonitorFn, DsLogFn): write them as BIND(C) procedures of a module
+   ! with these interfaces, e.g.
+   !
+   !     integer(c_int32_t) function my_monitor(progress, user_data) bind(C)
+   !        type(DsProgress), intent(in) :: progress
+   !        type(c_ptr), value :: user_data
+   !        my_monitor = 0                  ! nonzero stops the solve (DS_STATUS_STOPPED)
+   !     end function
+   !     st = ds_problem_set_monitor(pb, my_monitor)
+   !
+   ! They must not call the library on the same handle, nor STOP the program.
+   ! ---------------------------------------------------------------------------------
+
+   abstract interface
+      !> typedef int32_t (*DsMonitorFn)(const struct DsProgress *progress, void *user_data);
+      function ds_monitor_fn(progress, user_data) result(stop_solve) bind(C)
+         import :: c_int32_t, c_ptr, DsProgress
+         type(DsProgress), intent(in) :: progress
+         type(c_ptr), value :: user_data
+         integer(c_int32_t) :: stop_solve
+      end function ds_monitor_fn
+
+      !> typedef void (*DsLogFn)(int32_t level, const char *message, void *user_data);
+      !> message: convert with ds_string_from_c(message).
+      subroutine ds_log_fn(level, message, user_data) bind(C)
+         import :: c_int32_t, c_ptr
+         integer(c_int32_t), value :: level
+         type(c_ptr), value :: message
+         type(c_ptr), value :: user_data
+      end subroutine ds_log_fn
+   end interface
+   public :: ds_monitor_fn, ds_log_fn
+
+   ! ---------------------------------------------------------------------------------
+   ! Public Fortran procedures (thin wrappers of the C functions, same names)
+   ! ---------------------------------------------------------------------------------
+
+   public :: ds_last_error_message, ds_status_string, ds_options_default
+   public :: ds_problem_new, ds_problem_free, ds_problem_refactor, ds_problem_set_contacts
+   public :: ds_problem_sizes, ds_solve, ds_step, ds_history_reset
+   public :: ds_problem_set_monitor, ds_problem_set_log, ds_string_from_c
+   public :: ds_matrix_csr, ds_matrix_csc, ds_matrix_coo
+
+   !> ds_problem_sizes(problem, n_dofs, n_contacts, d): n_dofs and n_contacts default
+   !> INTEGER or INTEGER(8).
+   interface ds_problem_sizes
+      module procedure ds_problem_sizes_i32, ds_problem_sizes_i64
+   end interface ds_problem_sizes
+
+   !> mat = ds_matrix_csr(nrows, ncols, ia, ja, a [, storage] [, base]): a CSR DsMatrix
+   !> over ia (nrows+1 row pointers), ja (column indices), a (values); index arrays
+   !> INTEGER (int32) or INTEGER(8); base 1 unless given.
+   interface ds_matrix_csr
+      module procedure ds_matrix_csr_i32, ds_matrix_csr_i64
+   end interface ds_matrix_csr
+
+   !> mat = ds_matrix_csc(nrows, ncols, colptr, rowind, a [, storage] [, base]).
+   interface ds_matrix_csc
+      module procedure ds_matrix_csc_i32, ds_matrix_csc_i64
+   end interface ds_matrix_csc
+
+   !> mat = ds_matrix_coo(nrows, ncols, nnz, irow, jcol, a [, storage] [, base]):
+   !> triplets, duplicates summed.
+   interface ds_matrix_coo
+      module procedure ds_matrix_coo_i32, ds_matrix_coo_i64
+   end interface ds_matrix_coo
+
+   ! ---------------------------------------------------------------------------------
+   ! The C functions (private; called through the wrappers below)
+   ! ---------------------------------------------------------------------------------
+
+   interface
+      ! const char *ds_last_error_message(void);
+      function c_ds_last_error_message() result(msg) bind(C, name="ds_last_error_message")
+         import :: c_ptr
+         type(c_ptr) :: msg
+      end function c_ds_last_error_message
+
+      ! void ds_options_default(struct DsOptions *opts);
+      subroutine c_ds_options_default(opts) bind(C, name="ds_options_default")
+         import :: DsOptions
+         type(DsOptions), intent(out) :: opts
+      end subroutine c_ds_options_default
+
+      ! enum DsStatus ds_problem_new(int32_t d, const struct DsMatrix *k,
+      !     const struct DsMatrix *n, const struct DsMatrix *t, struct DsProblem **out);
+      function c_ds_problem_new(d, k, n, t, out) result(status) bind(C, name="ds_problem_new")
+         import :: c_int, c_int32_t, c_ptr, DsMatrix
+         integer(c_int32_t), value :: d
+         type(DsMatrix), intent(in) :: k, n, t
+         type(c_ptr), intent(inout) :: out
+         integer(c_int) :: status
+      end function c_ds_problem_new
+
+      ! void ds_problem_free(struct DsProblem *problem);
+      subroutine c_ds_problem_free(problem) bind(C, name="ds_problem_free")
+         import :: c_ptr
+         type(c_ptr), value :: problem
+      end subroutine c_ds_problem_free
+
+      ! enum DsStatus ds_problem_refactor(struct DsProblem *problem, const struct DsMatrix *k);
+      function c_ds_problem_refactor(problem, k) result(status) &
+         bind(C, name="ds_problem_refactor")
+         import :: c_int, c_ptr, DsMatrix
+         type(c_ptr), value :: problem
+         type(DsMatrix), intent(in) :: k
+         integer(c_int) :: status
+      end function c_ds_problem_refactor
+
+      ! enum DsStatus ds_problem_set_contacts(struct DsProblem *problem,
+      !     const struct DsMatrix *n, const struct DsMatrix *t);
+      function c_ds_problem_set_contacts(problem, n, t) result(status) &
+         bind(C, name="ds_problem_set_contacts")
+         import :: c_int, c_ptr, DsMatrix
+         type(c_ptr), value :: problem
+         type(DsMatrix), intent(in) :: n, t
+         integer(c_int) :: status
+      end function c_ds_problem_set_contacts
+
+      ! enum DsStatus ds_problem_sizes(const struct DsProblem *problem, int64_t *n_dofs,
+      !     int64_t *n_contacts, int32_t *d);
+      function c_ds_problem_sizes(problem, n_dofs, n_contacts, d) result(status) &
+         bind(C, name="ds_problem_sizes")
+         import :: c_int, c_int32_t, c_int64_t, c_ptr
+         type(c_ptr), value :: problem
+         integer(c_int64_t), intent(inout) :: n_dofs, n_contacts
+         integer(c_int32_t), intent(inout) :: d
+         integer(c_int) :: status
+      end function c_ds_problem_sizes
+
+      ! enum DsStatus ds_solve(struct DsProblem *problem, const struct DsOptions *opts,
+      !     int32_t friction, const double *f, const double *g, const double *bound,
+      !     double *u, double *lambda_n, double *lambda_t, struct DsReport *report);
+      function c_ds_solve(problem, opts, friction, f, g, bound, u, lambda_n, lambda_t, &
+                          report) result(status) bind(C, name="ds_solve")
+         import :: c_int, c_int32_t, c_double, c_ptr
+         type(c_ptr), value :: problem
+         type(c_ptr), value :: opts
+         integer(c_int32_t), value :: friction
+         real(c_double), intent(in) :: f(*), g(*), bound(*)
+         real(c_double), intent(inout) :: u(*), lambda_n(*), lambda_t(*)
+         type(c_ptr), value :: report
+         integer(c_int) :: status
+      end function c_ds_solve
+
+      ! enum DsStatus ds_step(... the arguments of ds_solve ...);
+      function c_ds_step(problem, opts, friction, f_total, g0, bound, u, lambda_n, lambda_t, &
+                         report) result(status) bind(C, name="ds_step")
+         import :: c_int, c_int32_t, c_double, c_ptr
+         type(c_ptr), value :: problem
+         type(c_ptr), value :: opts
+         integer(c_int32_t), value :: friction
+         real(c_double), intent(in) :: f_total(*), g0(*), bound(*)
+         real(c_double), intent(inout) :: u(*), lambda_n(*), lambda_t(*)
+         type(c_ptr), value :: report
+         integer(c_int) :: status
+      end function c_ds_step
+
+      ! enum DsStatus ds_history_reset(struct DsProblem *problem);
+      function c_ds_history_reset(problem) result(status) bind(C, name="ds_history_reset")
+         import :: c_int, c_ptr
+         type(c_ptr), value :: problem
+         integer(c_int) :: status
+      end function c_ds_history_reset
+
+      ! enum DsStatus ds_problem_set_monitor(struct DsProblem *problem,
+      !     DsMonitorFn monitor, void *user_data);
+      function c_ds_problem_set_monitor(problem, monitor, user_data) result(status) &
+         bind(C, name="ds_problem_set_monitor")
+         import :: c_int, c_ptr, c_funptr
+         type(c_ptr), value :: problem
+         type(c_funptr), value :: monitor
+         type(c_ptr), value :: user_data
+         integer(c_int) :: status
+      end function c_ds_problem_set_monitor
+
+      ! enum DsStatus ds_problem_set_log(struct DsProblem *problem, int32_t level,
+      !     DsLogFn log, void *user_data);
+      function c_ds_problem_set_log(problem, level, log, user_data) result(status) &
+         bind(C, name="ds_problem_set_log")
+         import :: c_int, c_int32_t, c_ptr, c_funptr
+         type(c_ptr), value :: problem
+         integer(c_int32_t), value :: level
+         type(c_funptr), value :: log
+         type(c_ptr), value :: user_data
+         integer(c_int) :: status
+      end function c_ds_problem_set_log
+
+      ! const char *ds_status_string(int32_t status);
+      function c_ds_status_string(status) result(str) bind(C, name="ds_status_string")
+         import :: c_int32_t, c_ptr
+         integer(c_int32_t), value :: status
+         type(c_ptr) :: str
+      end function c_ds_status_string
+
+      ! size_t strlen(const char *s);  (C library, to convert the messages)
+      function c_strlen(s) result(n) bind(C, name="strlen")
+         import :: c_ptr, c_size_t
+         type(c_ptr), value :: s
+         integer(c_size_t) :: n
+      end function c_strlen
+   end interface
+
+contains
+
+   ! ---------------------------------------------------------------------------------
+   ! Messages as Fortran strings
+   ! ---------------------------------------------------------------------------------
+
+   !> A copy of a NUL-terminated C string ('' for a NULL pointer).
+   function c_to_fortran_string(cstr) result(str)
+      type(c_ptr), intent(in) :: cstr
+      character(len=:), allocatable :: str
+      character(kind=c_char), pointer :: chars(:)
+      integer :: n, j
+
+      if (.not. c_associated(cstr)) then
+         str = ''
+         return
+      end if
+      n = int(c_strlen(cstr))
+      allocate (character(len=n) :: str)
+      if (n == 0) return
+      call c_f_pointer(cstr, chars, [n])
+      do j = 1, n
+         str(j:j) = chars(j)
+      end do
+   end function c_to_fortran_string
+
+   !> A copy of a NUL-terminated C string as a Fortran string, e.g. the message a log
+   !> callback receives ('' for a null pointer).
+   function ds_string_from_c(cstr) result(str)
+      type(c_ptr), intent(in) :: cstr
+      character(len=:), allocatable :: str
+      str = c_to_fortran_string(cstr)
+   end function ds_string_from_c
+
+   !> The message of the last error on the calling thread ('' after a successful call),
+   !> e.g. "ds_solve: argument f is NULL but must point to 12 values".
+   function ds_last_error_message() result(msg)
+      character(len=:), allocatable :: msg
+      msg = c_to_fortran_string(c_ds_last_error_message())
+   end function ds_last_error_message
+
+   !> A description of a status value, e.g. "K is not symmetric".
+   function ds_status_string(status) result(str)
+      integer(c_int32_t), intent(in) :: status
+      character(len=:), allocatable :: str
+      str = c_to_fortran_string(c_ds_status_string(status))
+   end function ds_status_string
+
+   ! ---------------------------------------------------------------------------------
+   ! Options, handle
+   ! ---------------------------------------------------------------------------------
+
+   !> Fills opts with the defaults: struct_size, DS_METHOD_SPLIT, tol 1e-10,
+   !> max_outer 10000, max_inner 1000.
+   subroutine ds_options_default(opts)
+      type(DsOptions), intent(out) :: opts
+      call c_ds_options_default(opts)
+   end subroutine ds_options_default
+
+   !> Validates K, N, T, factors K and forms the condensed dual; problem receives the
+   !> new handle on success (untouched on error). d is 2 or 3.
+   function ds_problem_new(d, k, n, t, problem) result(status)
+      integer(c_int32_t), intent(in) :: d
+      type(DsMatrix), intent(in) :: k, n, t
+      type(c_ptr), intent(inout) :: problem
+      integer(c_int32_t) :: status
+      status = int(c_ds_problem_new(d, k, n, t, problem), c_int32_t)
+   end function ds_problem_new
+
+   !> Frees a handle (a null handle is fine) and sets it to c_null_ptr.
+   subroutine ds_problem_free(problem)
+      type(c_ptr), intent(inout) :: problem
+      call c_ds_problem_free(problem)
+      problem = c_null_ptr
+   end subroutine ds_problem_free
+
+   !> Refactors K with new values and the same pattern and storage.
+   function ds_problem_refactor(problem, k) result(status)
+      type(c_ptr), intent(in) :: problem
+      type(DsMatrix), intent(in) :: k
+      integer(c_int32_t) :: status
+      status = int(c_ds_problem_refactor(problem, k), c_int32_t)
+   end function ds_problem_refactor
+
+   !> Replaces N and T (m may change) without refactoring K.
+   function ds_problem_set_contacts(problem, n, t) result(status)
+      type(c_ptr), intent(in) :: problem
+      type(DsMatrix), intent(in) :: n, t
+      integer(c_int32_t) :: status
+      status = int(c_ds_problem_set_contacts(problem, n, t), c_int32_t)
+   end function ds_problem_set_contacts
+
+   !> The sizes of a problem (INTEGER(c_int32_t), i.e. default INTEGER, outputs): n DOFs, m contacts, d.
+   function ds_problem_sizes_i32(problem, n_dofs, n_contacts, d) result(status)
+      type(c_ptr), intent(in) :: problem
+      integer(c_int32_t), intent(inout) :: n_dofs, n_contacts
+      integer(c_int32_t), intent(inout) :: d
+      integer(c_int32_t) :: status
+      integer(c_int64_t) :: n64, m64
+      integer(c_int32_t) :: d32
+      n64 = 0
+      m64 = 0
+      d32 = 0
+      status = int(c_ds_problem_sizes(problem, n64, m64, d32), c_int32_t)
+      if (status == DS_STATUS_OK) then
+         n_dofs = int(n64, c_int32_t)
+         n_contacts = int(m64, c_int32_t)
+         d = d32
+      end if
+   end function ds_problem_sizes_i32
+
+   !> The sizes of a problem (INTEGER(8) outputs): n DOFs, m contacts, d.
+   function ds_problem_sizes_i64(problem, n_dofs, n_contacts, d) result(status)
+      type(c_ptr), intent(in) :: problem
+      integer(c_int64_t), intent(inout) :: n_dofs, n_contacts
+      integer(c_int32_t), intent(inout) :: d
+      integer(c_int32_t) :: status
+      integer(c_int32_t) :: d32
+      d32 = 0
+      status = int(c_ds_problem_sizes(problem, n_dofs, n_contacts, d32), c_int32_t)
+      if (status == DS_STATUS_OK) d = d32
+   end function ds_problem_sizes_i64
+
+   ! ---------------------------------------------------------------------------------
+   ! Solves
+   ! ---------------------------------------------------------------------------------
+
+   !> Solves one increment exactly as given. opts and report are optional (the
+   !> library's defaults; no report). f: n values; g, bound, lambda_n: m values;
+   !> lambda_t: (d-1) m values. friction: DS_FRICTION_TRESCA (bound = p) or
+   !> DS_FRICTION_COULOMB (bound = mu). On error u, lambda_n, lambda_t are untouched;
+   !> on DS_STATUS_NOT_CONVERGED only the report is written; on DS_STATUS_STOPPED (the
+   !> monitor asked to stop) the last iterate and the report.
+   function ds_solve(problem, opts, friction, f, g, bound, u, lambda_n, lambda_t, report) &
+      result(status)
+      type(c_ptr), intent(in) :: problem
+      type(DsOptions), intent(in), optional, target :: opts
+      integer(c_int32_t), intent(in) :: friction
+      real(c_double), intent(in) :: f(*), g(*), bound(*)
+      real(c_double), intent(inout) :: u(*), lambda_n(*), lambda_t(*)
+      type(DsReport), intent(inout), optional, target :: report
+      integer(c_int32_t) :: status
+      type(c_ptr) :: popts, prep
+      popts = c_null_ptr
+      prep = c_null_ptr
+      if (present(opts)) popts = c_loc(opts)
+      if (present(report)) prep = c_loc(report)
+      status = int(c_ds_solve(problem, popts, friction, f, g, bound, u, &
+                              lambda_n, lambda_t, prep), c_int32_t)
+   end function ds_solve
+
+   !> One step of a quasistatic history: pass the TOTAL load f_total and the INITIAL
+   !> gaps g0; u receives the total displacement, lambda_n and lambda_t the total
+   !> contact forces. Arguments and statuses as ds_solve.
+   function ds_step(problem, opts, friction, f_total, g0, bound, u, lambda_n, lambda_t, &
+                    report) result(status)
+      type(c_ptr), intent(in) :: problem
+      type(DsOptions), intent(in), optional, target :: opts
+      integer(c_int32_t), intent(in) :: friction
+      real(c_double), intent(in) :: f_total(*), g0(*), bound(*)
+      real(c_double), intent(inout) :: u(*), lambda_n(*), lambda_t(*)
+      type(DsReport), intent(inout), optional, target :: report
+      integer(c_int32_t) :: status
+      type(c_ptr) :: popts, prep
+      popts = c_null_ptr
+      prep = c_null_ptr
+      if (present(opts)) popts = c_loc(opts)
+      if (present(report)) prep = c_loc(report)
+      status = int(c_ds_step(problem, popts, friction, f_total, g0, bound, &
+                             u, lambda_n, lambda_t, prep), c_int32_t)
+   end function ds_step
+
+   !> Forgets the history of ds_step (u_0 = 0, no warm start).
+   function ds_history_reset(problem) result(status)
+      type(c_ptr), intent(in) :: problem
+      integer(c_int32_t) :: status
+      status = int(c_ds_history_reset(problem), c_int32_t)
+   end function ds_history_reset
+
+   !> Sets the monitor callback (see ds_monitor_fn), called after every outer
+   !> iteration of ds_solve / ds_step with a DsProgress and user_data (optional, default
+   !> c_null_ptr); a nonzero result stops the solve (DS_STATUS_STOPPED, last iterate
+   !> written). Without monitor, clears it.
+   function ds_problem_set_monitor(problem, monitor, user_data) result(status)
+      type(c_ptr), intent(in) :: problem
+      procedure(ds_monitor_fn), optional :: monitor
+      type(c_ptr), intent(in), optional :: user_data
+      integer(c_int32_t) :: status
+      type(c_funptr) :: fn
+      type(c_ptr) :: data
+      fn = c_null_funptr
+      data = c_null_ptr
+      if (present(monitor)) fn = c_funloc(monitor)
+      if (present(user_data)) data = user_data
+      status = int(c_ds_problem_set_monitor(problem, fn, data), c_int32_t)
+   end function ds_problem_set_monitor
+
+   !> Sets the log level (0 silent, the default; 1 a summary line per solve; 2 also a
+   !> line per outer iteration) and the sink (see ds_log_fn; optional: stderr when
+   !> absent), which receives user_data (optional, default c_null_ptr).
+   function ds_problem_set_log(problem, level, log, user_data) result(status)
+      type(c_ptr), intent(in) :: problem
+      integer(c_int32_t), intent(in) :: level
+      procedure(ds_log_fn), optional :: log
+      type(c_ptr), intent(in), optional :: user_data
+      integer(c_int32_t) :: status
+      type(c_funptr) :: fn
+      type(c_ptr) :: data
+      fn = c_null_funptr
+      data = c_null_ptr
+      if (present(log)) fn = c_funloc(log)
+      if (present(user_data)) data = user_data
+      status = int(c_ds_problem_set_log(problem, level, fn, data), c_int32_t)
+   end function ds_problem_set_log
+
+   ! ---------------------------------------------------------------------------------
+   ! DsMatrix over Fortran arrays
+   ! ---------------------------------------------------------------------------------
+
+   !> The fields common to every DsMatrix; base 1 and FULL storage unless given.
+   function matrix_head(format, index_type, nrows, ncols, nnz, storage, base) result(mat)
+      integer(c_int32_t), intent(in) :: format, index_type
+      integer(c_int64_t), intent(in) :: nrows, ncols, nnz
+      integer(c_int32_t), intent(in), optional :: storage, base
+      type(DsMatrix) :: mat
+      mat%format = format
+      mat%index_type = index_type
+      mat%base = 1
+      if (present(base)) mat%base = base
+      mat%storage = DS_STORAGE_FULL
+      if (present(storage)) mat%storage = storage
+      mat%nrows = nrows
+      mat%ncols = ncols
+      mat%nnz = nnz
+      mat%p = c_null_ptr
+      mat%i = c_null_ptr
+      mat%x = c_null_ptr
+   end function matrix_head
+
+   function ds_matrix_csr_i32(nrows, ncols, ia, ja, a, storage, base) result(mat)
+      integer(c_int32_t), intent(in) :: nrows, ncols
+      integer(c_int32_t), intent(in), target :: ia(*), ja(*)
+      real(c_double), intent(in), target :: a(*)
+      integer(c_int32_t), intent(in), optional :: storage, base
+      type(DsMatrix) :: mat
+      integer(c_int64_t) :: nnz
+      mat = matrix_head(DS_FORMAT_CSR, DS_INDEX_TYPE_I32, int(nrows, c_int64_t), &
+                        int(ncols, c_int64_t), 0_c_int64_t, storage, base)
+      mat%p = c_loc(ia(1))
+      nnz = int(ia(nrows + 1), c_int64_t) - mat%base
+      if (nnz > 0) then
+         mat%i = c_loc(ja(1))
+         mat%x = c_loc(a(1))
+      end if
+   end function ds_matrix_csr_i32
+
+   function ds_matrix_csr_i64(nrows, ncols, ia, ja, a, storage, base) result(mat)
+      integer(c_int64_t), intent(in) :: nrows, ncols
+      integer(c_int64_t), intent(in), target :: ia(*), ja(*)
+      real(c_double), intent(in), target :: a(*)
+      integer(c_int32_t), intent(in), optional :: storage, base
+      type(DsMatrix) :: mat
+      integer(c_int64_t) :: nnz
+      mat = matrix_head(DS_FORMAT_CSR, DS_INDEX_TYPE_I64, nrows, ncols, 0_c_int64_t, &
+                        storage, base)
+      mat%p = c_loc(ia(1))
+      nnz = ia(nrows + 1) - mat%base
+      if (nnz > 0) then
+         mat%i = c_loc(ja(1))
+         mat%x = c_loc(a(1))
+      end if
+   end function ds_matrix_csr_i64
+
+   function ds_matrix_csc_i32(nrows, ncols, colptr, rowind, a, storage, base) result(mat)
+      integer(c_int32_t), intent(in) :: nrows, ncols
+      integer(c_int32_t), intent(in), target :: colptr(*), rowind(*)
+      real(c_double), intent(in), target :: a(*)
+      integer(c_int32_t), intent(in), optional :: storage, base
+      type(DsMatrix) :: mat
+      integer(c_int64_t) :: nnz
+      mat = matrix_head(DS_FORMAT_CSC, DS_INDEX_TYPE_I32, int(nrows, c_int64_t), &
+                        int(ncols, c_int64_t), 0_c_int64_t, storage, base)
+      mat%p = c_loc(colptr(1))
+      nnz = int(colptr(ncols + 1), c_int64_t) - mat%base
+      if (nnz > 0) then
+         mat%i = c_loc(rowind(1))
+         mat%x = c_loc(a(1))
+      end if
+   end function ds_matrix_csc_i32
+
+   function ds_matrix_csc_i64(nrows, ncols, colptr, rowind, a, storage, base) result(mat)
+      integer(c_int64_t), intent(in) :: nrows, ncols
+      integer(c_int64_t), intent(in), target :: colptr(*), rowind(*)
+      real(c_double), intent(in), target :: a(*)
+      integer(c_int32_t), intent(in), optional :: storage, base
+      type(DsMatrix) :: mat
+      integer(c_int64_t) :: nnz
+      mat = matrix_head(DS_FORMAT_CSC, DS_INDEX_TYPE_I64, nrows, ncols, 0_c_int64_t, &
+                        storage, base)
+      mat%p = c_loc(colptr(1))
+      nnz = colptr(ncols + 1) - mat%base
+      if (nnz > 0) then
+         mat%i = c_loc(rowind(1))
+         mat%x = c_loc(a(1))
+      end if
+   end function ds_matrix_csc_i64
+
+   function ds_matrix_coo_i32(nrows, ncols, nnz, irow, jcol, a, storage, base) result(mat)
+      integer(c_int32_t), intent(in) :: nrows, ncols, nnz
+      integer(c_int32_t), intent(in), target :: irow(*), jcol(*)
+      real(c_double), intent(in), target :: a(*)
+      integer(c_int32_t), intent(in), optional :: storage, base
+      type(DsMatrix) :: mat
+      mat = matrix_head(DS_FORMAT_COO, DS_INDEX_TYPE_I32, int(nrows, c_int64_t), &
+                        int(ncols, c_int64_t), int(nnz, c_int64_t), storage, base)
+      if (nnz > 0) then
+         mat%p = c_loc(jcol(1))
+         mat%i = c_loc(irow(1))
+         mat%x = c_loc(a(1))
+      end if
+   end function ds_matrix_coo_i32
+
+   function ds_matrix_coo_i64(nrows, ncols, nnz, irow, jcol, a, storage, base) result(mat)
+      integer(c_int64_t), intent(in) :: nrows, ncols, nnz
+      integer(c_int64_t), intent(in), target :: irow(*), jcol(*)
+      real(c_double), intent(in), target :: a(*)
+      integer(c_int32_t), intent(in), optional :: storage, base
+      type(DsMatrix) :: mat
+      mat = matrix_head(DS_FORMAT_COO, DS_INDEX_TYPE_I64, nrows, ncols, nnz, storage, base)
+      if (nnz > 0) then
+         mat%p = c_loc(jcol(1))
+         mat%i = c_loc(irow(1))
+         mat%x = c_loc(a(1))
+      end if
+   end function ds_matrix_coo_i64
+
+end module dualsplit

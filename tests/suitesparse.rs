@@ -1,0 +1,216 @@
+//! The SuiteSparse path: c_examples/suitesparse_block2d.c assembles K as a CHOLMOD
+//! triplet matrix (upper triangle, stype 1, SuiteSparse_long indices) compressed by
+//! cholmod_l_triplet_to_sparse, N and T with CXSparse (cs_di), and hands the
+//! cholmod_sparse / cs arrays to the library as they are. Built against the static
+//! library of this test run.
+//!
+//! - `suitesparse_example_builds_and_runs`: the Coulomb history converges, the
+//!   matrices went in as CSC/I64/UPPER (K), CSC/I32 (N) and COO/I32 (T), and the
+//!   frictionless reference check passes;
+//! - `frictionless_u_matches_cholmod_reference`: on three scenes, u from the library
+//!   (K factored by faer) equals, to 1e-10 relative, the solution of the
+//!   equality-constrained system on the final active set solved with CHOLMOD
+//!   ([K N_a^T; N_a 0] by its Schur complement), and that solution is feasible.
+//!
+//! Compiler and linker flags: $SUITESPARSE_CFLAGS / $SUITESPARSE_LIBS when set (as in
+//! the Makefile), else pkg-config's CHOLMOD and CXSparse (SuiteSparse >= 7), else
+//! -I/usr/include/suitesparse -lcholmod -lcxsparse -lsuitesparseconfig (Debian,
+//! Ubuntu). Without SuiteSparse the tests print "SKIPPED: ... needs SuiteSparse" and
+//! pass, unless CI=true (then they fail).
+
+mod ctools;
+
+use std::collections::HashMap;
+use std::path::{Path, PathBuf};
+use std::process::Command;
+use std::sync::OnceLock;
+use std::time::Instant;
+
+use ctools::*;
+
+const HINT: &str = "apt-get install libsuitesparse-dev";
+
+/// (cflags, libs) for CHOLMOD and CXSparse, or None when SuiteSparse is not found.
+fn suitesparse_flags() -> Option<(Vec<String>, Vec<String>)> {
+    let words = |s: &str| s.split_whitespace().map(String::from).collect::<Vec<_>>();
+    if let (Ok(c), Ok(l)) = (
+        std::env::var("SUITESPARSE_CFLAGS"),
+        std::env::var("SUITESPARSE_LIBS"),
+    ) {
+        return Some((words(&c), words(&l)));
+    }
+    let pc = Command::new("pkg-config")
+        .args(["--cflags", "--libs", "CHOLMOD", "CXSparse"])
+        .output();
+    if let Ok(out) = pc
+        && out.status.success()
+    {
+        let flags = words(&String::from_utf8_lossy(&out.stdout));
+        let (libs, cflags): (Vec<String>, Vec<String>) = flags
+            .into_iter()
+            .partition(|f| f.starts_with("-l") || f.starts_with("-L"));
+        return Some((cflags, libs));
+    }
+    for dir in [
+        "/usr/include/suitesparse",
+        "/usr/local/include/suitesparse",
+        "/usr/include",
+    ] {
+        let d = Path::new(dir);
+        if d.join("cholmod.h").is_file() && d.join("cs.h").is_file() {
+            return Some((
+                vec![format!("-I{dir}")],
+                words("-lcholmod -lcxsparse -lsuitesparseconfig"),
+            ));
+        }
+    }
+    None
+}
+
+/// The example, built once per run; None (after the SKIPPED notice) without
+/// SuiteSparse.
+fn example(test: &str) -> Option<&'static Path> {
+    static EXE: OnceLock<Option<PathBuf>> = OnceLock::new();
+    let exe = EXE.get_or_init(|| {
+        let (cflags, libs) = suitesparse_flags()?;
+        let root = manifest_dir();
+        let exe = out_dir("suitesparse").join("suitesparse_block2d");
+        let t = Instant::now();
+        run_ok(
+            c_compiler()
+                .args(["-std=c99", "-Wall", "-Wextra"])
+                .arg("-I")
+                .arg(root.join("include"))
+                .args(&cflags)
+                .arg(root.join("c_examples/suitesparse_block2d.c"))
+                .arg(static_lib())
+                .args(&libs)
+                .args(SYSTEM_LIBS)
+                .arg("-o")
+                .arg(&exe),
+            "compiling c_examples/suitesparse_block2d.c",
+        );
+        println!("built in {:.2} s", t.elapsed().as_secs_f64());
+        Some(exe)
+    });
+    if exe.is_none() {
+        tool_missing(test, "SuiteSparse (CHOLMOD, CXSparse)", HINT);
+    }
+    exe.as_deref()
+}
+
+fn key_values(line: &str) -> HashMap<String, String> {
+    line.split_whitespace()
+        .filter_map(|kv| kv.split_once('='))
+        .map(|(k, v)| (k.to_string(), v.to_string()))
+        .collect()
+}
+
+fn line_with<'a>(stdout: &'a str, prefix: &str) -> &'a str {
+    stdout
+        .lines()
+        .find(|l| l.starts_with(prefix))
+        .unwrap_or_else(|| panic!("no {prefix} line in:\n{stdout}"))
+}
+
+fn num(kv: &HashMap<String, String>, key: &str) -> f64 {
+    kv.get(key)
+        .unwrap_or_else(|| panic!("no {key} in {kv:?}"))
+        .parse()
+        .unwrap_or_else(|_| panic!("{key} is not a number: {kv:?}"))
+}
+
+/// Checks the REFERENCE line and returns (active contacts, u_rel_diff,
+/// lambda_rel_diff).
+fn check_reference(stdout: &str, contacts: f64, what: &str) -> (f64, f64, f64) {
+    let r = key_values(line_with(stdout, "REFERENCE "));
+    let active = num(&r, "active");
+    let u_diff = num(&r, "u_rel_diff");
+    let l_diff = num(&r, "lambda_rel_diff");
+    assert_eq!(
+        r["feasible"], "1",
+        "{what}: the reference is not feasible: {r:?}"
+    );
+    assert_eq!(r["check"], "ok", "{what}: {r:?}");
+    assert!(
+        active >= 1.0 && active < contacts,
+        "{what}: a scene with open and closed contacts: {r:?}"
+    );
+    assert!(
+        u_diff <= 1e-10 && l_diff <= 1e-10,
+        "{what}: library vs CHOLMOD reference: {r:?}"
+    );
+    (active, u_diff, l_diff)
+}
+
+#[test]
+fn suitesparse_example_builds_and_runs() {
+    let Some(exe) = example("suitesparse::suitesparse_example_builds_and_runs") else {
+        return;
+    };
+    let t = Instant::now();
+    let out = run_ok(
+        Command::new(exe).args(["--nx", "16", "--ny", "8"]),
+        "suitesparse_block2d",
+    );
+    let stdout = stdout_of(&out);
+    println!("{stdout}ran in {:.2} s", t.elapsed().as_secs_f64());
+
+    let s = key_values(line_with(&stdout, "SUMMARY "));
+    assert_eq!(s["all_converged"], "1", "{stdout}");
+    assert_eq!(s["steps"], "10");
+    assert_eq!(s["contacts"], "17");
+    assert_eq!(s["dofs"], "272");
+    assert_eq!(
+        s["k_index"], "i64",
+        "K goes in with SuiteSparse_long indices"
+    );
+    assert_eq!(
+        s["k_storage"], "upper",
+        "K goes in as CHOLMOD's upper triangle"
+    );
+    assert!(num(&s, "max_err") <= 1e-10);
+    assert!(num(&s, "shear_max_slip") >= 1.0 && num(&s, "shear_max_stick") >= 1.0);
+    assert!(stdout.contains("stype 1"), "{stdout}");
+    assert!(stdout.contains("T: cs_di triplet"), "{stdout}");
+
+    // The history is the demo's first ten steps: the contact forces must match the C
+    // demo's (tests/c_demo.rs) press/shear rows, e.g. the normal resultant of step 5.
+    let row5: Vec<&str> = stdout
+        .lines()
+        .find(|l| l.trim_start().starts_with("5 press"))
+        .expect("the row of step 5")
+        .split_whitespace()
+        .collect();
+    let sum_n: f64 = row5[7].parse().unwrap();
+    assert!(sum_n > 0.0);
+    check_reference(&stdout, 17.0, "16 x 8");
+}
+
+#[test]
+fn frictionless_u_matches_cholmod_reference() {
+    let Some(exe) = example("suitesparse::frictionless_u_matches_cholmod_reference") else {
+        return;
+    };
+    let scenes: [(&[&str], f64); 3] = [
+        (&["--nx", "16", "--ny", "8"], 17.0),
+        (&["--nx", "40", "--ny", "20", "--quiet"], 41.0),
+        (
+            &["--nx", "30", "--ny", "10", "--uy", "-0.02", "--quiet"],
+            31.0,
+        ),
+    ];
+    for (args, contacts) in scenes {
+        let t = Instant::now();
+        let stdout = stdout_of(&run_ok(
+            Command::new(exe).args(args),
+            &format!("suitesparse_block2d {args:?}"),
+        ));
+        let (active, u_diff, l_diff) = check_reference(&stdout, contacts, &format!("{args:?}"));
+        eprintln!(
+            "{args:?}: {active} of {contacts} contacts active, |u - u_cholmod| / |u_cholmod| \
+             = {u_diff:.3e}, lambda_N: {l_diff:.3e} ({:.2} s)",
+            t.elapsed().as_secs_f64()
+        );
+    }
+}
