@@ -45,7 +45,7 @@
 module dualsplit
    use, intrinsic :: iso_c_binding, only: c_int, c_int32_t, c_int64_t, c_double, &
       c_ptr, c_null_ptr, c_char, c_size_t, c_associated, c_f_pointer, c_loc, c_funptr, &
-      c_null_funptr, c_funloc
+      c_null_funptr, c_funloc, c_null_char
    implicit none
    private
 
@@ -192,7 +192,7 @@ module dualsplit
    public :: ds_last_error_message, ds_status_string, ds_options_default
    public :: ds_problem_new, ds_problem_free, ds_problem_refactor, ds_problem_set_contacts
    public :: ds_problem_sizes, ds_solve, ds_step, ds_history_reset
-   public :: ds_problem_set_monitor, ds_problem_set_log, ds_string_from_c
+   public :: ds_problem_set_monitor, ds_problem_set_log, ds_problem_dump, ds_string_from_c
    public :: ds_matrix_csr, ds_matrix_csc, ds_matrix_coo
 
    !> ds_problem_sizes(problem, n_dofs, n_contacts, d): n_dofs and n_contacts default
@@ -270,6 +270,18 @@ module dualsplit
          type(DsMatrix), intent(in) :: n, t
          integer(c_int) :: status
       end function c_ds_problem_set_contacts
+
+      ! enum DsStatus ds_problem_dump(const struct DsProblem *problem, const char *dir,
+      !     int32_t friction, const double *f, const double *g, const double *bound);
+      function c_ds_problem_dump(problem, dir, friction, f, g, bound) result(status) &
+         bind(C, name="ds_problem_dump")
+         import :: c_int, c_int32_t, c_double, c_ptr, c_char
+         type(c_ptr), value :: problem
+         character(kind=c_char), intent(in) :: dir(*)
+         integer(c_int32_t), value :: friction
+         real(c_double), intent(in) :: f(*), g(*), bound(*)
+         integer(c_int) :: status
+      end function c_ds_problem_dump
 
       ! enum DsStatus ds_problem_sizes(const struct DsProblem *problem, int64_t *n_dofs,
       !     int64_t *n_contacts, int32_t *d);
@@ -446,6 +458,18 @@ contains
       integer(c_int32_t) :: status
       status = int(c_ds_problem_set_contacts(problem, n, t), c_int32_t)
    end function ds_problem_set_contacts
+
+   !> Writes the handle's problem with one increment's f, g and bound to the folder
+   !> dir (Matrix Market and text files) for replay with `dualsplit solve DIR`.
+   function ds_problem_dump(problem, dir, friction, f, g, bound) result(status)
+      type(c_ptr), intent(in) :: problem
+      character(len=*), intent(in) :: dir
+      integer(c_int32_t), intent(in) :: friction
+      real(c_double), intent(in) :: f(*), g(*), bound(*)
+      integer(c_int32_t) :: status
+      status = int(c_ds_problem_dump(problem, trim(dir)//c_null_char, friction, f, g, &
+                                     bound), c_int32_t)
+   end function ds_problem_dump
 
    !> The sizes of a problem (INTEGER(c_int32_t), i.e. default INTEGER, outputs): n DOFs, m contacts, d.
    function ds_problem_sizes_i32(problem, n_dofs, n_contacts, d) result(status)

@@ -630,6 +630,33 @@ enum DsStatus ds_problem_set_log(struct DsProblem *problem,
                                  void *user_data);
 
 /*
+ Writes the problem of the handle with one increment's f, g and friction data to
+ the folder `dir` as Matrix Market and text files (K.mtx, N.mtx, T.mtx, f.txt,
+ g.txt, and mu.txt for DS_FRICTION_COULOMB or p.txt for DS_FRICTION_TRESCA), so
+ that a failing increment can be replayed outside the host program with
+ `dualsplit solve DIR --out OUT`. The folder is created if needed; existing files
+ of those names are replaced. For a ds_step history, pass the increment's data
+ (f_total - K u_k and g0 - N u_k), or the step's totals after ds_history_reset.
+
+ - dir: a NUL-terminated path (UTF-8).
+ - friction, f (n), g (m), bound (m): as ds_solve.
+
+ Returns DS_STATUS_OK, DS_STATUS_NULL_POINTER, DS_STATUS_BAD_ARGUMENT (friction,
+ dir not UTF-8), DS_STATUS_NOT_FINITE, DS_STATUS_NEGATIVE_FRICTION or
+ DS_STATUS_IO_ERROR (the folder or a file cannot be written).
+
+ # Safety
+ `problem` must be NULL or a live handle, `dir` NULL or a NUL-terminated string,
+ the arrays NULL or valid for n, m and m values.
+ */
+enum DsStatus ds_problem_dump(const struct DsProblem *problem,
+                              const char *dir,
+                              int32_t friction,
+                              const double *f,
+                              const double *g,
+                              const double *bound);
+
+/*
  A static, NUL-terminated description of a status value (e.g. "K is not
  symmetric"). Never NULL: unknown values give "unknown status". The string must
  not be freed.

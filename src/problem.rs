@@ -435,6 +435,27 @@ impl ContactProblem {
         self.n.nrows
     }
 
+    /// Writes this problem with one increment's f (n), g (m) and friction data to the
+    /// problem folder `dir` (created if needed; see [`crate::mtx`]), so that the
+    /// increment can be replayed with the `dualsplit` command line. For a history
+    /// step, pass the increment's effective data (f_total - K u_k, g0 - N u_k); the
+    /// warm start is not part of a folder.
+    ///
+    /// Errors: `BadSize`, `NotFinite`, `NegativeFriction` (checked as in
+    /// [`ContactProblem::solve`]), `Io` (the folder cannot be written).
+    pub fn write_folder(
+        &self,
+        dir: &std::path::Path,
+        f: &[f64],
+        g: &[f64],
+        friction: Friction<'_>,
+    ) -> Result<()> {
+        check_vec("f", f, self.n_dofs())?;
+        check_vec("g", g, self.n_contacts())?;
+        self.check_friction(friction)?;
+        crate::mtx::write_problem(dir, self.d, &self.k, &self.n, &self.t, f, g, friction)
+    }
+
     /// The condensed dual operator (for diagnostics and tests).
     pub fn dual(&self) -> &Dual {
         &self.dual

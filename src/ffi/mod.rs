@@ -30,9 +30,9 @@ pub use matrix::DsMatrix;
 pub use monitor::{DsLogFn, DsMonitorFn, DsProgress};
 pub use options::{DsOptions, ds_options_default};
 pub use problem::{
-    DsProblem, ds_history_reset, ds_problem_free, ds_problem_new, ds_problem_refactor,
-    ds_problem_set_contacts, ds_problem_set_log, ds_problem_set_monitor, ds_problem_sizes,
-    ds_solve, ds_step,
+    DsProblem, ds_history_reset, ds_problem_dump, ds_problem_free, ds_problem_new,
+    ds_problem_refactor, ds_problem_set_contacts, ds_problem_set_log, ds_problem_set_monitor,
+    ds_problem_sizes, ds_solve, ds_step,
 };
 pub use report::DsReport;
 pub use status::{DsStatus, ds_status_string};

@@ -514,3 +514,60 @@ pub unsafe extern "C" fn ds_problem_set_log(
         Ok(())
     })
 }
+
+/// Writes the problem of the handle with one increment's f, g and friction data to
+/// the folder `dir` as Matrix Market and text files (K.mtx, N.mtx, T.mtx, f.txt,
+/// g.txt, and mu.txt for DS_FRICTION_COULOMB or p.txt for DS_FRICTION_TRESCA), so
+/// that a failing increment can be replayed outside the host program with
+/// `dualsplit solve DIR --out OUT`. The folder is created if needed; existing files
+/// of those names are replaced. For a ds_step history, pass the increment's data
+/// (f_total - K u_k and g0 - N u_k), or the step's totals after ds_history_reset.
+///
+/// - dir: a NUL-terminated path (UTF-8).
+/// - friction, f (n), g (m), bound (m): as ds_solve.
+///
+/// Returns DS_STATUS_OK, DS_STATUS_NULL_POINTER, DS_STATUS_BAD_ARGUMENT (friction,
+/// dir not UTF-8), DS_STATUS_NOT_FINITE, DS_STATUS_NEGATIVE_FRICTION or
+/// DS_STATUS_IO_ERROR (the folder or a file cannot be written).
+///
+/// # Safety
+/// `problem` must be NULL or a live handle, `dir` NULL or a NUL-terminated string,
+/// the arrays NULL or valid for n, m and m values.
+#[unsafe(no_mangle)]
+pub unsafe extern "C" fn ds_problem_dump(
+    problem: *const DsProblem,
+    dir: *const std::ffi::c_char,
+    friction: i32,
+    f: *const f64,
+    g: *const f64,
+    bound: *const f64,
+) -> DsStatus {
+    entry("ds_problem_dump", || {
+        // SAFETY: NULL is rejected; otherwise a live handle (contract).
+        let problem = unsafe { ref_in(problem, "problem")? };
+        if dir.is_null() {
+            return Err(Error::new(ErrorKind::NullPointer, "dir is NULL"));
+        }
+        // SAFETY: dir is a NUL-terminated string (contract).
+        let dir = unsafe { std::ffi::CStr::from_ptr(dir) }
+            .to_str()
+            .map_err(|_| Error::new(ErrorKind::BadArgument, "dir is not valid UTF-8"))?;
+        let law = DsFriction::parse(friction, "friction")?;
+        let (n, m) = (problem.inner.n_dofs(), problem.inner.n_contacts());
+        // SAFETY: the arrays hold n, m, m values (contract); NULL only if empty.
+        let (f, g, bound) = unsafe {
+            (
+                slice_in(f, n, "f")?,
+                slice_in(g, m, "g")?,
+                slice_in(bound, m, "bound")?,
+            )
+        };
+        let law = match law {
+            DsFriction::Tresca => Friction::Tresca(bound),
+            DsFriction::Coulomb => Friction::Coulomb(bound),
+        };
+        problem
+            .inner
+            .write_folder(std::path::Path::new(dir), f, g, law)
+    })
+}
