@@ -391,7 +391,24 @@ fn verbose_prints_more() {
     assert_eq!(loud.status.code(), Some(0));
     let (q, l) = (text(&quiet.stdout), text(&loud.stdout));
     assert!(l.lines().count() > q.lines().count(), "{q}\n---\n{l}");
-    assert!(l.contains("nnz(K)") && l.contains("times:"), "{l}");
+    assert!(l.contains("nnz(K)") && l.contains("read seconds"), "{l}");
+    // Piped, the progress goes to stderr as plain lines (no carriage return), the
+    // first iteration always shown.
+    let e = text(&loud.stderr);
+    assert!(e.starts_with("iteration      1  err "), "{e}");
+    assert!(!e.contains('\r'), "{e}");
+    // --quiet prints nothing at all on success, and still writes the outputs.
+    std::fs::remove_dir_all(&out).ok();
+    let silent = run(&[
+        "solve",
+        prob.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+        "--quiet",
+    ]);
+    assert_eq!(silent.status.code(), Some(0));
+    assert!(silent.stdout.is_empty() && silent.stderr.is_empty());
+    assert!(out.join("report.json").is_file());
 }
 
 #[test]

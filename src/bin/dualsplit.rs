@@ -14,7 +14,7 @@ const HELP: &str = "\
 dualsplit: frictional contact solver (Signorini + Tresca or Coulomb friction)
 
 USAGE:
-    dualsplit solve DIR --out OUTDIR [--method NAME] [--tol X] [--max-iter N] [--verbose]
+    dualsplit solve DIR --out OUTDIR [--method NAME] [--tol X] [--max-iter N] [--verbose] [--quiet]
     dualsplit --help
     dualsplit --version
 
@@ -49,6 +49,7 @@ OPTIONS:
                       pgs, normal/tangential alternations for split and block-gs,
                       Newton steps for newton
     --verbose         print the problem sizes and the timings of every stage
+    --quiet           print nothing but errors (no progress, no summary)
     -h, --help        print this help
     -V, --version     print the version
     Options may also be written --name=VALUE.
@@ -130,6 +131,7 @@ struct SolveArgs {
     out: PathBuf,
     opts: Options,
     verbose: bool,
+    quiet: bool,
 }
 
 enum Command {
@@ -152,6 +154,7 @@ fn parse_args(args: &[String]) -> Result<Command, String> {
     let mut out: Option<PathBuf> = None;
     let mut opts = Options::default();
     let mut verbose = false;
+    let mut quiet = false;
     let mut k = 1;
     while k < args.len() {
         let arg = &args[k];
@@ -177,6 +180,13 @@ fn parse_args(args: &[String]) -> Result<Command, String> {
                 return Err("--verbose takes no value".into());
             }
             verbose = true;
+            continue;
+        }
+        if name == "--quiet" {
+            if inline.is_some() {
+                return Err("--quiet takes no value".into());
+            }
+            quiet = true;
             continue;
         }
         if !matches!(name, "--out" | "--method" | "--tol" | "--max-iter") {
@@ -235,7 +245,8 @@ fn parse_args(args: &[String]) -> Result<Command, String> {
         dir,
         out,
         opts,
-        verbose,
+        verbose: verbose && !quiet,
+        quiet,
     }))
 }
 
@@ -479,7 +490,15 @@ fn solve(args: &SolveArgs) -> ExitCode {
             t1.elapsed().as_secs_f64()
         );
     }
-    let sol = match problem.solve(&f, &g, friction.as_friction(), &args.opts) {
+    let mut progress = Progress::new();
+    let mut show = |p: &dualsplit::Progress| {
+        progress.show(p);
+        true
+    };
+    let monitor: Option<dualsplit::Monitor<'_>> = if args.quiet { None } else { Some(&mut show) };
+    let result = problem.solve_monitored(&f, &g, friction.as_friction(), &args.opts, monitor);
+    progress.finish();
+    let sol = match result {
         Ok(s) => s,
         Err(e) => return fail_run(args, Some(&sizes), &e),
     };
@@ -499,7 +518,24 @@ fn solve(args: &SolveArgs) -> ExitCode {
         eprintln!("dualsplit: error: {e}");
         return ExitCode::from(EXIT_OUTPUT);
     }
-    let law = sizes.law;
+    if !args.quiet {
+        print_summary(args, &sizes, r, read_s);
+    }
+    exit_code(r)
+}
+
+/// Exit code of a finished solve: 0 only when converged.
+fn exit_code(r: &dualsplit::Report) -> ExitCode {
+    if r.status == SolveStatus::Converged {
+        ExitCode::SUCCESS
+    } else {
+        ExitCode::from(EXIT_NOT_CONVERGED)
+    }
+}
+
+/// The human summary: a verdict line, then a table.
+fn print_summary(args: &SolveArgs, sizes: &Sizes, r: &dualsplit::Report, read_s: f64) {
+    let (n, m, d, law) = (sizes.n, sizes.m, sizes.d, sizes.law);
     println!(
         "{}: n = {n}, m = {m}, d = {d}, {law} friction",
         args.dir.display()
@@ -514,30 +550,74 @@ fn solve(args: &SolveArgs) -> ExitCode {
     } else {
         format!("{}: err {:.3e}", status_word(r.status), r.err)
     };
-    println!(
-        "{verdict}; {} iterations ({} inner), method {}",
-        r.outer_iterations,
-        r.inner_iterations,
-        r.method.name()
-    );
-    println!(
-        "equilibrium residual {:.3e}; contacts: {} open, {} stick, {} slip",
-        r.equilibrium_residual, r.n_open, r.n_stick, r.n_slip
-    );
-    if verbose {
-        println!(
-            "times: read {read_s:.3} s, factor {:.3} s, condense {:.3} s, solve {:.3} s",
-            r.factor_seconds, r.condense_seconds, r.solve_seconds
-        );
+    println!("{verdict}");
+    if args.verbose {
+        println!("  {:<22}{read_s:.3e}", "read seconds");
     }
+    println!("  {:<22}{}", "method", r.method.name());
+    println!("  {:<22}{:.3e} (tol {:e})", "err", r.err, args.opts.tol);
+    println!(
+        "  {:<22}{:.3e}",
+        "equilibrium residual", r.equilibrium_residual
+    );
+    println!(
+        "  {:<22}{} outer, {} inner",
+        "iterations", r.outer_iterations, r.inner_iterations
+    );
+    println!(
+        "  {:<22}{} open, {} stick, {} slip",
+        "contacts", r.n_open, r.n_stick, r.n_slip
+    );
+    println!(
+        "  {:<22}factor {:.3e}, condense {:.3e}, solve {:.3e}",
+        "seconds", r.factor_seconds, r.condense_seconds, r.solve_seconds
+    );
     println!(
         "wrote u.txt, lambda_n.txt, lambda_t.txt, report.json in {}",
         args.out.display()
     );
-    if r.status == SolveStatus::Converged {
-        ExitCode::SUCCESS
-    } else {
-        ExitCode::from(EXIT_NOT_CONVERGED)
+}
+
+/// The progress line on stderr: updated in place on a terminal (at most 20 times a
+/// second), plain lines when piped (at most two a second, and the first iteration).
+struct Progress {
+    terminal: bool,
+    last: Option<Instant>,
+    shown: bool,
+}
+
+impl Progress {
+    fn new() -> Progress {
+        use std::io::IsTerminal;
+        Progress {
+            terminal: std::io::stderr().is_terminal(),
+            last: None,
+            shown: false,
+        }
+    }
+
+    fn show(&mut self, p: &dualsplit::Progress) {
+        let every = if self.terminal { 0.05 } else { 0.5 };
+        if self.last.is_some_and(|t| t.elapsed().as_secs_f64() < every) {
+            return;
+        }
+        self.last = Some(Instant::now());
+        let line = format!(
+            "iteration {:>6}  err {:.3e}  open {:>5} stick {:>5} slip {:>5}  {:8.3} s",
+            p.iteration, p.err, p.n_open, p.n_stick, p.n_slip, p.elapsed_seconds
+        );
+        if self.terminal {
+            eprint!("\r{line}");
+        } else {
+            eprintln!("{line}");
+        }
+        self.shown = true;
+    }
+
+    fn finish(&self) {
+        if self.terminal && self.shown {
+            eprintln!();
+        }
     }
 }
 
@@ -556,7 +636,7 @@ fn main() -> ExitCode {
         Err(msg) => {
             eprintln!("dualsplit: error: {msg}");
             eprintln!(
-                "usage: dualsplit solve DIR --out OUTDIR [--method NAME] [--tol X] [--max-iter N] [--verbose]"
+                "usage: dualsplit solve DIR --out OUTDIR [--method NAME] [--tol X] [--max-iter N] [--verbose] [--quiet]"
             );
             eprintln!("       dualsplit --help");
             ExitCode::from(EXIT_USAGE)
