@@ -225,7 +225,7 @@ static void usage(FILE *out)
 {
     fprintf(out,
             "usage: block2d [options]\n"
-            "  --method split|block-gs|pgs|newton  dual method (default split)\n"
+            "  --method split|block-gs|pgs|newton|split-mprgp|mprgp  dual method (default split)\n"
             "  --nx N, --ny N               elements along x and y (default 40 x 20)\n"
             "  --E e, --nu nu               Young's modulus, Poisson ratio (default 1e4, 0.3)\n"
             "  --W w, --H h                 block width and height (default 2, 1)\n"
@@ -261,6 +261,8 @@ static const char *method_name(int m)
     case DS_METHOD_BLOCK_GS: return "block-gs";
     case DS_METHOD_PGS: return "pgs";
     case DS_METHOD_NEWTON: return "newton";
+    case DS_METHOD_SPLIT_MPRGP: return "split-mprgp";
+    case DS_METHOD_MPRGP: return "mprgp";
     default: return "?";
     }
 }
@@ -296,6 +298,8 @@ static int parse_args(int argc, char **argv, Params *p)
             else if (strcmp(v, "block-gs") == 0) p->method = DS_METHOD_BLOCK_GS;
             else if (strcmp(v, "pgs") == 0) p->method = DS_METHOD_PGS;
             else if (strcmp(v, "newton") == 0) p->method = DS_METHOD_NEWTON;
+            else if (strcmp(v, "split-mprgp") == 0) p->method = DS_METHOD_SPLIT_MPRGP;
+            else if (strcmp(v, "mprgp") == 0) p->method = DS_METHOD_MPRGP;
             else ok = 0;
         } else if (strcmp(a, "--nx") == 0) ok = parse_long(v, &p->nx) && p->nx >= 1;
         else if (strcmp(a, "--ny") == 0) ok = parse_long(v, &p->ny) && p->ny >= 1;

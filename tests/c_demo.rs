@@ -5,79 +5,20 @@
 //!
 //! Checked: every step converges with err <= 1e-10, the resultants balance (the C
 //! program checks them itself), the shear phase shows both sticking and slipping
-//! contacts, every contact is open after lift-off, and the three methods give the
+//! contacts, every contact is open after lift-off, and all methods give the
 //! same contact force resultants at every step.
 
+mod ctools;
+
+use ctools::{manifest_dir, static_lib, target_triple};
 use std::collections::HashMap;
 use std::path::{Path, PathBuf};
 use std::process::Command;
 use std::sync::OnceLock;
 
-const METHODS: [&str; 4] = ["split", "block-gs", "pgs", "newton"];
+const METHODS: [&str; 6] = ["split", "block-gs", "pgs", "newton", "split-mprgp", "mprgp"];
 /// A small mesh, so that the debug build stays fast: 17 contacts, 272 free DOFs.
 const MESH: [&str; 4] = ["--nx", "16", "--ny", "8"];
-
-fn manifest_dir() -> PathBuf {
-    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
-}
-
-/// The static library cargo built for this test run, found from the path of this
-/// test executable (target/<profile>/deps/c_demo-<hash>). Cargo builds every crate
-/// type of the library (cdylib, staticlib, rlib) before the integration tests, into
-/// target/<profile>/deps/; the copy it places in target/<profile>/ is not always
-/// refreshed by `cargo test`, so the newer of the two is used.
-fn static_lib() -> PathBuf {
-    let exe = std::env::current_exe().expect("path of the test executable");
-    let deps = exe
-        .parent()
-        .expect("the test executable has a parent folder");
-    let profile_dir = if deps.file_name().is_some_and(|n| n == "deps") {
-        deps.parent().expect("deps has a parent folder")
-    } else {
-        deps
-    };
-    let name = if cfg!(windows) {
-        "dualsplit.lib"
-    } else {
-        "libdualsplit.a"
-    };
-    let modified = |p: &PathBuf| std::fs::metadata(p).and_then(|m| m.modified()).ok();
-    [deps.join(name), profile_dir.join(name)]
-        .into_iter()
-        .filter(|p| p.is_file())
-        .max_by_key(modified)
-        .unwrap_or_else(|| {
-            panic!(
-                "the static library {name} exists neither in {} nor in {}: the test needs \
-                 crate-type \"staticlib\" in Cargo.toml [lib]",
-                deps.display(),
-                profile_dir.display()
-            )
-        })
-}
-
-/// The target triple this test was compiled for, which the cc crate needs outside
-/// a build script (it normally reads TARGET from the environment).
-fn target_triple() -> String {
-    let arch = std::env::consts::ARCH;
-    if cfg!(target_os = "linux") {
-        let env = if cfg!(target_env = "musl") {
-            "musl"
-        } else {
-            "gnu"
-        };
-        format!("{arch}-unknown-linux-{env}")
-    } else if cfg!(target_os = "macos") {
-        format!("{arch}-apple-darwin")
-    } else if cfg!(target_os = "freebsd") {
-        format!("{arch}-unknown-freebsd")
-    } else {
-        panic!(
-            "c_demo: no target triple known for {}",
-            std::env::consts::OS
-        )
-    }
-}
 
 /// Compiles and links block2d once per test run; returns the executable.
 fn block2d() -> &'static Path {
