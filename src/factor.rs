@@ -18,6 +18,12 @@ use faer::sparse::{SparseColMatRef, SymbolicSparseColMatRef};
 use faer::{Conj, Mat, MatMut, Par, Side};
 use std::time::Instant;
 
+/// A Cholesky pivot L_jj^2 below this fraction of K_jj makes K numerically
+/// singular (`NotPositiveDefinite`): relative pivots that small come from rounding
+/// (rigid-body modes of a body without enough Dirichlet conditions), and the solve
+/// would lose every digit.
+pub const PIVOT_TOL: f64 = 1e-14;
+
 /// The numeric part of a factorisation, as handed back by [`Factor::refactor`].
 pub struct NumericFactor {
     l_values: Vec<f64>,
@@ -33,6 +39,8 @@ pub struct Factor {
     row_idx: Vec<usize>,
     /// The DOFs ordered last, in this order (empty for a plain AMD ordering).
     last: Vec<usize>,
+    /// The fill-reducing ordering, new -> old.
+    fwd: Vec<usize>,
     /// Seconds of the last numeric factorisation.
     pub factor_seconds: f64,
 }
@@ -56,26 +64,19 @@ impl Factor {
         let n = k.nrows;
         let oom = |what: &str| crate::Error::new(ErrorKind::OutOfMemory, format!("K: {what}"));
         let sym = SymbolicSparseColMatRef::new_checked(n, n, &k.col_ptr, None, &k.row_idx);
-        let symbolic = if last.is_empty() {
-            factorize_symbolic_cholesky(
-                sym,
-                Side::Lower,
-                SymmetricOrdering::Amd,
-                CholeskySymbolicParams::default(),
-            )
-        } else {
-            let (fwd, inv) = ordering_with_last(k, last).ok_or_else(|| oom("AMD ordering"))?;
-            let params = CholeskySymbolicParams {
-                supernodal_flop_ratio_threshold: SupernodalThreshold::FORCE_SUPERNODAL,
-                ..Default::default()
-            };
-            factorize_symbolic_cholesky(
-                sym,
-                Side::Lower,
-                SymmetricOrdering::Custom(PermRef::new_checked(&fwd, &inv, n)),
-                params,
-            )
-        }
+        let (fwd, inv) = ordering_with_last(k, last).ok_or_else(|| oom("AMD ordering"))?;
+        // Always supernodal: the pivots and the trailing block are read from the
+        // supernodes.
+        let params = CholeskySymbolicParams {
+            supernodal_flop_ratio_threshold: SupernodalThreshold::FORCE_SUPERNODAL,
+            ..Default::default()
+        };
+        let symbolic = factorize_symbolic_cholesky(
+            sym,
+            Side::Lower,
+            SymmetricOrdering::Custom(PermRef::new_checked(&fwd, &inv, n)),
+            params,
+        )
         .map_err(|e| oom(&format!("symbolic analysis: {e:?}")))?;
         let mut f = Factor {
             l_values: Vec::new(),
@@ -83,10 +84,43 @@ impl Factor {
             col_ptr: k.col_ptr.clone(),
             row_idx: k.row_idx.clone(),
             last: last.to_vec(),
+            fwd,
             factor_seconds: 0.0,
         };
         f.refactor(k)?;
         Ok(f)
+    }
+
+    /// The smallest relative pivot L_jj^2 / K_jj of a numeric factor `values` (j in
+    /// the factor's ordering), or None for n = 0.
+    fn smallest_pivot(&self, values: &[f64], k: &Csc) -> Option<(usize, f64)> {
+        let SymbolicCholeskyRaw::Supernodal(sym) = self.symbolic.raw() else {
+            unreachable!("the factorisation is always supernodal");
+        };
+        let llt = SupernodalLltRef::<usize, f64>::new(sym, values);
+        let diag_k = |old: usize| {
+            (k.col_ptr[old]..k.col_ptr[old + 1])
+                .find(|&p| k.row_idx[p] == old)
+                .map_or(0.0, |p| k.values[p])
+        };
+        let mut worst: Option<(usize, f64)> = None;
+        for s in 0..sym.n_supernodes() {
+            let node = llt.supernode(s);
+            let val = node.val();
+            for jl in 0..val.ncols() {
+                let j = node.start() + jl;
+                let kjj = diag_k(self.fwd[j]);
+                let ratio = if kjj > 0.0 {
+                    val[(jl, jl)].powi(2) / kjj
+                } else {
+                    0.0
+                };
+                if worst.is_none_or(|(_, r)| ratio < r) {
+                    worst = Some((j, ratio));
+                }
+            }
+        }
+        worst
     }
 
     /// The DOFs ordered last (empty when the ordering is plain AMD).
@@ -101,6 +135,9 @@ impl Factor {
     pub fn trailing_block(&self) -> Mat<f64> {
         let n = self.n();
         let nc = self.last.len();
+        if nc == 0 {
+            return Mat::zeros(0, 0);
+        }
         let first = n - nc;
         let mut l = Mat::<f64>::zeros(nc, nc);
         let SymbolicCholeskyRaw::Supernodal(sym) = self.symbolic.raw() else {
@@ -186,6 +223,19 @@ impl Factor {
                 format!(
                     "K is not positive definite (Cholesky: {e:?}): singular, indefinite, \
                      or missing Dirichlet conditions"
+                ),
+            );
+        }
+        if let Some((j, ratio)) = self.smallest_pivot(&values, k)
+            && ratio < PIVOT_TOL
+        {
+            return fail(
+                ErrorKind::NotPositiveDefinite,
+                format!(
+                    "K is numerically singular: the Cholesky pivot of DOF {} is {ratio:.1e} \
+                     of its diagonal entry (< {PIVOT_TOL:e}); a rigid-body mode, missing \
+                     Dirichlet conditions, or cond(K) beyond about 1e14",
+                    self.fwd[j]
                 ),
             );
         }

@@ -50,10 +50,16 @@ pub struct Report {
 ///
 /// r_N,i = lambda_N,i - max(0, lambda_N,i + rho_i v_N,i),
 /// r_T,i = lambda_T,i - proj_{|x| <= p_i}(lambda_T,i + rho_i v_T,i),
-/// err = |r| / max(|lambda|, |rho . b|)  (0 when r = 0),
+/// err = |r| / max(|lambda|, |rho . b+|)  (0 when r = 0),
 ///
 /// with v = [N u - g; T u] (length d m), `b` the dual linear term, `rho` one value
 /// per contact and `p` the slip bound per contact (mu_i lambda_N,i for Coulomb).
+/// b+ keeps the tangential part of b and the positive part of its normal part,
+/// max(0, (N K^-1 f - g)_i): the force scale the load creates. design.md writes
+/// |rho . b|; with the raw normal part, the gaps of far-open contacts (b_N,i =
+/// -g_i large) would set the scale and hide wrong forces on the closed ones.
+/// A contact with rho_i = 0 (empty rows of N and T) and v_N,i > 0 is a penetration
+/// no force can remove: err is then infinite (the problem is infeasible).
 pub fn natural_map_error(
     lam: &[f64],
     v: &[f64],
@@ -68,11 +74,16 @@ pub fn natural_map_error(
     let mut rb2 = 0.0;
     let mut y = [0.0; 2];
     for i in 0..m {
+        if rho[i] == 0.0 && v[i] > 0.0 {
+            // A contact whose rows of N and T are empty cannot act on u: a
+            // penetration there (g_i < 0) is infeasible, and no lambda fixes it.
+            return f64::INFINITY;
+        }
         let ln = lam[i];
         let rn = ln - (ln + rho[i] * v[i]).max(0.0);
         r2 += rn * rn;
         l2 += ln * ln;
-        rb2 += (rho[i] * b[i]).powi(2);
+        rb2 += (rho[i] * b[i].max(0.0)).powi(2);
         let t0 = m + (d - 1) * i;
         let k = d - 1;
         for s in 0..k {
@@ -123,4 +134,32 @@ pub fn contact_states(
         }
     }
     (open, stick, slip)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn far_open_gaps_do_not_set_the_force_scale() {
+        // Two 2D contacts: contact 0 carries a wrong force (lambda 1 while its gap
+        // is open by 0.5: r_N = 1 - max(0, 1 - 0.5) = 0.5), contact 1 is far open
+        // (b_N = -1e8, r = 0). With |rho . b| as the scale err would be 5e-9.
+        let lam = [1.0, 0.0, 0.0, 0.0];
+        let v = [-0.5, -1e8, 0.0, 0.0];
+        let b = [-0.5, -1e8, 0.0, 0.0];
+        let rho = [1.0, 1.0];
+        let err = natural_map_error(&lam, &v, &rho, &b, &[0.0, 0.0], 2);
+        // |r| = 0.5, scale max(|lambda| = 1, |rho . b+| = 0) = 1.
+        assert_eq!(err, 0.5);
+    }
+
+    #[test]
+    fn penetration_at_a_contact_without_rows_is_infeasible() {
+        let lam = [0.0, 0.0];
+        let err = natural_map_error(&lam, &[0.1, 0.0], &[0.0], &[-0.1, 0.0], &[0.0], 2);
+        assert_eq!(err, f64::INFINITY);
+        let err = natural_map_error(&lam, &[-0.1, 0.0], &[0.0], &[0.1, 0.0], &[0.0], 2);
+        assert_eq!(err, 0.0);
+    }
 }

@@ -142,7 +142,8 @@ impl ConvexQp<'_> {
             let y = (x[j] - rho * g[j]).max(0.0);
             r2 += (x[j] - y).powi(2);
             x2 += x[j] * x[j];
-            q2 += (rho * self.q[j]).powi(2);
+            // Force scale: a negative q_j is a gap, not a force.
+            q2 += (rho * self.q[j].max(0.0)).powi(2);
         }
         let mut y = [0.0; 2];
         for b in 0..self.n_balls() {
@@ -195,7 +196,8 @@ impl ConvexQp<'_> {
     }
 
     /// Runs MPRGP from x (projected first) until the relative residual is at most
-    /// `tol` or `max` iterations (matrix-vector products); returns the iterations.
+    /// `tol` or `max` iterations (matrix-vector products), at least one; returns
+    /// the iterations.
     pub fn solve(&self, x: &mut [f64], tol: f64, max: usize) -> usize {
         let k = self.k;
         if k == 0 {
@@ -217,8 +219,9 @@ impl ConvexQp<'_> {
         self.split_gradient(x, &g, alpha, &mut phi, &mut beta);
         p.copy_from_slice(&phi);
         let dot = |a: &[f64], b: &[f64]| a.iter().zip(b).map(|(x, y)| x * y).sum::<f64>();
+        // At least one iteration, so that an outer loop around it cannot stall.
         for it in 0..max {
-            if self.residual(x, &g) <= tol {
+            if it > 0 && self.residual(x, &g) <= tol {
                 return it;
             }
             let (bb, pf) = (dot(&beta, &beta), dot(&phi, &phi));

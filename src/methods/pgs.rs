@@ -150,7 +150,13 @@ impl<'a> SubQp<'a> {
             for s in 0..self.block {
                 r2 += (x[j + s] - y[s]).powi(2);
                 x2 += x[j + s].powi(2);
-                q2 += (rho * self.q[j + s]).powi(2);
+                // Force scale: a negative q_j of a nonnegative unknown is a gap, not
+                // a force (see report::natural_map_error).
+                let q = match self.radii {
+                    None => self.q[j + s].max(0.0),
+                    Some(_) => self.q[j + s],
+                };
+                q2 += (rho * q).powi(2);
             }
         }
         if r2 == 0.0 {
@@ -161,14 +167,16 @@ impl<'a> SubQp<'a> {
     }
 
     /// Sweeps from x until the relative residual is at most `tol` or `max` sweeps;
-    /// `w` is scratch of length k. Returns the number of sweeps.
+    /// `w` is scratch of length k. Always sweeps at least once, so that an outer
+    /// iteration around it cannot stall on a sub-problem that already meets `tol`.
+    /// Returns the number of sweeps.
     pub fn solve(&self, x: &mut [f64], w: &mut [f64], tol: f64, max: usize) -> usize {
         self.gradient(x, w);
-        for it in 0..max {
+        for it in 1..=max {
+            self.sweep(x, w);
             if self.residual(x, w) <= tol {
                 return it;
             }
-            self.sweep(x, w);
         }
         max
     }

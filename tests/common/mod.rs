@@ -641,3 +641,153 @@ impl Scene {
         self.contact_nodes.len()
     }
 }
+
+// ---------------------------------------------------------------------------------
+// Helpers added for the hard-case tests (hard_scenes, property, threads, bad_input)
+// ---------------------------------------------------------------------------------
+
+impl Mesh {
+    /// As [`Mesh::stiffness_triplets`], with the material (E, nu) of each element
+    /// given by `material(element index)` (elements in the order of `elems`).
+    pub fn stiffness_triplets_by(
+        &self,
+        material: impl Fn(usize) -> (f64, f64),
+    ) -> Vec<(usize, usize, f64)> {
+        let dim = self.dim;
+        let mut trip = Vec::new();
+        for (ie, el) in self.elems.iter().enumerate() {
+            let (e, nu) = material(ie);
+            let xe: Vec<[f64; 3]> = el.iter().map(|&a| self.coords[a]).collect();
+            let ke = if dim == 2 {
+                q4_stiffness(&xe, e, nu)
+            } else {
+                h8_stiffness(&xe, e, nu)
+            };
+            let nd = dim * el.len();
+            for a in 0..nd {
+                for b in 0..nd {
+                    let ga = dim * el[a / dim] + a % dim;
+                    let gb = dim * el[b / dim] + b % dim;
+                    trip.push((ga, gb, ke[a * nd + b]));
+                }
+            }
+        }
+        trip
+    }
+}
+
+impl Scene {
+    /// As [`Scene::build`], with a material per element (see
+    /// [`Mesh::stiffness_triplets_by`]).
+    pub fn build_by(
+        mesh: Mesh,
+        material: impl Fn(usize) -> (f64, f64),
+        prescribed: &[(usize, f64)],
+        f_ext: &[f64],
+        contact_nodes: &[usize],
+        gap: impl Fn(&[f64; 3]) -> f64,
+    ) -> Scene {
+        // Build with a unit material for the maps and the contact rows, then
+        // replace K and f by the per-element assembly.
+        let mut s = Scene::build(
+            mesh.clone(),
+            1.0,
+            0.3,
+            prescribed,
+            f_ext,
+            contact_nodes,
+            gap,
+        );
+        let ndof = mesh.n_dofs();
+        let mut f: Vec<f64> = (0..ndof)
+            .filter(|&dof| s.free[dof].is_some())
+            .map(|dof| f_ext[dof])
+            .collect();
+        let mut kff = Vec::new();
+        for (a, b, v) in mesh.stiffness_triplets_by(material) {
+            match (s.free[a], s.free[b]) {
+                (Some(fa), Some(fb)) => kff.push((fa, fb, v)),
+                (Some(fa), None) => f[fa] -= v * s.prescribed[b].unwrap(),
+                _ => {}
+            }
+        }
+        s.k = Csc::from_triplets(s.k.nrows, s.k.ncols, &kff);
+        s.f = f;
+        s
+    }
+}
+
+/// The dense form of a `Csc` (faer, column-major).
+pub fn dense(a: &Csc) -> faer::Mat<f64> {
+    let mut m = faer::Mat::<f64>::zeros(a.nrows, a.ncols);
+    for j in 0..a.ncols {
+        for k in a.col_ptr[j]..a.col_ptr[j + 1] {
+            m[(a.row_idx[k], j)] += a.values[k];
+        }
+    }
+    m
+}
+
+/// x = K^-1 f by a dense LU with partial pivoting (an independent linear solve).
+pub fn dense_solve(k: &Csc, f: &[f64]) -> Vec<f64> {
+    use faer::linalg::solvers::Solve;
+    let kd = dense(k);
+    let lu = kd.partial_piv_lu();
+    let rhs = faer::Mat::<f64>::from_fn(f.len(), 1, |i, _| f[i]);
+    let x = lu.solve(&rhs);
+    (0..f.len()).map(|i| x[(i, 0)]).collect()
+}
+
+/// Spectral condition number of a symmetric positive semi-definite matrix: the
+/// ratio of its largest to its smallest eigenvalue; infinity when the smallest is
+/// not positive (or below 1e-300), NaN for an empty matrix.
+pub fn sym_cond(a: faer::MatRef<'_, f64>) -> f64 {
+    if a.nrows() == 0 {
+        return f64::NAN;
+    }
+    let ev = a
+        .self_adjoint_eigenvalues(faer::Side::Lower)
+        .expect("symmetric eigenvalues");
+    let lo = ev[0];
+    let hi = ev[ev.len() - 1];
+    if lo <= 1e-300 * hi.abs().max(1.0) || lo <= 0.0 {
+        f64::INFINITY
+    } else {
+        hi / lo
+    }
+}
+
+/// A small deterministic PRNG (SplitMix64), for property tests without
+/// dependencies.
+#[derive(Clone, Debug)]
+pub struct Rng(pub u64);
+
+impl Rng {
+    pub fn next_u64(&mut self) -> u64 {
+        self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
+        let mut z = self.0;
+        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+        z ^ (z >> 31)
+    }
+
+    /// Uniform in [0, 1).
+    pub fn uniform(&mut self) -> f64 {
+        (self.next_u64() >> 11) as f64 / (1u64 << 53) as f64
+    }
+
+    /// Uniform in [lo, hi).
+    pub fn range(&mut self, lo: f64, hi: f64) -> f64 {
+        lo + (hi - lo) * self.uniform()
+    }
+
+    /// Uniform integer in [0, n) (n > 0).
+    pub fn below(&mut self, n: usize) -> usize {
+        (self.next_u64() % n as u64) as usize
+    }
+
+    /// True with probability `p`.
+    pub fn chance(&mut self, p: f64) -> bool {
+        self.uniform() < p
+    }
+}
