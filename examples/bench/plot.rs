@@ -1,7 +1,7 @@
 //! SVG figures (plotters): work-precision diagrams per scene and scaling curves.
 
 use crate::report::{
-    best_method, best_to, best_total, best_warm, find, frictions, methods, scenes, series, time_of,
+    best_to, best_total, best_warm, find, frictions, methods, scenes, series, time_of,
 };
 use crate::row::Row;
 use plotters::prelude::*;
@@ -251,7 +251,6 @@ fn scaling(rows: &[Row], path: &Path) -> Res {
                 .collect();
             let (xlo, xhi) = log_range(data.iter().flat_map(|d| d.1.iter().map(|p| p.0)));
             let (ylo, yhi) = log_range(data.iter().flat_map(|d| d.1.iter().map(|p| p.1)));
-            let _ = best_method;
             let mut chart = ChartBuilder::on(area)
                 .caption(format!("{dim}D, {fr}"), ("sans-serif", 17))
                 .margin(12)

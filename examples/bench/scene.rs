@@ -150,7 +150,6 @@ impl Scene {
             let y = if dim == 3 { j as f64 - 0.5 * ly } else { 0.0 };
             g.push(kappa * (x * x + y * y));
         }
-        let _ = lz;
         let ndof = spec.n_dofs();
         let n = Csc::from_triplets(m, ndof, &nt);
         let t = Csc::from_triplets((dim - 1) * m, ndof, &tt);
@@ -235,16 +234,8 @@ fn assemble(spec: &Spec, ke: &[f64], top: &[f64]) -> (Csc, Vec<f64>) {
         blocks.iter_mut().for_each(|v| *v = 0.0);
         present.iter_mut().for_each(|v| *v = false);
         for (la, oa) in offs.iter().enumerate() {
-            // The element whose local node la is a: corner = pa - oa.
-            let mut corner = [0usize; 3];
-            let mut ok = true;
-            for ax in 0..dim {
-                if pa[ax] < oa[ax] || pa[ax] - oa[ax] >= ne[ax] {
-                    ok = false;
-                }
-                corner[ax] = pa[ax].wrapping_sub(oa[ax]);
-            }
-            if !ok {
+            // The element whose local node la is a (lower corner pa - oa) exists.
+            if (0..dim).any(|ax| pa[ax] < oa[ax] || pa[ax] - oa[ax] >= ne[ax]) {
                 continue;
             }
             for (lb, ob) in offs.iter().enumerate() {
@@ -252,7 +243,6 @@ fn assemble(spec: &Spec, ke: &[f64], top: &[f64]) -> (Csc, Vec<f64>) {
                 for ax in 0..dim {
                     rel[ax] = ob[ax] as i64 - oa[ax] as i64;
                 }
-                let _ = corner;
                 let s = sidx(rel);
                 present[s] = true;
                 for r in 0..dim {
