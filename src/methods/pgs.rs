@@ -127,43 +127,9 @@ impl<'a> SubQp<'a> {
     }
 
     /// Relative natural-map residual of the sub-problem, with rho_j = 1/H_jj
-    /// (a block uses the inverse mean of its diagonal).
+    /// (a block uses the inverse mean of its diagonal): the measure MPRGP uses too.
     fn residual(&self, x: &[f64], w: &[f64]) -> f64 {
-        let (mut r2, mut x2, mut q2) = (0.0, 0.0, 0.0);
-        let nb = self.k / self.block;
-        let mut y = [0.0; 2];
-        for ib in 0..nb {
-            let j = ib * self.block;
-            let tr: f64 = (0..self.block).map(|s| self.diag(j + s)).sum();
-            let rho = if tr > 0.0 {
-                self.block as f64 / tr
-            } else {
-                0.0
-            };
-            for s in 0..self.block {
-                y[s] = x[j + s] - rho * w[j + s];
-            }
-            match self.radii {
-                None => y[0] = y[0].max(0.0),
-                Some(r) => project_disk(&mut y[..self.block], r[ib]),
-            }
-            for s in 0..self.block {
-                r2 += (x[j + s] - y[s]).powi(2);
-                x2 += x[j + s].powi(2);
-                // Force scale: a negative q_j of a nonnegative unknown is a gap, not
-                // a force (see report::natural_map_error).
-                let q = match self.radii {
-                    None => self.q[j + s].max(0.0),
-                    Some(_) => self.q[j + s],
-                };
-                q2 += (rho * q).powi(2);
-            }
-        }
-        if r2 == 0.0 {
-            0.0
-        } else {
-            (r2 / x2.max(q2)).sqrt()
-        }
+        self.as_convex().residual(x, w)
     }
 
     /// Sweeps from x until the relative residual is at most `tol` or `max` sweeps;
