@@ -8,7 +8,6 @@ use faer::dyn_stack::{MemBuffer, MemStack, StackReq};
 use faer::linalg::cholesky::llt::factor::LltRegularization;
 use faer::perm::PermRef;
 use faer::sparse::linalg::SupernodalThreshold;
-use faer::sparse::linalg::amd;
 use faer::sparse::linalg::cholesky::supernodal::SupernodalLltRef;
 use faer::sparse::linalg::cholesky::{
     CholeskySymbolicParams, LltRef, SymbolicCholesky, SymbolicCholeskyRaw, SymmetricOrdering,
@@ -55,7 +54,7 @@ impl Factor {
     }
 
     /// Analyses and factors `k` with the DOFs `last` (distinct, in range) ordered
-    /// last, in the given order, and the others by AMD on their own block: the
+    /// last, in the given order, and the others by AMD (see [`crate::ordering`]): the
     /// trailing block of the factor then gives the Schur complement of K onto
     /// `last` (see [`Factor::trailing_block`]).
     ///
@@ -64,7 +63,8 @@ impl Factor {
         let n = k.nrows;
         let oom = |what: &str| crate::Error::new(ErrorKind::OutOfMemory, format!("K: {what}"));
         let sym = SymbolicSparseColMatRef::new_checked(n, n, &k.col_ptr, None, &k.row_idx);
-        let (fwd, inv) = ordering_with_last(k, last).ok_or_else(|| oom("AMD ordering"))?;
+        let (fwd, inv) =
+            crate::ordering::amd_with_last(k, last).ok_or_else(|| oom("AMD ordering"))?;
         // Always supernodal: the pivots and the trailing block are read from the
         // supernodes.
         let params = CholeskySymbolicParams {
@@ -276,51 +276,4 @@ impl Factor {
         let m = faer::MatMut::from_column_major_slice_mut(x, n, 1);
         self.solve_in_place(m, MemStack::new(&mut mem));
     }
-}
-
-/// The permutation (forward: new -> old, inverse: old -> new) that orders the DOFs
-/// outside `last` by AMD on their own block of K, then `last` in its order.
-/// None when the ordering runs out of memory.
-fn ordering_with_last(k: &Csc, last: &[usize]) -> Option<(Vec<usize>, Vec<usize>)> {
-    let n = k.nrows;
-    const NONE: usize = usize::MAX;
-    let mut local = vec![0usize; n];
-    for &j in last {
-        local[j] = NONE;
-    }
-    let interior: Vec<usize> = (0..n).filter(|&j| local[j] != NONE).collect();
-    for (q, &j) in interior.iter().enumerate() {
-        local[j] = q;
-    }
-    let ni = interior.len();
-    let mut col_ptr = Vec::with_capacity(ni + 1);
-    let mut row_idx = Vec::new();
-    col_ptr.push(0);
-    for &j in &interior {
-        for p in k.col_ptr[j]..k.col_ptr[j + 1] {
-            let r = local[k.row_idx[p]];
-            if r != NONE {
-                row_idx.push(r);
-            }
-        }
-        col_ptr.push(row_idx.len());
-    }
-    let mut perm = vec![0usize; ni];
-    let mut perm_inv = vec![0usize; ni];
-    let mut mem = MemBuffer::try_new(amd::order_scratch::<usize>(ni, row_idx.len())).ok()?;
-    amd::order(
-        &mut perm,
-        &mut perm_inv,
-        SymbolicSparseColMatRef::new_checked(ni, ni, &col_ptr, None, &row_idx),
-        amd::Control::default(),
-        MemStack::new(&mut mem),
-    )
-    .ok()?;
-    let mut fwd: Vec<usize> = perm.iter().map(|&q| interior[q]).collect();
-    fwd.extend_from_slice(last);
-    let mut inv = vec![0usize; n];
-    for (new, &old) in fwd.iter().enumerate() {
-        inv[old] = new;
-    }
-    Some((fwd, inv))
 }

@@ -13,6 +13,7 @@ pub mod ffi;
 pub mod methods;
 pub mod mtx;
 pub mod options;
+pub mod ordering;
 pub mod problem;
 pub mod report;
 pub mod sparse;
