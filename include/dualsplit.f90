@@ -94,6 +94,11 @@ module dualsplit
    integer(c_int32_t), parameter, public :: DS_METHOD_SPLIT_MPRGP = 4
    integer(c_int32_t), parameter, public :: DS_METHOD_MPRGP = 5
 
+   !> DsDualForm: dense or matrix-free products with A (DsOptions%dual_form).
+   integer(c_int32_t), parameter, public :: DS_DUAL_FORM_AUTO = 0
+   integer(c_int32_t), parameter, public :: DS_DUAL_FORM_DENSE = 1
+   integer(c_int32_t), parameter, public :: DS_DUAL_FORM_MATRIX_FREE = 2
+
    !> DsFriction: what the `bound` array of ds_solve / ds_step holds.
    integer(c_int32_t), parameter, public :: DS_FRICTION_TRESCA = 0
    integer(c_int32_t), parameter, public :: DS_FRICTION_COULOMB = 1
@@ -109,6 +114,7 @@ module dualsplit
       real(c_double)     :: tol           !< stop when err <= tol (default 1e-10)
       integer(c_int64_t) :: max_outer     !< outer iterations, >= 0 (default 10000)
       integer(c_int64_t) :: max_inner     !< Gauss-Seidel sweeps per sub-problem, >= 1 (default 1000)
+      integer(c_int32_t) :: dual_form     !< a DS_DUAL_FORM_* value (default DS_DUAL_FORM_AUTO)
    end type DsOptions
 
    !> A sparse matrix borrowed from the caller (CSparse naming); see ds_matrix_csr.

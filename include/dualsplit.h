@@ -192,6 +192,30 @@ typedef enum DsMethod {
 } DsMethod;
 
 /*
+ How the products with the condensed dual A = B K^-1 B^T are formed (DsOptions
+ `dual_form`).
+ */
+typedef enum DsDualForm {
+  /*
+   Dense A while d m <= 8000 dual unknowns, matrix-free beyond; a method that
+   reads entries of A (all but DS_METHOD_MPRGP) assembles A when it needs it.
+   The default.
+   */
+  DS_DUAL_FORM_AUTO = 0,
+  /*
+   Assemble the dense (d m) x (d m) matrix A (DS_STATUS_OUT_OF_MEMORY if it does
+   not fit).
+   */
+  DS_DUAL_FORM_DENSE = 1,
+  /*
+   Never form A: each product is two dense triangular solves with the trailing
+   block of K's factor (the contact DOFs ordered last); only DS_METHOD_MPRGP
+   runs this way (the others: DS_STATUS_BAD_ARGUMENT).
+   */
+  DS_DUAL_FORM_MATRIX_FREE = 2,
+} DsDualForm;
+
+/*
  Friction law of one increment (the `friction` argument of ds_solve / ds_step).
  */
 typedef enum DsFriction {
@@ -216,12 +240,19 @@ typedef enum DsFriction {
 typedef struct DsProblem DsProblem;
 
 /*
+ How the products with the condensed dual operator A = B K^-1 B^T are formed.
+ */
+typedef struct DualForm DualForm;
+
+/*
  Options of ds_solve / ds_step. Fill with ds_options_default, then change fields.
  Passing NULL instead of a DsOptions uses the defaults.
 
- Errors when read: DS_STATUS_BAD_ARGUMENT if struct_size is not sizeof(DsOptions),
- method is not a DsMethod, tol is not finite and positive, max_outer is negative
- or max_inner is not positive.
+ Errors when read: DS_STATUS_BAD_ARGUMENT if struct_size is neither
+ sizeof(DsOptions) nor 32 (the struct of version 0.1, without dual_form, which
+ then reads as DS_DUAL_FORM_AUTO), method is not a DsMethod, tol is not finite and
+ positive, max_outer is negative, max_inner is not positive, or dual_form is not
+ a DsDualForm.
  */
 typedef struct DsOptions {
   /*
@@ -248,6 +279,10 @@ typedef struct DsOptions {
    BLOCK_GS, >= 1 (default 1000).
    */
   int64_t max_inner;
+  /*
+   A DsDualForm value (default DS_DUAL_FORM_AUTO). Added in version 0.2.
+   */
+  int32_t dual_form;
 } DsOptions;
 
 /*
@@ -432,7 +467,8 @@ const char *ds_last_error_message(void);
 
 /*
  Fills *opts with the defaults: struct_size = sizeof(DsOptions), method
- DS_METHOD_SPLIT, tol 1e-10, max_outer 10000, max_inner 1000. NULL is a no-op.
+ DS_METHOD_SPLIT, tol 1e-10, max_outer 10000, max_inner 1000, dual_form
+ DS_DUAL_FORM_AUTO. NULL is a no-op.
 
  # Safety
  `opts` must be NULL or point to a writable DsOptions.

@@ -5,10 +5,14 @@
 
 use crate::error::{ErrorKind, Result, fail};
 use crate::factor::Factor;
+use crate::options::{DENSE_MAX, DualForm};
 use crate::sparse::Csc;
 use faer::dyn_stack::{MemBuffer, MemStack};
 use faer::linalg::cholesky::llt::inverse as llt_inverse;
-use faer::{Mat, Par};
+use faer::linalg::triangular_solve::{
+    solve_lower_triangular_in_place, solve_upper_triangular_in_place,
+};
+use faer::{Mat, MatMut, Par};
 use std::time::Instant;
 
 /// Number of right-hand sides solved together while forming A.
@@ -22,8 +26,11 @@ pub struct Dual {
     pub m: usize,
     /// Number of dual unknowns, d m.
     pub c: usize,
-    /// A = B K^-1 B^T, c x c, column-major and exactly symmetric.
+    /// A = B K^-1 B^T, c x c, column-major and exactly symmetric; empty when
+    /// matrix-free (`condensation == Condensation::MatrixFree`).
     pub a: Vec<f64>,
+    /// The products of the matrix-free form (None when A is assembled).
+    free: Option<FreeOp>,
     /// Per contact: rho_i = d / trace of the contact's d x d diagonal block of A
     /// (0 when that block vanishes). Units: force / length.
     pub rho: Vec<f64>,
@@ -43,6 +50,8 @@ pub enum Condensation {
     TrailingBlock,
     /// One forward and back solve with K's factor per dual unknown.
     Solves,
+    /// A is not formed: products through L_CC (see [`crate::DualForm::MatrixFree`]).
+    MatrixFree,
 }
 
 /// The DOFs (columns of B) that B touches, in increasing order.
@@ -80,28 +89,50 @@ pub fn stack_rows(n: &Csc, t: &Csc) -> Csc {
 }
 
 impl Dual {
-    /// Forms A = B K^-1 B^T: from the trailing block of the factor when every DOF
-    /// that B touches is among the DOFs the factor ordered last, by solves otherwise.
+    /// Builds the dual operator in the form asked for: `Dense` assembles A, from the
+    /// trailing block of the factor when every DOF that B touches is among the DOFs
+    /// the factor ordered last, by solves otherwise; `MatrixFree` keeps the trailing
+    /// block for products (and falls back to the dense form by solves when the
+    /// contact DOFs are not all trailing ones); `Auto` is `Dense` up to
+    /// [`DENSE_MAX`] dual unknowns, `MatrixFree` beyond.
     ///
     /// Errors: `BadSize` if the shapes of N and T do not match d and K,
-    /// `OutOfMemory` if A does not fit.
-    pub fn build(factor: &Factor, n: &Csc, t: &Csc, d: usize) -> Result<Dual> {
-        let how = if !factor.last().is_empty() && {
+    /// `OutOfMemory` if A (or L_CC) does not fit.
+    pub fn build(factor: &Factor, n: &Csc, t: &Csc, d: usize, form: DualForm) -> Result<Dual> {
+        let trailing = Self::trailing_available(factor, n, t);
+        let c = d * n.nrows;
+        let free = match form {
+            DualForm::Dense => false,
+            DualForm::MatrixFree => true,
+            DualForm::Auto => c > DENSE_MAX,
+        };
+        let how = match (trailing, free) {
+            (false, _) => Condensation::Solves,
+            (true, false) => Condensation::TrailingBlock,
+            (true, true) => Condensation::MatrixFree,
+        };
+        Self::build_with(factor, n, t, d, how)
+    }
+
+    /// True when every DOF that N or T touches is among the DOFs `factor` orders
+    /// last (the condition of `TrailingBlock` and `MatrixFree`).
+    pub fn trailing_available(factor: &Factor, n: &Csc, t: &Csc) -> bool {
+        !factor.last().is_empty() && {
             let mut in_last = vec![false; factor.n()];
             factor.last().iter().for_each(|&j| in_last[j] = true);
             contact_dofs(&stack_rows(n, t))
                 .iter()
                 .all(|&j| j < in_last.len() && in_last[j])
-        } {
-            Condensation::TrailingBlock
-        } else {
-            Condensation::Solves
-        };
-        Self::build_with(factor, n, t, d, how)
+        }
     }
 
-    /// Forms A in the way asked for (`TrailingBlock` requires the contact DOFs to be
-    /// among the factor's trailing DOFs).
+    /// True when A is not assembled (products only).
+    pub fn is_matrix_free(&self) -> bool {
+        self.free.is_some()
+    }
+
+    /// Forms A in the way asked for (`TrailingBlock` and `MatrixFree` require the
+    /// contact DOFs to be among the factor's trailing DOFs).
     pub fn build_with(
         factor: &Factor,
         n: &Csc,
@@ -133,23 +164,27 @@ impl Dual {
         }
         let b = stack_rows(n, t);
         let c = b.nrows;
-        let mut a = Vec::new();
-        let cc = c.checked_mul(c).ok_or_else(|| {
-            crate::Error::new(
-                ErrorKind::OutOfMemory,
-                format!("condensed dual: {c} x {c} overflows"),
-            )
-        })?;
-        a.try_reserve_exact(cc).map_err(|_| {
-            crate::Error::new(
-                ErrorKind::OutOfMemory,
-                format!("condensed dual: {c} x {c} dense matrix does not fit in memory"),
-            )
-        })?;
-        a.resize(c * c, 0.0);
+        if how == Condensation::MatrixFree {
+            let free = FreeOp::new(factor, &b)?;
+            let diag = free.diag.clone();
+            let rho = rho_of(m, d, |j| diag[j]);
+            return Ok(Dual {
+                d,
+                m,
+                c,
+                a: Vec::new(),
+                free: Some(free),
+                rho,
+                b,
+                condense_seconds: start.elapsed().as_secs_f64(),
+                condensation: how,
+            });
+        }
+        let mut a = alloc_zeroed(c, c, "condensed dual")?;
         match how {
             Condensation::Solves => a_by_solves(factor, &b, &mut a),
             Condensation::TrailingBlock => a_from_trailing_block(factor, &b, &mut a),
+            Condensation::MatrixFree => unreachable!("returned above"),
         }
         for j in 0..c {
             for i in 0..j {
@@ -158,21 +193,13 @@ impl Dual {
                 a[j + i * c] = s;
             }
         }
-        let rho = (0..m)
-            .map(|i| {
-                let mut tr = a[i + i * c];
-                for k in 0..d - 1 {
-                    let t = m + (d - 1) * i + k;
-                    tr += a[t + t * c];
-                }
-                if tr > 0.0 { d as f64 / tr } else { 0.0 }
-            })
-            .collect();
+        let rho = rho_of(m, d, |j| a[j + j * c]);
         Ok(Dual {
             d,
             m,
             c,
             a,
+            free: None,
             rho,
             b,
             condense_seconds: start.elapsed().as_secs_f64(),
@@ -180,14 +207,28 @@ impl Dual {
         })
     }
 
-    /// Column (= row) j of A.
+    /// Column (= row) j of A. Panics when matrix-free (the solver checks
+    /// [`crate::Method::needs_entries`] before running a method).
     #[inline]
     pub fn col(&self, j: usize) -> &[f64] {
         &self.a[j * self.c..(j + 1) * self.c]
     }
 
+    /// A_jj.
+    #[inline]
+    pub fn diag(&self, j: usize) -> f64 {
+        match &self.free {
+            Some(f) => f.diag[j],
+            None => self.a[j + j * self.c],
+        }
+    }
+
     /// y := A x.
     pub fn apply(&self, x: &[f64], y: &mut [f64]) {
+        if let Some(f) = &self.free {
+            f.apply(x, y);
+            return;
+        }
         y.iter_mut().for_each(|v| *v = 0.0);
         for (j, &xj) in x.iter().enumerate() {
             if xj != 0.0 {
@@ -195,6 +236,140 @@ impl Dual {
                     *yi += aij * xj;
                 }
             }
+        }
+    }
+}
+
+/// rho_i = d / trace of contact i's d x d diagonal block of A (0 when it vanishes).
+fn rho_of(m: usize, d: usize, diag: impl Fn(usize) -> f64) -> Vec<f64> {
+    (0..m)
+        .map(|i| {
+            let mut tr = diag(i);
+            for k in 0..d - 1 {
+                tr += diag(m + (d - 1) * i + k);
+            }
+            if tr > 0.0 { d as f64 / tr } else { 0.0 }
+        })
+        .collect()
+}
+
+/// A zeroed rows x cols column-major array, or `OutOfMemory` naming `what`.
+fn alloc_zeroed(rows: usize, cols: usize, what: &str) -> Result<Vec<f64>> {
+    let oom = || {
+        crate::Error::new(
+            ErrorKind::OutOfMemory,
+            format!("{what}: a {rows} x {cols} dense matrix does not fit in memory"),
+        )
+    };
+    let len = rows.checked_mul(cols).ok_or_else(oom)?;
+    let mut v = Vec::new();
+    v.try_reserve_exact(len).map_err(|_| oom())?;
+    v.resize(len, 0.0);
+    Ok(v)
+}
+
+/// The matrix-free form of A = B_C S_CC^-1 B_C^T, S_CC = L_CC L_CC^T.
+struct FreeOp {
+    /// L_CC, nc x nc lower triangular (rows and columns in the order of the
+    /// factor's trailing DOFs).
+    l: Mat<f64>,
+    /// B_C^T, nc x c: column r holds row r of B at the trailing positions.
+    bct: Csc,
+    /// A_jj, j < c.
+    diag: Vec<f64>,
+    /// Workspace of one product (nc).
+    z: std::cell::RefCell<Vec<f64>>,
+}
+
+impl FreeOp {
+    /// Errors: `OutOfMemory` if L_CC does not fit.
+    fn new(factor: &Factor, b: &Csc) -> Result<FreeOp> {
+        let last = factor.last();
+        let nc = last.len();
+        // Probe the allocation first: trailing_block() would abort on failure.
+        drop(alloc_zeroed(nc, nc, "trailing block L_CC")?);
+        let l = factor.trailing_block();
+        let mut pos = vec![usize::MAX; factor.n()];
+        for (q, &j) in last.iter().enumerate() {
+            pos[j] = q;
+        }
+        // B restricted to the trailing DOFs, renumbered, then transposed.
+        let mut triplets = Vec::with_capacity(b.nnz());
+        for (j, &q) in pos.iter().enumerate() {
+            for k in b.col_ptr[j]..b.col_ptr[j + 1] {
+                triplets.push((q, b.row_idx[k], b.values[k]));
+            }
+        }
+        let bct = Csc::from_triplets(nc, b.nrows, &triplets);
+        let mut op = FreeOp {
+            l,
+            bct,
+            diag: Vec::new(),
+            z: std::cell::RefCell::new(vec![0.0; nc]),
+        };
+        op.diag = op.compute_diagonal()?;
+        Ok(op)
+    }
+
+    /// A_jj = |L_CC^-1 B_C^T e_j|^2, by blocks of columns sorted by their first
+    /// trailing position q0: below q0 the solve only needs L_CC[q0.., q0..], so the
+    /// whole diagonal costs about nc^3 / 3 flops.
+    fn compute_diagonal(&self) -> Result<Vec<f64>> {
+        const WIDTH: usize = 64;
+        let (nc, c) = (self.l.nrows(), self.bct.ncols);
+        let first = |r: usize| {
+            self.bct.row_idx[self.bct.col_ptr[r]..self.bct.col_ptr[r + 1]]
+                .iter()
+                .copied()
+                .min()
+                .unwrap_or(nc)
+        };
+        let mut cols: Vec<usize> = (0..c).collect();
+        cols.sort_by_key(|&r| first(r));
+        let mut diag = vec![0.0; c];
+        let mut w = Mat::<f64>::zeros(nc, WIDTH.min(c.max(1)));
+        for block in cols.chunks(WIDTH) {
+            let q0 = first(block[0]);
+            if q0 >= nc {
+                continue; // empty rows of B: A_jj = 0
+            }
+            let mut wb = w.as_mut().submatrix_mut(q0, 0, nc - q0, block.len());
+            wb.fill(0.0);
+            for (s, &r) in block.iter().enumerate() {
+                for k in self.bct.col_ptr[r]..self.bct.col_ptr[r + 1] {
+                    wb[(self.bct.row_idx[k] - q0, s)] += self.bct.values[k];
+                }
+            }
+            let lb = self.l.as_ref().submatrix(q0, q0, nc - q0, nc - q0);
+            solve_lower_triangular_in_place(lb, wb.as_mut(), Par::Seq);
+            for (s, &r) in block.iter().enumerate() {
+                diag[r] = wb.as_ref().col(s).iter().map(|v| v * v).sum();
+            }
+        }
+        Ok(diag)
+    }
+
+    /// y := A x = B_C L_CC^-T L_CC^-1 B_C^T x.
+    fn apply(&self, x: &[f64], y: &mut [f64]) {
+        let mut z = self.z.borrow_mut();
+        let nc = z.len();
+        z.iter_mut().for_each(|v| *v = 0.0);
+        for (r, &xr) in x.iter().enumerate() {
+            if xr != 0.0 {
+                for k in self.bct.col_ptr[r]..self.bct.col_ptr[r + 1] {
+                    z[self.bct.row_idx[k]] += self.bct.values[k] * xr;
+                }
+            }
+        }
+        let mut zm = MatMut::from_column_major_slice_mut(&mut z[..], nc, 1);
+        solve_lower_triangular_in_place(self.l.as_ref(), zm.as_mut(), Par::Seq);
+        solve_upper_triangular_in_place(self.l.transpose(), zm.as_mut(), Par::Seq);
+        for (r, yr) in y.iter_mut().enumerate() {
+            let mut s = 0.0;
+            for k in self.bct.col_ptr[r]..self.bct.col_ptr[r + 1] {
+                s += self.bct.values[k] * z[self.bct.row_idx[k]];
+            }
+            *yr = s;
         }
     }
 }
@@ -336,9 +511,9 @@ mod tests {
         let last = contact_dofs(&stack_rows(&n, &t));
         let f1 = Factor::with_last(&k, &last).unwrap();
         let f0 = Factor::new(&k).unwrap();
-        let a1 = Dual::build(&f1, &n, &t, 2).unwrap();
+        let a1 = Dual::build(&f1, &n, &t, 2, DualForm::Auto).unwrap();
         assert_eq!(a1.condensation, Condensation::TrailingBlock);
-        let a0 = Dual::build(&f0, &n, &t, 2).unwrap();
+        let a0 = Dual::build(&f0, &n, &t, 2, DualForm::Auto).unwrap();
         assert_eq!(a0.condensation, Condensation::Solves);
         let scale = a0.a.iter().fold(0.0f64, |s, v| s.max(v.abs()));
         for (x, y) in a0.a.iter().zip(&a1.a) {
@@ -348,5 +523,67 @@ mod tests {
         for j in 0..a0.c {
             assert!(a0.a[j + j * a0.c] > 0.0);
         }
+    }
+
+    #[test]
+    fn matrix_free_products_and_diagonal_match_the_dense_a() {
+        let (nx, ny) = (11, 6);
+        let k = grid(nx, ny);
+        // Contacts on the bottom row, rows touching two DOFs each, one contact with
+        // empty rows (its A block is zero), d = 3 (two tangent rows per contact).
+        let m = 5;
+        let (mut nt, mut tt) = (Vec::new(), Vec::new());
+        for i in 0..m - 1 {
+            nt.push((i, 2 * i, -1.0));
+            nt.push((i, 2 * i + 1, 0.3));
+            tt.push((2 * i, 2 * i + 1, 1.0));
+            tt.push((2 * i + 1, 2 * i, 0.5));
+            tt.push((2 * i + 1, 2 * i + 1, -0.25 * i as f64));
+        }
+        let n = Csc::from_triplets(m, nx * ny, &nt);
+        let t = Csc::from_triplets(2 * m, nx * ny, &tt);
+        let last = contact_dofs(&stack_rows(&n, &t));
+        let f = Factor::with_last(&k, &last).unwrap();
+        let dense = Dual::build(&f, &n, &t, 3, DualForm::Dense).unwrap();
+        let free = Dual::build(&f, &n, &t, 3, DualForm::MatrixFree).unwrap();
+        assert_eq!(dense.condensation, Condensation::TrailingBlock);
+        assert_eq!(free.condensation, Condensation::MatrixFree);
+        assert!(free.is_matrix_free() && free.a.is_empty());
+        let c = dense.c;
+        let scale = dense.a.iter().fold(0.0f64, |s, v| s.max(v.abs()));
+        for j in 0..c {
+            let dj = dense.a[j + j * c];
+            assert!((free.diag(j) - dj).abs() <= 1e-13 * scale, "diag {j}");
+        }
+        for (x, y) in dense.rho.iter().zip(&free.rho) {
+            assert!((x - y).abs() <= 1e-12 * x.abs(), "rho {x} vs {y}");
+        }
+        // Products with a few vectors, sparse and dense.
+        let mut y0 = vec![0.0; c];
+        let mut y1 = vec![0.0; c];
+        for s in 0..4 {
+            let x: Vec<f64> = (0..c)
+                .map(|i| {
+                    if (i + s) % 3 == 0 {
+                        0.0
+                    } else {
+                        (i as f64 * 0.7 + s as f64).sin()
+                    }
+                })
+                .collect();
+            dense.apply(&x, &mut y0);
+            free.apply(&x, &mut y1);
+            let xs = x.iter().fold(0.0f64, |a, v| a.max(v.abs()));
+            for (a, b) in y0.iter().zip(&y1) {
+                assert!((a - b).abs() <= 1e-13 * scale * xs * c as f64, "{a} vs {b}");
+            }
+        }
+        // Auto picks dense at this size; without trailing DOFs, matrix-free falls
+        // back to the dense form by solves.
+        let auto = Dual::build(&f, &n, &t, 3, DualForm::Auto).unwrap();
+        assert!(!auto.is_matrix_free());
+        let plain = Factor::new(&k).unwrap();
+        let by_solves = Dual::build(&plain, &n, &t, 3, DualForm::MatrixFree).unwrap();
+        assert_eq!(by_solves.condensation, Condensation::Solves);
     }
 }

@@ -20,7 +20,7 @@ pub mod sparse;
 
 pub use error::{Error, ErrorKind, Result};
 pub use methods::{Monitor, Progress};
-pub use options::{Method, Options};
+pub use options::{DualForm, Method, Options};
 pub use problem::{ContactProblem, Friction, Solution};
 pub use report::{Report, SolveStatus};
 pub use sparse::{Csc, Format, Indices, MatrixView, Storage};

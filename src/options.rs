@@ -49,11 +49,56 @@ impl Method {
         }
     }
 
+    /// True when the method reads entries of A (and so needs it assembled); only
+    /// `Mprgp` runs on products alone.
+    pub fn needs_entries(self) -> bool {
+        self != Method::Mprgp
+    }
+
     /// Parses a name as returned by [`Method::name`].
     pub fn from_name(s: &str) -> Option<Method> {
         Method::ALL.into_iter().find(|m| m.name() == s)
     }
 }
+
+/// How the products with the condensed dual operator A = B K^-1 B^T are formed.
+#[derive(Copy, Clone, Debug, PartialEq, Eq)]
+pub enum DualForm {
+    /// Dense A while c = d m <= [`DENSE_MAX`], matrix-free beyond; a method that
+    /// needs the entries of A (every method but `Mprgp`) assembles it when needed.
+    Auto,
+    /// Assemble the dense c x c matrix A (c^2 doubles; `OutOfMemory` if it does not
+    /// fit).
+    Dense,
+    /// Never form A: each product A x is two dense triangular solves with the
+    /// trailing block L_CC of K's factor (the contact DOFs ordered last), about the
+    /// cost of a dense product, without A's memory or the O(c^3) work to form it.
+    /// Only `Mprgp` runs matrix-free (the others read entries of A).
+    MatrixFree,
+}
+
+impl DualForm {
+    /// Every form, in the order of the C enum.
+    pub const ALL: [DualForm; 3] = [DualForm::Auto, DualForm::Dense, DualForm::MatrixFree];
+
+    /// Short lower-case name ("auto", "dense", "matrix-free").
+    pub fn name(self) -> &'static str {
+        match self {
+            DualForm::Auto => "auto",
+            DualForm::Dense => "dense",
+            DualForm::MatrixFree => "matrix-free",
+        }
+    }
+
+    /// Parses a name as returned by [`DualForm::name`].
+    pub fn from_name(s: &str) -> Option<DualForm> {
+        DualForm::ALL.into_iter().find(|f| f.name() == s)
+    }
+}
+
+/// Number of dual unknowns c = d m up to which `DualForm::Auto` assembles A
+/// (8,000: A then takes at most 512 MB).
+pub const DENSE_MAX: usize = 8_000;
 
 /// Options of one solve. `Options::default()` gives the documented defaults.
 #[derive(Copy, Clone, Debug, PartialEq)]
@@ -69,6 +114,8 @@ pub struct Options {
     /// `Split` and `BlockGs`, MPRGP iterations in `SplitMprgp` and `Mprgp`
     /// (default 1_000).
     pub max_inner: usize,
+    /// Dense or matrix-free products with A (default `Auto`).
+    pub dual_form: DualForm,
 }
 
 impl Default for Options {
@@ -78,6 +125,7 @@ impl Default for Options {
             tol: 1e-10,
             max_outer: 10_000,
             max_inner: 1_000,
+            dual_form: DualForm::Auto,
         }
     }
 }

@@ -6,7 +6,7 @@ use crate::dual::{Dual, contact_dofs, stack_rows};
 use crate::error::{ErrorKind, Result, fail};
 use crate::factor::Factor;
 use crate::methods::{self, DualProblem, Law, Monitor, Progress};
-use crate::options::Options;
+use crate::options::{DualForm, Options};
 use crate::report::Report;
 use crate::report::{SolveStatus, contact_states, natural_map_error};
 use crate::sparse::{Csc, MatrixView};
@@ -124,7 +124,7 @@ impl ContactProblem {
         }
         // Contact DOFs last, so that the factor's trailing block condenses K onto them.
         let factor = Factor::with_last(&k, &contact_dofs(&stack_rows(&n, &t)))?;
-        let dual = Dual::build(&factor, &n, &t, d)?;
+        let dual = Dual::build(&factor, &n, &t, d, DualForm::Auto)?;
         let ndof = k.nrows;
         let c = dual.c;
         Ok(ContactProblem {
@@ -152,7 +152,7 @@ impl ContactProblem {
             );
         }
         let previous = self.factor.refactor(&k)?;
-        match Dual::build(&self.factor, &self.n, &self.t, self.d) {
+        match Dual::build(&self.factor, &self.n, &self.t, self.d, self.current_form()) {
             Ok(dual) => {
                 self.dual = dual;
                 self.k = k;
@@ -171,7 +171,7 @@ impl ContactProblem {
     pub fn set_contacts(&mut self, n: &MatrixView<'_>, t: &MatrixView<'_>) -> Result<()> {
         let n = Csc::from_view(n, "N")?;
         let t = Csc::from_view(t, "T")?;
-        let dual = Dual::build(&self.factor, &n, &t, self.d)?;
+        let dual = Dual::build(&self.factor, &n, &t, self.d, DualForm::Auto)?;
         if dual.c != self.dual.c {
             self.lam_hist = vec![0.0; dual.c];
         }
@@ -193,6 +193,58 @@ impl ContactProblem {
                 ErrorKind::NegativeFriction,
                 format!("{name}[{i}] = {} is negative", x[i]),
             );
+        }
+        Ok(())
+    }
+
+    /// The form the dual operator has now (`Dense` or `MatrixFree`).
+    fn current_form(&self) -> DualForm {
+        if self.dual.is_matrix_free() {
+            DualForm::MatrixFree
+        } else {
+            DualForm::Dense
+        }
+    }
+
+    /// Puts the dual operator in the form `opts` asks for (see [`DualForm`]),
+    /// rebuilding it from the factor when the form changes; the new form is kept
+    /// for later solves. On error the problem is unchanged.
+    ///
+    /// Errors: `BadArgument` (`MatrixFree` with a method that reads entries of A),
+    /// `OutOfMemory` (A does not fit).
+    fn prepare_dual(&mut self, opts: &Options) -> Result<()> {
+        let free_now = self.dual.is_matrix_free();
+        let want_free = match opts.dual_form {
+            DualForm::Dense => false,
+            DualForm::MatrixFree => {
+                if opts.method.needs_entries() {
+                    return fail(
+                        ErrorKind::BadArgument,
+                        format!(
+                            "method {} reads entries of the condensed dual A and cannot run \
+                             matrix-free: use mprgp, or the dense or auto dual form",
+                            opts.method.name()
+                        ),
+                    );
+                }
+                true
+            }
+            DualForm::Auto => free_now && !opts.method.needs_entries(),
+        };
+        if want_free && !Dual::trailing_available(&self.factor, &self.n, &self.t) {
+            return fail(
+                ErrorKind::BadArgument,
+                "the matrix-free dual needs every contact DOF among the DOFs K's factor \
+                 orders last; contacts set later on other DOFs are condensed densely",
+            );
+        }
+        if want_free != free_now {
+            let form = if want_free {
+                DualForm::MatrixFree
+            } else {
+                DualForm::Dense
+            };
+            self.dual = Dual::build(&self.factor, &self.n, &self.t, self.d, form)?;
         }
         Ok(())
     }
@@ -236,6 +288,11 @@ impl ContactProblem {
         opts: &Options,
         monitor: Option<Monitor<'_>>,
     ) -> Result<Solution> {
+        check_vec("f", f, self.n_dofs())?;
+        check_vec("g", g, self.n_contacts())?;
+        self.check_friction(friction)?;
+        Self::check_options(opts)?;
+        self.prepare_dual(opts)?;
         let mut lam = vec![0.0; self.dual.c];
         self.solve_from(f, g, friction, opts, &mut lam, monitor)
     }
@@ -396,6 +453,9 @@ impl ContactProblem {
         let (ndof, m) = (self.n_dofs(), self.n_contacts());
         check_vec("f_total", f_total, ndof)?;
         check_vec("g0", g0, m)?;
+        self.check_friction(friction)?;
+        Self::check_options(opts)?;
+        self.prepare_dual(opts)?;
         let mut ku = vec![0.0; ndof];
         self.k.mul_vec(&self.u_hist, &mut ku);
         let f: Vec<f64> = (0..ndof).map(|i| f_total[i] - ku[i]).collect();

@@ -369,6 +369,7 @@ fn non_finite_values_everywhere() {
             tol: 0.0,
             max_outer: 0,
             max_inner: 0,
+            dual_form: 0,
         };
         // SAFETY: o is writable.
         unsafe { ds_options_default(&mut o) };

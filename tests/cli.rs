@@ -369,6 +369,50 @@ fn not_converged_exits_1_with_outputs() {
 }
 
 #[test]
+fn matrix_free_dual_form_from_the_command_line() {
+    let dir = TempDir::new("free");
+    let prob = dir.path().join("problem");
+    write(&prob, &problem(3, 4), true);
+    let solve = |form: &str, method: &str| {
+        let out = dir.path().join(format!("out-{form}-{method}"));
+        let o = run(&[
+            "solve",
+            prob.to_str().unwrap(),
+            "--out",
+            out.to_str().unwrap(),
+            "--method",
+            method,
+            "--dual-form",
+            form,
+            "--quiet",
+        ]);
+        (o, out)
+    };
+    let numbers = |path: &std::path::Path| -> Vec<f64> {
+        std::fs::read_to_string(path)
+            .unwrap()
+            .lines()
+            .map(|l| l.trim().parse().unwrap())
+            .collect()
+    };
+    let (dense, out_d) = solve("dense", "mprgp");
+    let (free, out_f) = solve("matrix-free", "mprgp");
+    assert_eq!(dense.status.code(), Some(0), "{}", text(&dense.stderr));
+    assert_eq!(free.status.code(), Some(0), "{}", text(&free.stderr));
+    for f in ["lambda_n.txt", "lambda_t.txt", "u.txt"] {
+        let (a, b) = (numbers(&out_d.join(f)), numbers(&out_f.join(f)));
+        let scale = a.iter().fold(0.0f64, |s, v| s.max(v.abs()));
+        for (x, y) in a.iter().zip(&b) {
+            assert!((x - y).abs() <= 1e-8 * scale, "{f}: {x} vs {y}");
+        }
+    }
+    // A method that reads entries of A is refused, naming the way out.
+    let (pgs, _) = solve("matrix-free", "pgs");
+    assert_ne!(pgs.status.code(), Some(0));
+    assert!(text(&pgs.stderr).contains("mprgp"), "{}", text(&pgs.stderr));
+}
+
+#[test]
 fn verbose_prints_more() {
     let dir = TempDir::new("verbose");
     let prob = dir.path().join("problem");
@@ -441,7 +485,8 @@ fn help_documents_everything() {
         assert_eq!(o.status.code(), Some(0));
         let h = text(&o.stdout);
         for needle in [
-            "dualsplit solve DIR --out OUTDIR [--method NAME] [--tol X] [--max-iter N] [--verbose]",
+            "dualsplit solve DIR --out OUTDIR [--method NAME] [--tol X] [--max-iter N] \
+             [--dual-form F] [--verbose]",
             "K.mtx",
             "N.mtx",
             "T.mtx",
@@ -453,6 +498,8 @@ fn help_documents_everything() {
             "--method",
             "--tol",
             "--max-iter",
+            "--dual-form",
+            "matrix-free",
             "--verbose",
             "u.txt",
             "lambda_n.txt",
@@ -494,6 +541,10 @@ fn bad_command_lines_exit_2() {
         (
             vec!["solve", p, "--out", "x", "--method", "cg"],
             "unknown method \"cg\"",
+        ),
+        (
+            vec!["solve", p, "--out", "x", "--dual-form", "sparse"],
+            "unknown dual form \"sparse\"",
         ),
         (vec!["solve", p, "--out", "x", "--tol", "0"], "--tol"),
         (vec!["solve", p, "--out", "x", "--tol", "abc"], "--tol"),

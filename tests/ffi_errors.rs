@@ -332,6 +332,7 @@ fn options() -> DsOptions {
         tol: 0.0,
         max_outer: 0,
         max_inner: 0,
+        dual_form: 0,
     };
     // SAFETY: o is a writable DsOptions.
     unsafe { ds_options_default(&mut o) };
@@ -985,7 +986,7 @@ fn bad_argument() {
         (
             "struct_size",
             DsOptions {
-                struct_size: good.struct_size - 8,
+                struct_size: good.struct_size - 4,
                 ..good
             },
         ),
@@ -1018,6 +1019,22 @@ fn bad_argument() {
             "max_inner",
             DsOptions {
                 max_inner: 0,
+                ..good
+            },
+        ),
+        (
+            "dual_form",
+            DsOptions {
+                dual_form: 3,
+                ..good
+            },
+        ),
+        (
+            // Matrix-free products with a method that reads entries of A.
+            "mprgp",
+            DsOptions {
+                dual_form: 2,
+                method: 0,
                 ..good
             },
         ),

@@ -259,6 +259,7 @@ fn solve(h: *mut DsProblem, method: DsMethod, friction: DsFriction) -> Answer {
         tol: 0.0,
         max_outer: 0,
         max_inner: 0,
+        dual_form: 0,
     };
     // SAFETY: opts is writable.
     unsafe { ds_options_default(&mut opts) };

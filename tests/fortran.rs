@@ -424,7 +424,8 @@ const LAYOUT_F90: &str = r#"program layout
       off(c_loc(m), c_loc(m%i)), off(c_loc(m), c_loc(m%x))
    write (*, '(a,99(1x,i0))') 'DsOptions', c_sizeof(o), off(c_loc(o), c_loc(o%struct_size)), &
       off(c_loc(o), c_loc(o%method)), off(c_loc(o), c_loc(o%tol)), &
-      off(c_loc(o), c_loc(o%max_outer)), off(c_loc(o), c_loc(o%max_inner))
+      off(c_loc(o), c_loc(o%max_outer)), off(c_loc(o), c_loc(o%max_inner)), &
+      off(c_loc(o), c_loc(o%dual_form))
    write (*, '(a,99(1x,i0))') 'DsReport', c_sizeof(r), off(c_loc(r), c_loc(r%status)), &
       off(c_loc(r), c_loc(r%method)), off(c_loc(r), c_loc(r%err)), &
       off(c_loc(r), c_loc(r%equilibrium_residual)), off(c_loc(r), c_loc(r%outer_iterations)), &
@@ -454,9 +455,9 @@ int main(void)
            O(DsMatrix, format), O(DsMatrix, index_type), O(DsMatrix, base), O(DsMatrix, storage),
            O(DsMatrix, nrows), O(DsMatrix, ncols), O(DsMatrix, nnz), O(DsMatrix, p),
            O(DsMatrix, i), O(DsMatrix, x));
-    printf("DsOptions %d %d %d %d %d %d\n", (int)sizeof(DsOptions), O(DsOptions, struct_size),
+    printf("DsOptions %d %d %d %d %d %d %d\n", (int)sizeof(DsOptions), O(DsOptions, struct_size),
            O(DsOptions, method), O(DsOptions, tol), O(DsOptions, max_outer),
-           O(DsOptions, max_inner));
+           O(DsOptions, max_inner), O(DsOptions, dual_form));
     printf("DsReport %d %d %d %d %d %d %d %d %d %d %d %d %d\n", (int)sizeof(DsReport),
            O(DsReport, status), O(DsReport, method), O(DsReport, err),
            O(DsReport, equilibrium_residual), O(DsReport, outer_iterations),

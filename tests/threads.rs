@@ -138,6 +138,7 @@ fn job(sc: &Scene, method: DsMethod, barrier: Option<&Barrier>) -> Bits {
         tol: 0.0,
         max_outer: 0,
         max_inner: 0,
+        dual_form: 0,
     };
     // SAFETY: o is writable.
     unsafe { ds_options_default(&mut o) };

@@ -4,7 +4,7 @@
 
 use dualsplit::mtx::{self, ProblemFolder};
 
-use dualsplit::{ContactProblem, Error, ErrorKind, Method, Options, Report, SolveStatus};
+use dualsplit::{ContactProblem, DualForm, Error, ErrorKind, Method, Options, Report, SolveStatus};
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
@@ -14,7 +14,7 @@ const HELP: &str = "\
 dualsplit: frictional contact solver (Signorini + Tresca or Coulomb friction)
 
 USAGE:
-    dualsplit solve DIR --out OUTDIR [--method NAME] [--tol X] [--max-iter N] [--verbose] [--quiet]
+    dualsplit solve DIR --out OUTDIR [--method NAME] [--tol X] [--max-iter N] [--dual-form F] [--verbose] [--quiet]
     dualsplit --help
     dualsplit --version
 
@@ -48,6 +48,9 @@ OPTIONS:
     --max-iter N      maximum number of outer iterations (default {MAX_ITER}): sweeps for
                       pgs, normal/tangential alternations for split and block-gs,
                       Newton steps for newton
+    --dual-form F     auto (default), dense or matrix-free: whether the condensed dual
+                      A is assembled (dense while d m <= 8000) or applied through K's
+                      factor; matrix-free runs only with --method mprgp
     --verbose         print the problem sizes and the timings of every stage
     --quiet           print nothing but errors (no progress, no summary)
     -h, --help        print this help
@@ -189,7 +192,10 @@ fn parse_args(args: &[String]) -> Result<Command, String> {
             quiet = true;
             continue;
         }
-        if !matches!(name, "--out" | "--method" | "--tol" | "--max-iter") {
+        if !matches!(
+            name,
+            "--out" | "--method" | "--tol" | "--max-iter" | "--dual-form"
+        ) {
             return Err(format!("unknown option \"{name}\""));
         }
         let value = match inline {
@@ -210,6 +216,13 @@ fn parse_args(args: &[String]) -> Result<Command, String> {
                     format!(
                         "unknown method \"{value}\": expected one of {}",
                         names.join(", ")
+                    )
+                })?;
+            }
+            "--dual-form" => {
+                opts.dual_form = DualForm::from_name(&value).ok_or_else(|| {
+                    format!(
+                        "unknown dual form \"{value}\": expected one of auto, dense, matrix-free"
                     )
                 })?;
             }
@@ -636,7 +649,7 @@ fn main() -> ExitCode {
         Err(msg) => {
             eprintln!("dualsplit: error: {msg}");
             eprintln!(
-                "usage: dualsplit solve DIR --out OUTDIR [--method NAME] [--tol X] [--max-iter N] [--verbose] [--quiet]"
+                "usage: dualsplit solve DIR --out OUTDIR [--method NAME] [--tol X] [--max-iter N] [--dual-form F] [--verbose] [--quiet]"
             );
             eprintln!("       dualsplit --help");
             ExitCode::from(EXIT_USAGE)

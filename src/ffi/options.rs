@@ -1,7 +1,7 @@
 //! The options struct of the C API, its defaults and its translation into
 //! [`Options`].
 
-use super::types::{CEnum, DsMethod};
+use super::types::{CEnum, DsDualForm, DsMethod};
 use crate::error::{Error, ErrorKind, Result};
 use crate::options::Options;
 use std::panic::{AssertUnwindSafe, catch_unwind};
@@ -9,9 +9,11 @@ use std::panic::{AssertUnwindSafe, catch_unwind};
 /// Options of ds_solve / ds_step. Fill with ds_options_default, then change fields.
 /// Passing NULL instead of a DsOptions uses the defaults.
 ///
-/// Errors when read: DS_STATUS_BAD_ARGUMENT if struct_size is not sizeof(DsOptions),
-/// method is not a DsMethod, tol is not finite and positive, max_outer is negative
-/// or max_inner is not positive.
+/// Errors when read: DS_STATUS_BAD_ARGUMENT if struct_size is neither
+/// sizeof(DsOptions) nor 32 (the struct of version 0.1, without dual_form, which
+/// then reads as DS_DUAL_FORM_AUTO), method is not a DsMethod, tol is not finite and
+/// positive, max_outer is negative, max_inner is not positive, or dual_form is not
+/// a DsDualForm.
 #[repr(C)]
 #[derive(Copy, Clone, Debug, PartialEq)]
 pub struct DsOptions {
@@ -29,7 +31,13 @@ pub struct DsOptions {
     /// Maximum number of projected Gauss-Seidel sweeps per sub-problem of SPLIT and
     /// BLOCK_GS, >= 1 (default 1000).
     pub max_inner: i64,
+    /// A DsDualForm value (default DS_DUAL_FORM_AUTO). Added in version 0.2.
+    pub dual_form: i32,
 }
+
+/// sizeof(DsOptions) of version 0.1 (struct_size, method, tol, max_outer,
+/// max_inner): still accepted, with dual_form = DS_DUAL_FORM_AUTO.
+const V01_SIZE: usize = 32;
 
 impl DsOptions {
     /// The C struct holding `opts`.
@@ -40,6 +48,7 @@ impl DsOptions {
             tol: opts.tol,
             max_outer: i64::try_from(opts.max_outer).unwrap_or(i64::MAX),
             max_inner: i64::try_from(opts.max_inner).unwrap_or(i64::MAX),
+            dual_form: DsDualForm::from(opts.dual_form) as i32,
         }
     }
 
@@ -49,6 +58,7 @@ impl DsOptions {
     pub(crate) fn to_options(self) -> Result<Options> {
         let bad = |msg: String| Error::new(ErrorKind::BadArgument, msg);
         let method = DsMethod::parse(self.method, "opts.method")?;
+        let dual_form = DsDualForm::parse(self.dual_form, "opts.dual_form")?;
         if !(self.tol.is_finite() && self.tol > 0.0) {
             return Err(bad(format!(
                 "opts.tol = {} must be finite and positive",
@@ -67,6 +77,7 @@ impl DsOptions {
             tol: self.tol,
             max_outer: count(self.max_outer, "max_outer", 0)?,
             max_inner: count(self.max_inner, "max_inner", 1)?,
+            dual_form: dual_form.into(),
         })
     }
 
@@ -92,6 +103,21 @@ impl DsOptions {
         // version of the caller's struct.
         let size = unsafe { std::ptr::addr_of!((*ptr).struct_size).read() };
         let expected = std::mem::size_of::<DsOptions>();
+        if size as usize == V01_SIZE {
+            // SAFETY: the caller's struct is the version 0.1 prefix of DsOptions:
+            // the same fields at the same offsets (checked in the tests), 32 bytes.
+            let v01 = unsafe {
+                DsOptions {
+                    struct_size: size,
+                    method: std::ptr::addr_of!((*ptr).method).read(),
+                    tol: std::ptr::addr_of!((*ptr).tol).read(),
+                    max_outer: std::ptr::addr_of!((*ptr).max_outer).read(),
+                    max_inner: std::ptr::addr_of!((*ptr).max_inner).read(),
+                    dual_form: DsDualForm::Auto as i32,
+                }
+            };
+            return v01.to_options();
+        }
         if size as usize != expected {
             return Err(Error::new(
                 ErrorKind::BadArgument,
@@ -113,7 +139,8 @@ impl Default for DsOptions {
 }
 
 /// Fills *opts with the defaults: struct_size = sizeof(DsOptions), method
-/// DS_METHOD_SPLIT, tol 1e-10, max_outer 10000, max_inner 1000. NULL is a no-op.
+/// DS_METHOD_SPLIT, tol 1e-10, max_outer 10000, max_inner 1000, dual_form
+/// DS_DUAL_FORM_AUTO. NULL is a no-op.
 ///
 /// # Safety
 /// `opts` must be NULL or point to a writable DsOptions.
@@ -143,6 +170,7 @@ mod tests {
             tol: f64::NAN,
             max_outer: -1,
             max_inner: -1,
+            dual_form: 9,
         };
         // SAFETY: o is a valid, writable DsOptions.
         unsafe { ds_options_default(&mut o) };
@@ -161,6 +189,47 @@ mod tests {
         // SAFETY: pgs is a valid DsOptions.
         let read = unsafe { DsOptions::read(&pgs) };
         assert_eq!(read.unwrap().method, Method::Pgs);
+    }
+
+    #[test]
+    fn a_version_01_struct_reads_with_the_automatic_dual_form() {
+        /// DsOptions as compiled against the 0.1 header.
+        #[repr(C)]
+        struct V01 {
+            struct_size: u32,
+            method: i32,
+            tol: f64,
+            max_outer: i64,
+            max_inner: i64,
+        }
+        assert_eq!(std::mem::size_of::<V01>(), V01_SIZE);
+        assert_eq!(
+            std::mem::offset_of!(V01, max_inner),
+            std::mem::offset_of!(DsOptions, max_inner)
+        );
+        assert_eq!(
+            std::mem::offset_of!(V01, tol),
+            std::mem::offset_of!(DsOptions, tol)
+        );
+        let old = V01 {
+            struct_size: V01_SIZE as u32,
+            method: DsMethod::Mprgp as i32,
+            tol: 1e-8,
+            max_outer: 7,
+            max_inner: 9,
+        };
+        // SAFETY: old has the 0.1 layout and says so in struct_size.
+        let read = unsafe { DsOptions::read(&old as *const V01 as *const DsOptions) }.unwrap();
+        assert_eq!(
+            read,
+            Options {
+                method: Method::Mprgp,
+                tol: 1e-8,
+                max_outer: 7,
+                max_inner: 9,
+                dual_form: crate::options::DualForm::Auto,
+            }
+        );
     }
 
     #[test]
@@ -185,6 +254,7 @@ mod tests {
             ),
             (DsOptions { max_outer: -1, ..o }, "opts.max_outer = -1"),
             (DsOptions { max_inner: -3, ..o }, "opts.max_inner = -3"),
+            (DsOptions { dual_form: 3, ..o }, "opts.dual_form = 3"),
         ];
         for (bad, text) in cases {
             // SAFETY: bad is a valid DsOptions.

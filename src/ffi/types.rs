@@ -4,7 +4,7 @@
 //! header (cbindgen.toml `[export] include`).
 
 use crate::error::{Error, ErrorKind, Result};
-use crate::options::Method;
+use crate::options::{DualForm, Method};
 use crate::sparse::{Format, Storage};
 
 /// Layout of a DsMatrix (its `format` field), named as in CSparse.
@@ -68,6 +68,24 @@ pub enum DsMethod {
     /// MPRGP / MPGP on the whole dual; for Coulomb, the fixed point p = mu lambda_N
     /// outside.
     Mprgp = 5,
+}
+
+/// How the products with the condensed dual A = B K^-1 B^T are formed (DsOptions
+/// `dual_form`).
+#[repr(C)]
+#[derive(Copy, Clone, Debug, PartialEq, Eq)]
+pub enum DsDualForm {
+    /// Dense A while d m <= 8000 dual unknowns, matrix-free beyond; a method that
+    /// reads entries of A (all but DS_METHOD_MPRGP) assembles A when it needs it.
+    /// The default.
+    Auto = 0,
+    /// Assemble the dense (d m) x (d m) matrix A (DS_STATUS_OUT_OF_MEMORY if it does
+    /// not fit).
+    Dense = 1,
+    /// Never form A: each product is two dense triangular solves with the trailing
+    /// block of K's factor (the contact DOFs ordered last); only DS_METHOD_MPRGP
+    /// runs this way (the others: DS_STATUS_BAD_ARGUMENT).
+    MatrixFree = 2,
 }
 
 /// Friction law of one increment (the `friction` argument of ds_solve / ds_step).
@@ -155,6 +173,35 @@ impl CEnum for DsMethod {
     ];
 }
 
+impl CEnum for DsDualForm {
+    const NAME: &'static str = "DsDualForm";
+    const ALL: &'static [(Self, &'static str)] = &[
+        (DsDualForm::Auto, "DS_DUAL_FORM_AUTO"),
+        (DsDualForm::Dense, "DS_DUAL_FORM_DENSE"),
+        (DsDualForm::MatrixFree, "DS_DUAL_FORM_MATRIX_FREE"),
+    ];
+}
+
+impl From<DsDualForm> for DualForm {
+    fn from(f: DsDualForm) -> DualForm {
+        match f {
+            DsDualForm::Auto => DualForm::Auto,
+            DsDualForm::Dense => DualForm::Dense,
+            DsDualForm::MatrixFree => DualForm::MatrixFree,
+        }
+    }
+}
+
+impl From<DualForm> for DsDualForm {
+    fn from(f: DualForm) -> DsDualForm {
+        match f {
+            DualForm::Auto => DsDualForm::Auto,
+            DualForm::Dense => DsDualForm::Dense,
+            DualForm::MatrixFree => DsDualForm::MatrixFree,
+        }
+    }
+}
+
 impl CEnum for DsFriction {
     const NAME: &'static str = "DsFriction";
     const ALL: &'static [(Self, &'static str)] = &[
@@ -232,6 +279,10 @@ mod tests {
         check::<DsStorage>(|e| e as i32);
         check::<DsMethod>(|e| e as i32);
         check::<DsFriction>(|e| e as i32);
+        check::<DsDualForm>(|e| e as i32);
+        for f in DualForm::ALL {
+            assert_eq!(DualForm::from(DsDualForm::from(f)), f);
+        }
         for m in Method::ALL {
             assert_eq!(Method::from(DsMethod::from(m)), m);
             assert_eq!(

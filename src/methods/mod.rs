@@ -183,6 +183,7 @@ fn whole_mprgp(problem: &DualProblem<'_>, lam: &mut [f64], opts: &Options, targe
         let qp = mprgp::ConvexQp {
             h: &dual.a,
             ld: c,
+            op: dual.is_matrix_free().then_some(dual),
             k: c,
             q: problem.b,
             n_nonneg: m,

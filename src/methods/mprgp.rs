@@ -14,10 +14,12 @@
 //! only on the spectrum of H, not on the size of the problem.
 
 /// The quadratic and its constraint sets. H is the k x k block of a column-major
-/// array with leading dimension `ld` starting at `h[0]`.
+/// array with leading dimension `ld` starting at `h[0]`, or, when `op` is set, the
+/// whole condensed dual A given by its products (matrix-free; `h` is then unused).
 pub(super) struct ConvexQp<'a> {
     pub h: &'a [f64],
     pub ld: usize,
+    pub op: Option<&'a crate::dual::Dual>,
     pub k: usize,
     pub q: &'a [f64],
     pub n_nonneg: usize,
@@ -34,8 +36,21 @@ impl ConvexQp<'_> {
         &self.h[j * self.ld..j * self.ld + self.k]
     }
 
+    /// H_jj.
+    #[inline]
+    fn diag(&self, j: usize) -> f64 {
+        match self.op {
+            Some(op) => op.diag(j),
+            None => self.h[j * self.ld + j],
+        }
+    }
+
     /// y := H x.
     fn apply(&self, x: &[f64], y: &mut [f64]) {
+        if let Some(op) = self.op {
+            op.apply(x, y);
+            return;
+        }
         y.iter_mut().for_each(|v| *v = 0.0);
         for (j, &xj) in x.iter().enumerate() {
             if xj != 0.0 {
@@ -136,7 +151,7 @@ impl ConvexQp<'_> {
     /// diagonal per ball.
     pub fn residual(&self, x: &[f64], g: &[f64]) -> f64 {
         let (mut r2, mut x2, mut q2) = (0.0, 0.0, 0.0);
-        let diag = |j: usize| self.h[j * self.ld + j];
+        let diag = |j: usize| self.diag(j);
         for j in 0..self.n_nonneg {
             let rho = if diag(j) > 0.0 { 1.0 / diag(j) } else { 0.0 };
             let y = (x[j] - rho * g[j]).max(0.0);
@@ -167,6 +182,8 @@ impl ConvexQp<'_> {
         if r2 == 0.0 {
             0.0
         } else {
+                return (r2 / x2.max(1e-300)).sqrt();
+            }
             (r2 / x2.max(q2)).sqrt()
         }
     }
@@ -175,9 +192,13 @@ impl ConvexQp<'_> {
     /// the Gershgorin bound.
     fn norm_estimate(&self, v: &mut [f64], hv: &mut [f64]) -> f64 {
         let k = self.k;
-        let gersh = (0..k)
-            .map(|j| self.col(j).iter().map(|a| a.abs()).sum::<f64>())
-            .fold(0.0, f64::max);
+        // Matrix-free: no entries for Gershgorin; the power iteration's margin alone.
+        let gersh = match self.op {
+            Some(_) => f64::INFINITY,
+            None => (0..k)
+                .map(|j| self.col(j).iter().map(|a| a.abs()).sum::<f64>())
+                .fold(0.0, f64::max),
+        };
         v.iter_mut()
             .enumerate()
             .for_each(|(j, x)| *x = 1.0 + (j % 7) as f64 * 0.1);
@@ -319,6 +340,7 @@ mod tests {
         let qp = ConvexQp {
             h: &h,
             ld: k,
+            op: None,
             k,
             q: &q,
             n_nonneg: k,
@@ -350,6 +372,7 @@ mod tests {
         let qp = ConvexQp {
             h: &h,
             ld: k,
+            op: None,
             k,
             q: &q,
             n_nonneg: 2,

@@ -41,6 +41,7 @@ impl<'a> SubQp<'a> {
         ConvexQp {
             h: self.h,
             ld: self.ld,
+            op: None,
             k: self.k,
             q: self.q,
             n_nonneg,
