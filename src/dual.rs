@@ -223,7 +223,9 @@ impl Dual {
         }
     }
 
-    /// y := A x.
+    /// y := A x. x and y may be shorter than c: then y is the leading block of A
+    /// (rows 0..len(y), columns 0..len(x)) times x, e.g. A_NN x_N for the normal
+    /// unknowns alone.
     pub fn apply(&self, x: &[f64], y: &mut [f64]) {
         if let Some(f) = &self.free {
             f.apply(x, y);

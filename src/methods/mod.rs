@@ -41,6 +41,15 @@ impl Law<'_> {
         }
     }
 
+    /// True when every bound is zero whatever lambda_N (Tresca p = 0, Coulomb
+    /// mu = 0): a frictionless increment, lambda_T = 0.
+    pub fn frictionless(&self) -> bool {
+        match self {
+            Law::Tresca(p) => p.iter().all(|&v| v == 0.0),
+            Law::Coulomb(mu) => mu.iter().all(|&v| v == 0.0),
+        }
+    }
+
     /// Writes every bound into `p` (length m) for the normal multipliers `lambda_n`.
     pub fn bounds(&self, lambda_n: &[f64], p: &mut [f64]) {
         for (i, pi) in p.iter_mut().enumerate() {
@@ -152,6 +161,17 @@ impl DualProblem<'_> {
 /// Runs `opts.method` from the starting point in `lam` (length d m; a warm start or
 /// zeros) until the dual error is at most `target` or the iteration limit.
 pub fn run(problem: &DualProblem<'_>, lam: &mut [f64], opts: &Options, target: f64) -> Outcome {
+    if problem.law.frictionless() {
+        match opts.method {
+            Method::Split | Method::BlockGs => return signorini(problem, lam, opts, target, false),
+            Method::SplitMprgp | Method::Mprgp => {
+                return signorini(problem, lam, opts, target, true);
+            }
+            // PGS's tangential local steps cost O(1) per contact with a zero bound,
+            // and Newton drops unknowns at zero bounds from its linear systems.
+            Method::Pgs | Method::Newton => {}
+        }
+    }
     match opts.method {
         Method::Pgs => pgs::solve(problem, lam, opts, target),
         Method::Split => split::solve(problem, lam, opts, target, true, false),
@@ -159,6 +179,52 @@ pub fn run(problem: &DualProblem<'_>, lam: &mut [f64], opts: &Options, target: f
         Method::SplitMprgp => split::solve(problem, lam, opts, target, true, true),
         Method::Mprgp => whole_mprgp(problem, lam, opts, target),
         Method::Newton => newton::solve(problem, lam, opts, target),
+    }
+}
+
+/// The pure Signorini problem of a frictionless increment (every slip bound zero:
+/// lambda_T = 0): min 1/2 y^T A_NN y - y^T b_N over y >= 0 in the m normal
+/// unknowns alone (design.md section 2: the cost follows the physics switched on),
+/// by projected Gauss-Seidel or MPRGP on the leading m x m block of A (dense) or
+/// on products with it (matrix-free). One outer iteration is one sub-problem solve
+/// to a tenth of the target; the stopping test is the whole problem's err.
+fn signorini(
+    problem: &DualProblem<'_>,
+    lam: &mut [f64],
+    opts: &Options,
+    target: f64,
+    use_mprgp: bool,
+) -> Outcome {
+    let dual = problem.dual;
+    let (m, c) = (dual.m, dual.c);
+    lam[m..].iter_mut().for_each(|x| *x = 0.0);
+    let mut out = Outcome::default();
+    let mut w = vec![0.0; c];
+    let mut wn = vec![0.0; m];
+    let mut p = vec![0.0; m];
+    let mut v = vec![0.0; c];
+    loop {
+        problem.gradient(lam, &mut w);
+        out.dual_err = problem.error(lam, &w, &mut p, &mut v);
+        if problem.should_stop(&mut out, lam, &p, &v, target, opts) {
+            return out;
+        }
+        let sub = pgs::SubQp {
+            h: &dual.a,
+            ld: c,
+            k: m,
+            q: &problem.b[..m],
+            block: 1,
+            radii: None,
+        };
+        out.inner += if use_mprgp {
+            let mut qp = sub.as_convex();
+            qp.op = dual.is_matrix_free().then_some(dual);
+            qp.solve(&mut lam[..m], 0.1 * target, opts.max_inner)
+        } else {
+            sub.solve(&mut lam[..m], &mut wn, 0.1 * target, opts.max_inner)
+        };
+        out.outer += 1;
     }
 }
 
