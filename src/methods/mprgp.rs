@@ -182,8 +182,6 @@ impl ConvexQp<'_> {
         if r2 == 0.0 {
             0.0
         } else {
-                return (r2 / x2.max(1e-300)).sqrt();
-            }
             (r2 / x2.max(q2)).sqrt()
         }
     }
