@@ -16,7 +16,7 @@
 //! Exactly one of `mu.txt` and `p.txt` must be present. Any other file in the
 //! folder is ignored. d is inferred from rows(T) = (d-1) rows(N); with no contacts
 //! (m = 0) it cannot be, and d = 2 is taken (the solution, u = K^-1 f, does not
-//! depend on d then).
+//! depend on d then). Sizes that do not fit together are [`ErrorKind::BadSize`].
 //!
 //! # Matrix Market
 //!
@@ -38,6 +38,35 @@
 //!
 //! One number per line, in the same number format. Blank lines and lines starting
 //! with `%` or `#` are skipped on reading.
+//!
+//! # Sizes and memory
+//!
+//! The readers never allocate from a size a file declares beyond what the file
+//! itself, or the folder around it, justifies, and every allocation they make
+//! themselves is fallible, so a tiny file declaring huge sizes is an error, at
+//! once, not an abort or gigabytes of memory:
+//!
+//! - The entries of a matrix are stored as they are read, in room reserved for at
+//!   most the declared count *and* at most what the text can hold (an entry line
+//!   takes 6 bytes or more). An absurd entry count is then an `Io` error, with the
+//!   line, for the missing entries.
+//! - Assembling the compressed columns takes memory in O(rows + columns), which
+//!   no entry count bounds (N of a large model has few entries and many columns).
+//!   A matrix read on its own ([`parse_matrix`], [`read_matrix`]) may declare at
+//!   most `max(`[`MAX_UNCONFIRMED_DIM`]` = 2^22, length of the file in bytes)` rows
+//!   and columns; more is [`ErrorKind::BadSize`], before any allocation. In a
+//!   problem folder ([`read_problem`]) the vectors confirm the sizes instead: the
+//!   headers of K.mtx, N.mtx and T.mtx are read first and checked against each
+//!   other and against the lengths of f.txt, g.txt and mu.txt / p.txt (which
+//!   their own bytes justify), so sizes that do not fit are `BadSize`, with the
+//!   files and the declared sizes named, before any entry is read.
+//! - A vector has no declared length: it grows as its values are read.
+//! - An allocation that fails all the same (sizes that are consistent, on a
+//!   machine without the memory) is [`ErrorKind::OutOfMemory`], with the file and
+//!   the declared sizes in the message.
+//!
+//! The `array` (dense) Matrix Market format is not read (an `Io` error on the
+//! header line, before the size line), so a dense size is never allocated.
 
 use crate::error::{Error, ErrorKind, Result};
 use crate::problem::Friction;
@@ -122,8 +151,28 @@ fn line_err(path: &Path, line: usize, what: impl std::fmt::Display) -> Error {
     io_err(format!("{} line {line}: {what}", path.display()))
 }
 
+/// Reads a whole file. The text is allocated fallibly by the standard library
+/// (sized from the file's length): a failure is `OutOfMemory`.
 fn read_text(path: &Path) -> Result<String> {
-    fs::read_to_string(path).map_err(|e| io_err(format!("cannot read {}: {e}", path.display())))
+    fs::read_to_string(path).map_err(|e| {
+        if e.kind() == std::io::ErrorKind::OutOfMemory {
+            Error::new(
+                ErrorKind::OutOfMemory,
+                format!("cannot read {}: out of memory ({e})", path.display()),
+            )
+        } else {
+            io_err(format!("cannot read {}: {e}", path.display()))
+        }
+    })
+}
+
+/// At most the first 60 characters of a piece of a file, for a message ("..."
+/// marks a cut), so that a huge line does not make a huge message.
+fn clip(s: &str) -> std::borrow::Cow<'_, str> {
+    match s.char_indices().nth(60) {
+        None => s.into(),
+        Some((end, _)) => format!("{}...", &s[..end]).into(),
+    }
 }
 
 fn write_text(path: &Path, text: &str) -> Result<()> {
@@ -154,7 +203,7 @@ fn parse_real(token: &str, path: &Path, line: usize, what: &str) -> Result<f64> 
         None => Err(line_err(
             path,
             line,
-            format!("{what} \"{token}\" is not a number"),
+            format!("{what} \"{}\" is not a number", clip(token)),
         )),
     }
 }
@@ -165,7 +214,7 @@ fn parse_count(token: &str, path: &Path, line: usize, what: &str) -> Result<usiz
         line_err(
             path,
             line,
-            format!("{what} \"{token}\" is not a non-negative integer"),
+            format!("{what} \"{}\" is not a non-negative integer", clip(token)),
         )
     })
 }
@@ -175,9 +224,19 @@ fn numbered(text: &str) -> impl Iterator<Item = (usize, &str)> {
     text.lines().enumerate().map(|(k, l)| (k + 1, l))
 }
 
-/// Parses the text of a Matrix Market file; `path` is only used in messages.
-/// Returns the matrix with duplicates summed and a symmetric file mirrored.
-pub fn parse_matrix(text: &str, path: &Path) -> Result<Csc> {
+/// The banner and the size line of a Matrix Market file, read before any entry.
+#[derive(Clone, Copy, Debug)]
+struct Header {
+    nrows: usize,
+    ncols: usize,
+    nnz: usize,
+    symmetric: bool,
+    /// 1-based number of the size line; the entries follow it.
+    size_line: usize,
+}
+
+/// Reads the banner and the size line. Allocates nothing sized by the file.
+fn parse_header(text: &str, path: &Path) -> Result<Header> {
     let mut lines = numbered(text);
     let Some((_, header)) = lines.next() else {
         return Err(line_err(
@@ -188,6 +247,7 @@ pub fn parse_matrix(text: &str, path: &Path) -> Result<Csc> {
     };
     let words: Vec<String> = header
         .split_whitespace()
+        .take(6)
         .map(|w| w.to_ascii_lowercase())
         .collect();
     let words: Vec<&str> = words.iter().map(String::as_str).collect();
@@ -196,8 +256,9 @@ pub fn parse_matrix(text: &str, path: &Path) -> Result<Csc> {
             path,
             1,
             format!(
-                "bad header \"{header}\": expected \
-                 %%MatrixMarket matrix coordinate real general|symmetric"
+                "bad header \"{}\": expected \
+                 %%MatrixMarket matrix coordinate real general|symmetric",
+                clip(header)
             ),
         ));
     }
@@ -207,7 +268,7 @@ pub fn parse_matrix(text: &str, path: &Path) -> Result<Csc> {
             1,
             format!(
                 "unsupported format \"{}\": only coordinate (sparse) matrices are read",
-                words[2]
+                clip(words[2])
             ),
         ));
     }
@@ -217,7 +278,7 @@ pub fn parse_matrix(text: &str, path: &Path) -> Result<Csc> {
             1,
             format!(
                 "unsupported field \"{}\": only real (or integer) entries are read",
-                words[3]
+                clip(words[3])
             ),
         ));
     }
@@ -228,14 +289,14 @@ pub fn parse_matrix(text: &str, path: &Path) -> Result<Csc> {
             return Err(line_err(
                 path,
                 1,
-                format!("unsupported symmetry \"{other}\": only general and symmetric are read"),
+                format!(
+                    "unsupported symmetry \"{}\": only general and symmetric are read",
+                    clip(other)
+                ),
             ));
         }
     };
-    let mut content = lines.filter(|(_, l)| {
-        let t = l.trim_start();
-        !t.is_empty() && !t.starts_with('%')
-    });
+    let mut content = lines.filter(|(_, l)| is_content(l));
     let Some((size_line, size_text)) = content.next() else {
         return Err(line_err(
             path,
@@ -243,13 +304,14 @@ pub fn parse_matrix(text: &str, path: &Path) -> Result<Csc> {
             "end of file before the size line \"rows columns entries\"",
         ));
     };
-    let tokens: Vec<&str> = size_text.split_whitespace().collect();
+    let tokens: Vec<&str> = size_text.split_whitespace().take(4).collect();
     if tokens.len() != 3 {
         return Err(line_err(
             path,
             size_line,
             format!(
-                "bad size line \"{size_text}\": expected three integers \"rows columns entries\""
+                "bad size line \"{}\": expected three integers \"rows columns entries\"",
+                clip(size_text)
             ),
         ));
     }
@@ -263,16 +325,132 @@ pub fn parse_matrix(text: &str, path: &Path) -> Result<Csc> {
             format!("a symmetric matrix must be square, got {nrows} x {ncols}"),
         ));
     }
+    Ok(Header {
+        nrows,
+        ncols,
+        nnz,
+        symmetric,
+        size_line,
+    })
+}
+
+/// A line of a Matrix Market file that is neither blank nor a comment.
+fn is_content(line: &str) -> bool {
+    let t = line.trim_start();
+    !t.is_empty() && !t.starts_with('%')
+}
+
+/// "`path`: cannot allocate `what`" as [`ErrorKind::OutOfMemory`].
+fn oom_err(path: &Path, what: impl std::fmt::Display) -> Error {
+    Error::new(
+        ErrorKind::OutOfMemory,
+        format!("{}: cannot allocate {what}", path.display()),
+    )
+}
+
+/// Makes room for `additional` more elements, or fails with `OutOfMemory` naming
+/// the file and `what` the room is for.
+fn try_room<T>(
+    v: &mut Vec<T>,
+    additional: usize,
+    path: &Path,
+    what: impl std::fmt::Display,
+) -> Result<()> {
+    v.try_reserve_exact(additional)
+        .map_err(|e| oom_err(path, format_args!("{what} ({e})")))
+}
+
+/// Pushes `x`, growing `v` (amortised) with a fallible allocation.
+fn try_push<T>(v: &mut Vec<T>, x: T, path: &Path, what: &str) -> Result<()> {
+    if v.len() == v.capacity() {
+        v.try_reserve(1).map_err(|e| {
+            oom_err(
+                path,
+                format_args!("room for {} {what} ({e})", v.len().saturating_add(1)),
+            )
+        })?;
+    }
+    v.push(x);
+    Ok(())
+}
+
+/// Largest row or column count that a matrix file read on its own ([`parse_matrix`],
+/// [`read_matrix`]) may declare whatever its length: 2^22 = 4,194,304. Above it a
+/// dimension must not exceed the length of the file in bytes (see the module
+/// documentation, "Sizes and memory").
+pub const MAX_UNCONFIRMED_DIM: usize = 1 << 22;
+
+/// The size check of a matrix read on its own: rows and columns cost memory
+/// (O(rows + columns) to assemble) that a short file cannot justify.
+fn check_unconfirmed(h: &Header, text: &str, path: &Path) -> Result<()> {
+    let limit = MAX_UNCONFIRMED_DIM.max(text.len());
+    if h.nrows <= limit && h.ncols <= limit {
+        return Ok(());
+    }
+    Err(Error::new(
+        ErrorKind::BadSize,
+        format!(
+            "{} line {}: declares a {} x {} matrix with {} entries in a file of {} bytes: \
+             a file read on its own may declare at most max({MAX_UNCONFIRMED_DIM}, its length \
+             in bytes) = {limit} rows or columns (in a problem folder the vectors confirm \
+             larger sizes)",
+            path.display(),
+            h.size_line,
+            h.nrows,
+            h.ncols,
+            h.nnz,
+            text.len()
+        ),
+    ))
+}
+
+/// Parses the text of a Matrix Market file; `path` is only used in messages.
+/// Returns the matrix with duplicates summed and a symmetric file mirrored.
+///
+/// Memory: the entries are stored as they are read, in room reserved for at most
+/// the declared count and at most what the text can hold (an entry line takes 6
+/// bytes or more), so an absurd entry count costs nothing; rows and columns are
+/// limited to `max(`[`MAX_UNCONFIRMED_DIM`]`, text.len())` before anything of
+/// their size is allocated.
+///
+/// Errors: `Io` for a malformed text (the message names `path` and the line);
+/// `BadSize` (naming `path`, the line and the declared sizes) for a row or column
+/// count above that limit; `OutOfMemory` (naming `path` and the declared sizes) if
+/// an allocation fails.
+pub fn parse_matrix(text: &str, path: &Path) -> Result<Csc> {
+    let h = parse_header(text, path)?;
+    check_unconfirmed(&h, text, path)?;
+    parse_entries(text, path, &h)
+}
+
+/// Reads the entries after the header `h` (of the same text) and assembles them.
+/// The dimensions of `h` have been checked by the caller.
+fn parse_entries(text: &str, path: &Path, h: &Header) -> Result<Csc> {
+    let Header {
+        nrows,
+        ncols,
+        nnz,
+        symmetric,
+        size_line,
+    } = *h;
+    let declared = || format!("a {nrows} x {ncols} matrix with {nnz} entries, as declared");
     // Room for the entries, capped so that an absurd count in a short file cannot
-    // exhaust memory before the count check below.
+    // exhaust memory before the count check below; it grows if ever needed.
     let cap = nnz.min(text.len() / 6 + 1);
-    let mut rows: Vec<i64> = Vec::with_capacity(cap);
-    let mut cols: Vec<i64> = Vec::with_capacity(cap);
-    let mut vals: Vec<f64> = Vec::with_capacity(cap);
+    let mut rows: Vec<i64> = Vec::new();
+    let mut cols: Vec<i64> = Vec::new();
+    let mut vals: Vec<f64> = Vec::new();
+    let room = || format!("room for {cap} entries of {}", declared());
+    try_room(&mut rows, cap, path, room())?;
+    try_room(&mut cols, cap, path, room())?;
+    try_room(&mut vals, cap, path, room())?;
     // Triangle of the off-diagonal entries of a symmetric file: the first
     // off-diagonal entry fixes it (line number kept for the message).
     let mut triangle: Option<(bool, usize)> = None;
     let mut last_line = size_line;
+    let content = numbered(text)
+        .skip(size_line)
+        .filter(|(_, l)| is_content(l));
     for (line, entry) in content {
         last_line = line;
         if vals.len() == nnz {
@@ -282,12 +460,15 @@ pub fn parse_matrix(text: &str, path: &Path) -> Result<Csc> {
                 format!("more entries than the {nnz} announced on line {size_line}"),
             ));
         }
-        let tokens: Vec<&str> = entry.split_whitespace().collect();
+        let tokens: Vec<&str> = entry.split_whitespace().take(4).collect();
         if tokens.len() != 3 {
             return Err(line_err(
                 path,
                 line,
-                format!("bad entry \"{entry}\": expected \"row column value\""),
+                format!(
+                    "bad entry \"{}\": expected \"row column value\"",
+                    clip(entry)
+                ),
             ));
         }
         let r = parse_count(tokens[0], path, line, "row index")?;
@@ -326,9 +507,9 @@ pub fn parse_matrix(text: &str, path: &Path) -> Result<Csc> {
                 Some(_) => {}
             }
         }
-        rows.push(r as i64);
-        cols.push(c as i64);
-        vals.push(v);
+        try_push(&mut rows, r as i64, path, "entries")?;
+        try_push(&mut cols, c as i64, path, "entries")?;
+        try_push(&mut vals, v, path, "entries")?;
     }
     if vals.len() < nnz {
         return Err(line_err(
@@ -360,14 +541,21 @@ pub fn parse_matrix(text: &str, path: &Path) -> Result<Csc> {
     } else {
         Csc::from_view(&view, "matrix")
     };
-    // Indices and values are already checked: what remains is duplicates summing
-    // to an infinity, or an absurd size.
-    assembled.map_err(|e| io_err(format!("{}: {}", path.display(), e.message)))
+    // Indices and values are already checked: what remains is an allocation that
+    // fails (O(rows + columns + entries)), or duplicates summing to an infinity.
+    assembled.map_err(|e| match e.kind {
+        ErrorKind::OutOfMemory => oom_err(path, format_args!("{} ({})", declared(), e.message)),
+        _ => io_err(format!("{}: {}", path.display(), e.message)),
+    })
 }
 
-/// Reads a Matrix Market file (see the module documentation).
+/// Reads a Matrix Market file (see the module documentation) on its own: rows
+/// and columns are limited as in [`parse_matrix`] ([`read_problem`] checks a
+/// folder's matrices against its vectors instead).
 ///
-/// Errors: `Io` for a missing or malformed file, with the file name and the line.
+/// Errors: `Io` for a missing or malformed file, with the file name and the line;
+/// `BadSize` and `OutOfMemory` as in [`parse_matrix`] (reading the text itself
+/// may also fail with `OutOfMemory`).
 pub fn read_matrix(path: &Path) -> Result<Csc> {
     parse_matrix(&read_text(path)?, path)
 }
@@ -396,6 +584,12 @@ pub fn write_matrix(path: &Path, a: &Csc) -> Result<()> {
 
 /// Parses a vector: one number per line; blank lines and lines starting with `%`
 /// or `#` are skipped. `path` is only used in messages.
+///
+/// Memory: the vector grows as values are read (it has no declared length), with
+/// fallible allocations.
+///
+/// Errors: `Io` for a malformed text (the message names `path` and the line);
+/// `OutOfMemory` (naming `path`) if the vector cannot grow.
 pub fn parse_vector(text: &str, path: &Path) -> Result<Vec<f64>> {
     let mut v = Vec::new();
     for (line, l) in numbered(text) {
@@ -407,17 +601,18 @@ pub fn parse_vector(text: &str, path: &Path) -> Result<Vec<f64>> {
             return Err(line_err(
                 path,
                 line,
-                format!("\"{t}\": expected one number per line"),
+                format!("\"{}\": expected one number per line", clip(t)),
             ));
         }
-        v.push(parse_real(t, path, line, "value")?);
+        try_push(&mut v, parse_real(t, path, line, "value")?, path, "values")?;
     }
     Ok(v)
 }
 
 /// Reads a vector file (one number per line).
 ///
-/// Errors: `Io` for a missing or malformed file, with the file name and the line.
+/// Errors: `Io` for a missing or malformed file, with the file name and the line;
+/// `OutOfMemory` (naming the file) if the text or the vector cannot be allocated.
 pub fn read_vector(path: &Path) -> Result<Vec<f64>> {
     parse_vector(&read_text(path)?, path)
 }
@@ -554,14 +749,62 @@ fn existing(dir: &Path, name: &str) -> Option<PathBuf> {
     p.is_file().then_some(p)
 }
 
+/// A matrix file of a folder, read whole, with its header parsed.
+struct MatrixFile {
+    path: PathBuf,
+    text: String,
+    h: Header,
+}
+
+impl MatrixFile {
+    fn read(path: PathBuf) -> Result<MatrixFile> {
+        let text = read_text(&path)?;
+        let h = parse_header(&text, &path)?;
+        Ok(MatrixFile { path, text, h })
+    }
+
+    /// "line `l`: `r` x `c`", the declared size and where.
+    fn size(&self) -> String {
+        format!(
+            "line {}: {} x {}",
+            self.h.size_line, self.h.nrows, self.h.ncols
+        )
+    }
+
+    fn name(&self) -> std::path::Display<'_> {
+        self.path.display()
+    }
+
+    /// Reads the entries (the dimensions are checked by the caller) and frees the
+    /// text.
+    fn parse(self) -> Result<Csc> {
+        parse_entries(&self.text, &self.path, &self.h)
+    }
+}
+
+fn bad_size(message: String) -> Error {
+    Error::new(ErrorKind::BadSize, message)
+}
+
 /// Reads a problem folder (see the module documentation). K is checked for
 /// symmetry with the library's own test (`sparse::SYMMETRY_TOL`, the same as the C
 /// API's) unless the file has a `symmetric` header.
 ///
-/// Errors: `Io` for a missing or malformed file, or files whose sizes do not fit
-/// together (the message names the files, and the line where there is one);
-/// `NotSymmetric` if K is not symmetric (the message names K.mtx and the pair,
-/// 1-based as in the file).
+/// Sizes are checked before anything of their size is allocated: first the header
+/// (banner and size line) of K.mtx, N.mtx and T.mtx, then the vectors, whose
+/// lengths the files themselves justify (a number takes 2 bytes or more); then K
+/// must be n x n with n = len(f), N m x n with m = len(g) = len(mu or p), T
+/// (d-1) m x n with d = 2 or 3 (T has no rows when m = 0). Only then are the
+/// entries of the matrices read, so a file that declares sizes the folder does not
+/// confirm (such as a 63-byte N.mtx declaring 3.4e8 columns) costs nothing. The
+/// [`MAX_UNCONFIRMED_DIM`] limit of [`read_matrix`] does not apply here.
+///
+/// Errors: `Io` for a missing or malformed file (the message names the file, and
+/// the line where there is one); `BadSize` for files whose sizes do not fit
+/// together (the message names the files and the declared sizes); `NotSymmetric`
+/// if K is not symmetric (the message names K.mtx and the pair, 1-based as in the
+/// file); `OutOfMemory` if an allocation fails for sizes the folder confirms (the
+/// message names the file).
 pub fn read_problem(dir: &Path) -> Result<ProblemFolder> {
     if !dir.is_dir() {
         return Err(io_err(format!(
@@ -570,65 +813,76 @@ pub fn read_problem(dir: &Path) -> Result<ProblemFolder> {
             dir.display()
         )));
     }
-    let kpath = dir.join("K.mtx");
-    let k = read_matrix(&kpath)?;
-    if k.nrows != k.ncols {
-        return Err(io_err(format!(
-            "{}: K is {} x {}, not square",
-            kpath.display(),
-            k.nrows,
-            k.ncols
+    let name = |f: &str| dir.join(f).display().to_string();
+    let kfile = MatrixFile::read(dir.join("K.mtx"))?;
+    let nfile = MatrixFile::read(dir.join("N.mtx"))?;
+    let tfile = MatrixFile::read(dir.join("T.mtx"))?;
+    let (kh, nh, th) = (kfile.h, nfile.h, tfile.h);
+    if kh.nrows != kh.ncols {
+        return Err(bad_size(format!(
+            "{}: K is {} x {} ({}), not square",
+            kfile.name(),
+            kh.nrows,
+            kh.ncols,
+            kfile.size()
         )));
     }
-    let k = symmetric_checked(k, &kpath)?;
-    let ndof = k.nrows;
-    let n = read_matrix(&dir.join("N.mtx"))?;
-    let t = read_matrix(&dir.join("T.mtx"))?;
-    let m = n.nrows;
-    let name = |f: &str| dir.join(f).display().to_string();
-    for (file, a) in [("N.mtx", &n), ("T.mtx", &t)] {
-        if a.ncols != ndof {
-            return Err(io_err(format!(
-                "{} has {} columns, but K.mtx has {ndof} rows and columns",
-                name(file),
-                a.ncols
+    let ndof = kh.nrows;
+    let m = nh.nrows;
+    for file in [&nfile, &tfile] {
+        if file.h.ncols != ndof {
+            return Err(bad_size(format!(
+                "{} has {} columns ({}), but {} has {ndof} rows and columns ({})",
+                file.name(),
+                file.h.ncols,
+                file.size(),
+                kfile.name(),
+                kfile.size()
             )));
         }
     }
     let d = if m == 0 {
-        if t.nrows != 0 {
-            return Err(io_err(format!(
-                "{} has {} rows, but N.mtx has none (no contacts, so T must have none)",
-                name("T.mtx"),
-                t.nrows
+        if th.nrows != 0 {
+            return Err(bad_size(format!(
+                "{} has {} rows ({}), but {} has none ({}: no contacts, so T must have none)",
+                tfile.name(),
+                th.nrows,
+                tfile.size(),
+                nfile.name(),
+                nfile.size()
             )));
         }
         2
-    } else if t.nrows == m {
+    } else if th.nrows == m {
         2
-    } else if t.nrows == 2 * m {
+    } else if m.checked_mul(2) == Some(th.nrows) {
         3
     } else {
-        return Err(io_err(format!(
-            "{} has {} rows, but rows(T) must be (d-1) * rows(N) with d = 2 or 3, \
-             and N.mtx has {m} rows",
-            name("T.mtx"),
-            t.nrows
+        return Err(bad_size(format!(
+            "{} has {} rows ({}), but rows(T) must be (d-1) * rows(N) with d = 2 or 3, \
+             and {} has {m} rows ({})",
+            tfile.name(),
+            th.nrows,
+            tfile.size(),
+            nfile.name(),
+            nfile.size()
         )));
     };
-    let vector = |file: &str, len: usize, of: &str| -> Result<Vec<f64>> {
+    let vector = |file: &str, len: usize, of: &MatrixFile| -> Result<Vec<f64>> {
         let v = read_vector(&dir.join(file))?;
         if v.len() != len {
-            return Err(io_err(format!(
-                "{} has {} values, expected {len} ({of})",
+            return Err(bad_size(format!(
+                "{} has {} values, expected {len} (the rows of {}, {})",
                 name(file),
-                v.len()
+                v.len(),
+                of.name(),
+                of.size()
             )));
         }
         Ok(v)
     };
-    let f = vector("f.txt", ndof, "the rows of K.mtx")?;
-    let g = vector("g.txt", m, "the rows of N.mtx")?;
+    let f = vector("f.txt", ndof, &kfile)?;
+    let g = vector("g.txt", m, &nfile)?;
     let friction = match (existing(dir, "mu.txt"), existing(dir, "p.txt")) {
         (Some(_), Some(_)) => {
             return Err(io_err(format!(
@@ -636,8 +890,8 @@ pub fn read_problem(dir: &Path) -> Result<ProblemFolder> {
                 dir.display()
             )));
         }
-        (Some(_), None) => FrictionData::Coulomb(vector("mu.txt", m, "the rows of N.mtx")?),
-        (None, Some(_)) => FrictionData::Tresca(vector("p.txt", m, "the rows of N.mtx")?),
+        (Some(_), None) => FrictionData::Coulomb(vector("mu.txt", m, &nfile)?),
+        (None, Some(_)) => FrictionData::Tresca(vector("p.txt", m, &nfile)?),
         (None, None) => {
             return Err(io_err(format!(
                 "{} holds neither mu.txt (Coulomb coefficients) nor p.txt (Tresca bounds)",
@@ -645,6 +899,12 @@ pub fn read_problem(dir: &Path) -> Result<ProblemFolder> {
             )));
         }
     };
+    // Every size is now confirmed by the vectors: read the entries, one file at a
+    // time (each text is freed once parsed).
+    let kpath = kfile.path.clone();
+    let k = symmetric_checked(kfile.parse()?, &kpath)?;
+    let n = nfile.parse()?;
+    let t = tfile.parse()?;
     Ok(ProblemFolder {
         d,
         k,
@@ -659,8 +919,11 @@ pub fn read_problem(dir: &Path) -> Result<ProblemFolder> {
 /// Runs K (square, both triangles) through the library's symmetric validation, the
 /// one the C API applies to a fully stored K, with 1-based messages.
 fn symmetric_checked(k: Csc, path: &Path) -> Result<Csc> {
-    let mut rows = Vec::with_capacity(k.nnz());
-    let mut cols = Vec::with_capacity(k.nnz());
+    let mut rows = Vec::new();
+    let mut cols = Vec::new();
+    let what = || format!("the {} entries of K for its symmetry check", k.nnz());
+    try_room(&mut rows, k.nnz(), path, what())?;
+    try_room(&mut cols, k.nnz(), path, what())?;
     for j in 0..k.ncols {
         for &r in &k.row_idx[k.col_ptr[j]..k.col_ptr[j + 1]] {
             rows.push(r as i64 + 1);
@@ -679,4 +942,72 @@ fn symmetric_checked(k: Csc, path: &Path) -> Result<Csc> {
     };
     Csc::symmetric_from_view(&view, "K")
         .map_err(|e| Error::new(e.kind, format!("{}: {}", path.display(), e.message)))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// An allocation that cannot succeed (more than isize::MAX bytes, refused
+    /// without touching memory) is `OutOfMemory`, naming the file.
+    #[test]
+    fn mtx_failed_allocations_are_out_of_memory() {
+        let path = Path::new("dir/X.mtx");
+        let mut v: Vec<u64> = Vec::new();
+        let e = try_room(&mut v, usize::MAX / 4, path, "room for the test").unwrap_err();
+        assert_eq!(e.kind, ErrorKind::OutOfMemory);
+        assert!(
+            e.message.starts_with(&format!(
+                "{}: cannot allocate room for the test",
+                path.display()
+            )),
+            "{}",
+            e.message
+        );
+        // Growing one by one is fallible too, and keeps amortised doubling.
+        let mut v: Vec<u64> = Vec::new();
+        for k in 0..100 {
+            try_push(&mut v, k, path, "values").unwrap();
+        }
+        assert_eq!(v, (0..100).collect::<Vec<_>>());
+    }
+
+    /// The entries' room is capped by the text: an absurd count reserves nothing
+    /// of its size, and the header alone allocates nothing of the declared sizes.
+    #[test]
+    fn mtx_header_and_unconfirmed_limit() {
+        let path = Path::new("H.mtx");
+        let text = "%%MatrixMarket matrix coordinate real general\n% c\n\n7 5 3\n";
+        let h = parse_header(text, path).unwrap();
+        assert_eq!(
+            (h.nrows, h.ncols, h.nnz, h.symmetric, h.size_line),
+            (7, 5, 3, false, 4)
+        );
+        check_unconfirmed(&h, text, path).unwrap();
+        let big = Header {
+            ncols: MAX_UNCONFIRMED_DIM + 1,
+            ..h
+        };
+        let e = check_unconfirmed(&big, text, path).unwrap_err();
+        assert_eq!(e.kind, ErrorKind::BadSize);
+        assert!(e.message.starts_with("H.mtx line 4: "), "{}", e.message);
+        // A file at least as long as the dimension confirms it.
+        let long = " ".repeat(MAX_UNCONFIRMED_DIM + 1);
+        check_unconfirmed(&big, &long, path).unwrap();
+    }
+
+    #[test]
+    fn mtx_messages_clip_long_lines() {
+        assert_eq!(clip("short"), "short");
+        let long = "é".repeat(100);
+        let c = clip(&long);
+        assert_eq!(c.chars().count(), 63);
+        assert!(c.ends_with("..."));
+        let e = parse_vector(
+            &format!("1\n{} 2\n", "9".repeat(10_000)),
+            Path::new("v.txt"),
+        )
+        .unwrap_err();
+        assert!(e.message.len() < 200, "{}", e.message);
+    }
 }

@@ -1,11 +1,14 @@
 //! Matrix Market and problem folder I/O (src/mtx.rs): bit-exact round trips, the
-//! symmetric header, duplicates, comments, and a line-numbered `Io` error for
-//! every kind of malformed file.
+//! symmetric header, duplicates, comments, a line-numbered `Io` error for every
+//! kind of malformed file, and sizes declared beyond what a file or its folder
+//! justifies rejected (`BadSize`) at once, before anything of that size is
+//! allocated.
 
 use dualsplit::mtx::{self, FrictionData};
 use dualsplit::{Csc, ErrorKind, Friction};
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicUsize, Ordering};
+use std::time::{Duration, Instant};
 
 /// A fresh, empty folder under the system temp dir, removed on drop.
 struct TempDir(PathBuf);
@@ -541,7 +544,7 @@ fn malformed_folders_say_which_file() {
     assert_eq!(e.kind, ErrorKind::Io);
     assert!(e.message.contains("both"), "{}", e.message);
     let e = folder_error(|p| std::fs::write(p.join("g.txt"), "1\n2\n3\n").unwrap());
-    assert_eq!(e.kind, ErrorKind::Io);
+    assert_eq!(e.kind, ErrorKind::BadSize);
     assert!(
         e.message.contains("g.txt has 3 values, expected 2"),
         "{}",
@@ -554,19 +557,19 @@ fn malformed_folders_say_which_file() {
     let e = folder_error(|p| {
         mtx::write_matrix(&p.join("T.mtx"), &Csc::from_triplets(3, 9, &[])).unwrap()
     });
-    assert_eq!(e.kind, ErrorKind::Io);
+    assert_eq!(e.kind, ErrorKind::BadSize);
     assert!(e.message.contains("T.mtx has 3 rows"), "{}", e.message);
     // N with the wrong number of columns.
     let e = folder_error(|p| {
         mtx::write_matrix(&p.join("N.mtx"), &Csc::from_triplets(2, 8, &[])).unwrap()
     });
-    assert_eq!(e.kind, ErrorKind::Io);
+    assert_eq!(e.kind, ErrorKind::BadSize);
     assert!(e.message.contains("N.mtx has 8 columns"), "{}", e.message);
     // K not square.
     let e = folder_error(|p| {
         mtx::write_matrix(&p.join("K.mtx"), &Csc::from_triplets(9, 8, &[])).unwrap()
     });
-    assert_eq!(e.kind, ErrorKind::Io);
+    assert_eq!(e.kind, ErrorKind::BadSize);
     assert!(e.message.contains("K.mtx"), "{}", e.message);
     // K not symmetric: the library's own check, 1-based as in the file.
     let e = folder_error(|p| {
@@ -627,4 +630,236 @@ fn symmetric_k_file_is_accepted_in_a_folder() {
     std::fs::write(dir.path().join("K.mtx"), text).unwrap();
     let pf = mtx::read_problem(dir.path()).unwrap();
     assert_same_matrix(&pf.k, &x.k);
+}
+
+// ---------------------------------------------------------------------------------
+// Declared sizes that the file, or its folder, does not justify. Each must be
+// answered at once (nothing of the declared size is allocated), with a message
+// that names the file: `BadSize` for sizes that a file read on its own may not
+// declare or that do not fit the folder, `Io` for an entry count the file does
+// not hold or a format that is not read.
+
+/// Generous: the answers take microseconds; an allocation of the declared sizes
+/// took seconds and gigabytes (or aborted the process).
+const QUICK: Duration = Duration::from_secs(2);
+
+/// Runs `f`, asserts that it took less than [`QUICK`], and returns its error.
+fn quick_error<T: std::fmt::Debug>(
+    what: &str,
+    f: impl FnOnce() -> dualsplit::Result<T>,
+) -> dualsplit::Error {
+    let t0 = Instant::now();
+    let r = f();
+    let dt = t0.elapsed();
+    assert!(dt < QUICK, "{what}: took {dt:?}");
+    match r {
+        Ok(v) => panic!("{what}: accepted: {v:?}"),
+        Err(e) => e,
+    }
+}
+
+const COORD: &str = "%%MatrixMarket matrix coordinate real general\n";
+
+#[test]
+fn huge_declared_dimensions_are_bad_size_at_once() {
+    // 4e8 x 4e8 with one entry: 63 bytes that asked for 4 arrays of 3.2 GB.
+    let huge = format!("{COORD}400000000 400000000 1\n1 1 1.0\n");
+    let e = quick_error("4e8 x 4e8", || parse(&huge));
+    assert_eq!(e.kind, ErrorKind::BadSize, "{e}");
+    assert!(e.message.contains("M.mtx line 2:"), "{}", e.message);
+    assert!(e.message.contains("400000000 x 400000000"), "{}", e.message);
+    // The same from a file: the message names it.
+    let dir = TempDir::new("huge");
+    let path = dir.path().join("Huge.mtx");
+    std::fs::write(&path, &huge).unwrap();
+    let e = quick_error("4e8 x 4e8 file", || mtx::read_matrix(&path));
+    assert_eq!(e.kind, ErrorKind::BadSize, "{e}");
+    assert!(e.message.contains("Huge.mtx line 2:"), "{}", e.message);
+    // Symmetric header, and one huge dimension only (rows or columns), and the
+    // fuzz seeds: no rows but 3.4e8 columns, 5.6e17 rows, 2^62 rows.
+    for (what, size) in [
+        (
+            "symmetric",
+            "%%MatrixMarket matrix coordinate real symmetric\n400000000 400000000 1\n1 1 1.0\n"
+                .to_string(),
+        ),
+        ("rows", format!("{COORD}400000000 3 1\n1 1 1.0\n")),
+        ("columns", format!("{COORD}3 400000000 1\n1 1 1.0\n")),
+        ("no rows", format!("{COORD}%%\n0 344444444 0\n")),
+        (
+            "5.6e17 rows",
+            format!("{COORD}555555555555555553 3 1\n1 1 1.0\n"),
+        ),
+        (
+            "2^62 rows",
+            format!("{COORD}4611686018427387904 3 1\n1 1 2.0\n"),
+        ),
+        ("usize::MAX", format!("{COORD}{} 1 0\n", usize::MAX)),
+    ] {
+        let e = quick_error(what, || parse(&size));
+        assert_eq!(e.kind, ErrorKind::BadSize, "{what}: {e}");
+        assert!(e.message.contains("M.mtx line"), "{what}: {}", e.message);
+    }
+}
+
+#[test]
+fn unconfirmed_dimension_limit_is_the_larger_of_the_floor_and_the_file_length() {
+    let limit = mtx::MAX_UNCONFIRMED_DIM;
+    assert_eq!(limit, 1 << 22);
+    // At the floor: accepted, whatever the file's length.
+    let a = parse(&format!("{COORD}1 {limit} 1\n1 {limit} 2.5\n")).unwrap();
+    assert_eq!((a.nrows, a.ncols, a.nnz()), (1, limit, 1));
+    assert_eq!(a.col_ptr[limit], 1);
+    // One more: rejected, in a short file...
+    let over = limit + 1;
+    let e = parse(&format!("{COORD}{over} 1 0\n")).unwrap_err();
+    assert_eq!(e.kind, ErrorKind::BadSize, "{e}");
+    // ...but accepted from a file at least that long (here a long comment).
+    let mut text = format!("{COORD}{over} 1 1\n{over} 1 -1\n%");
+    text.push_str(&" ".repeat(over.saturating_sub(text.len())));
+    text.push('\n');
+    let a = parse(&text).unwrap();
+    assert_eq!(
+        (a.nrows, a.ncols, a.row_idx.clone()),
+        (over, 1, vec![over - 1])
+    );
+}
+
+#[test]
+fn huge_entry_count_is_an_io_error_at_once() {
+    let text = format!("{COORD}3 3 1000000000000\n1 1 1.0\n");
+    let e = quick_error("1e12 entries", || parse(&text));
+    assert_eq!(e.kind, ErrorKind::Io, "{e}");
+    assert!(
+        e.message
+            .contains("M.mtx line 3: end of file after 1 entries"),
+        "{}",
+        e.message
+    );
+    let text = format!("{COORD}3 3 {}\n", usize::MAX);
+    let e = quick_error("usize::MAX entries", || parse(&text));
+    assert_eq!(e.kind, ErrorKind::Io, "{e}");
+    assert!(e.message.contains("M.mtx line 2:"), "{}", e.message);
+}
+
+/// The dense `array` format is not read: the header is rejected before its size
+/// line, so a declared 1e9 x 1 costs nothing. A vector file with such a header is
+/// rejected on the size line (two numbers on a line).
+#[test]
+fn array_header_with_huge_size_is_rejected_at_once() {
+    let text = "%%MatrixMarket matrix array real general\n1000000000 1\n1.0\n2.0\n";
+    let e = quick_error("array 1e9", || parse(text));
+    assert_eq!(e.kind, ErrorKind::Io, "{e}");
+    assert!(
+        e.message.contains("M.mtx line 1:") && e.message.contains("\"array\""),
+        "{}",
+        e.message
+    );
+    let e = quick_error("array 1e9 as a vector", || {
+        mtx::parse_vector(text, Path::new("v.txt"))
+    });
+    assert_eq!(e.kind, ErrorKind::Io, "{e}");
+    assert!(e.message.contains("v.txt line 2:"), "{}", e.message);
+}
+
+/// A huge matrix in a folder is checked against the other files before its
+/// entries are read: `BadSize`, naming the files and the declared sizes.
+#[test]
+fn folder_with_huge_declared_dimensions_is_bad_size_at_once() {
+    let huge_k = format!("{COORD}400000000 400000000 1\n1 1 1.0\n");
+    // (what, files replaced, pieces of the message)
+    type Case = (&'static str, Vec<(&'static str, String)>, Vec<&'static str>);
+    let cases: Vec<Case> = vec![
+        (
+            "huge K",
+            vec![("K.mtx", huge_k.clone())],
+            vec![
+                "N.mtx has 9 columns",
+                "K.mtx has 400000000 rows and columns",
+            ],
+        ),
+        (
+            "huge N (the fuzz seed)",
+            vec![("N.mtx", format!("{COORD}%%\n0 344444444 0\n"))],
+            vec!["N.mtx has 344444444 columns", "K.mtx has 9 rows"],
+        ),
+        (
+            "huge T",
+            vec![("T.mtx", format!("{COORD}400000000 9 0\n"))],
+            vec!["T.mtx has 400000000 rows", "N.mtx has 2 rows"],
+        ),
+        (
+            "huge K, N, T that agree, but f.txt has 9 values",
+            vec![
+                ("K.mtx", huge_k.clone()),
+                ("N.mtx", format!("{COORD}2 400000000 0\n")),
+                ("T.mtx", format!("{COORD}4 400000000 0\n")),
+            ],
+            vec![
+                "f.txt has 9 values, expected 400000000",
+                "K.mtx, line 2: 400000000 x 400000000",
+            ],
+        ),
+        (
+            "huge N and T rows that agree, but g.txt has 2 values",
+            vec![
+                ("N.mtx", format!("{COORD}400000000 9 0\n")),
+                ("T.mtx", format!("{COORD}800000000 9 0\n")),
+            ],
+            vec![
+                "g.txt has 2 values, expected 400000000",
+                "N.mtx, line 2: 400000000 x 9",
+            ],
+        ),
+    ];
+    for (what, files, needles) in cases {
+        let e = quick_error(what, || {
+            let e = folder_error(|p| {
+                for (name, text) in &files {
+                    std::fs::write(p.join(name), text).unwrap();
+                }
+            });
+            Err::<(), _>(e)
+        });
+        assert_eq!(e.kind, ErrorKind::BadSize, "{what}: {e}");
+        for needle in needles {
+            assert!(e.message.contains(needle), "{what}: {}", e.message);
+        }
+    }
+}
+
+/// The inputs the fuzz target `mtx_reader` found (fuzz/seeds/mtx_reader_regressions),
+/// replayed without nightly: each is answered at once, never with `OutOfMemory`
+/// (none is large enough to need memory), and those known to declare huge sizes
+/// are `BadSize`.
+#[test]
+fn fuzz_regression_seeds_are_answered_at_once() {
+    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("fuzz/seeds/mtx_reader_regressions");
+    let mut seen = 0;
+    for entry in std::fs::read_dir(&dir).unwrap() {
+        let path = entry.unwrap().path();
+        let Ok(text) = std::fs::read_to_string(&path) else {
+            continue;
+        };
+        let name = path.file_name().unwrap().to_string_lossy().to_string();
+        let t0 = Instant::now();
+        let r = mtx::parse_matrix(&text, &path);
+        let _ = mtx::parse_vector(&text, &path);
+        assert!(t0.elapsed() < QUICK, "{name}: took {:?}", t0.elapsed());
+        if let Err(e) = &r {
+            assert_ne!(e.kind, ErrorKind::OutOfMemory, "{name}: {e}");
+            assert!(e.message.contains(&name), "{name}: {}", e.message);
+        }
+        let huge = [
+            "crash-be393bab4797ec7a3b6af2890daef459843162ec",
+            "oom-9ce59e6c99040e32c17d83779f6d9d66a34cd350",
+            "oom-e61455419cf76244db0a79667aa1508d2bebdd73",
+        ];
+        if huge.contains(&name.as_str()) {
+            let e = r.expect_err(&name);
+            assert_eq!(e.kind, ErrorKind::BadSize, "{name}: {e}");
+            seen += 1;
+        }
+    }
+    assert_eq!(seen, 3, "the known seeds are in {}", dir.display());
 }

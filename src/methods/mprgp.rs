@@ -47,17 +47,9 @@ impl ConvexQp<'_> {
 
     /// y := H x.
     fn apply(&self, x: &[f64], y: &mut [f64]) {
-        if let Some(op) = self.op {
-            op.apply(x, y);
-            return;
-        }
-        y.iter_mut().for_each(|v| *v = 0.0);
-        for (j, &xj) in x.iter().enumerate() {
-            if xj != 0.0 {
-                for (yi, hij) in y.iter_mut().zip(self.col(j)) {
-                    *yi += hij * xj;
-                }
-            }
+        match self.op {
+            Some(op) => op.apply(x, y),
+            None => crate::dual::leading_block_apply(self.h, self.ld, x, y),
         }
     }
 
