@@ -639,16 +639,26 @@ fn slender_body_aspect_100_conditioning() {
 }
 
 #[test]
-#[ignore = "library bug: Split reports Converged (err 1e-10) with a penetration of 3.7e-5 \
-            relative to max|u| (KKT feasibility); same masking of err by the |rho . b| of \
-            the many open contacts as in very_large_gaps_do_not_mask_the_closed_contacts; \
-            also slow in debug (~80 s)"]
 fn slender_body_aspect_100() {
+    // The beam lands on 96 of its 100 contacts; cond(A) = 7e7, A_ii from 0.05 (at
+    // the clamp) to 2.6e4 (at the tip). Split once reported Converged here at 365
+    // outer iterations (err 1e-10) with a penetration of 3.7e-5 of max|u|: err's
+    // force scale was |rho . b| = 24.7 against |lambda| = 0.0198 (report.rs). With
+    // the honest scale Split stands at err 1e-7 after 400 outer iterations.
+    //
+    // Newton and the MPRGP methods converge in a few iterations (KKT 2.8e-10). The
+    // Gauss-Seidel methods converge at rates of 1 - O(1/cond): PGS is at err 9.4e-5
+    // after 20,000 sweeps; Split and BlockGs, which sweep A11 up to max_inner =
+    // 1,000 times per outer iteration, need ~7,000 outer iterations (7M sweeps, a
+    // minute in release). They get 400 here (the budget at which the old err let
+    // Split claim convergence) and must stop honestly. (Run to the end they meet
+    // err <= 1e-10 at err 2.5e-11 with KKT 1.3e-8 and lambda 2.6e-5 off at the tip:
+    // below what err resolves on this scene, see `natural_map_error`.)
     let s = slender_beam();
     let data = Data::of(&s);
     let p = vec![1e-4; s.m()];
     let o = Options {
-        max_outer: 20_000,
+        max_outer: 400,
         ..Options::default()
     };
     let sols = run_all_with(
@@ -657,8 +667,12 @@ fn slender_body_aspect_100() {
         Friction::Tresca(&p),
         &o,
     );
-    assert_all_converged("slender beam", &sols);
-    assert_agree("slender beam", &sols, 1e-6);
+    let strong: Vec<(Method, Solution)> = sols
+        .into_iter()
+        .filter(|(m, _)| matches!(m, Method::Newton | Method::Mprgp | Method::SplitMprgp))
+        .collect();
+    assert_all_converged("slender beam", &strong);
+    assert_agree("slender beam", &strong, 1e-6);
 }
 
 // ---------------------------------------------------------------------------------
@@ -700,6 +714,124 @@ fn large_coulomb_friction_terminates_honestly() {
         // it need not be unique, so only the u of methods is compared loosely when
         // the contact states agree.
         let _ = sols;
+    }
+}
+
+/// Turns the contact frame of every (2D) contact by `theta`: N' = cos N + sin T,
+/// T' = cos T - sin N (a foundation inclined by theta).
+fn inclined(data: &Data, theta: f64) -> Data {
+    let (c, s) = (theta.cos(), theta.sin());
+    let mut nt = Vec::new();
+    let mut tt = Vec::new();
+    for (r, col, v) in triplets(&data.n) {
+        nt.push((r, col, c * v));
+        tt.push((r, col, -s * v));
+    }
+    for (r, col, v) in triplets(&data.t) {
+        nt.push((r, col, s * v));
+        tt.push((r, col, c * v));
+    }
+    Data {
+        n: Csc::from_triplets(data.n.nrows, data.n.ncols, &nt),
+        t: Csc::from_triplets(data.t.nrows, data.t.ncols, &tt),
+        ..data.clone()
+    }
+}
+
+/// A slender column [0, 1] x [0, 10] (2 x 20 Q4, E = 100, nu = 0.3), its top moved
+/// by (0.2, 0.02), standing with its three bottom nodes on a foundation inclined by
+/// 0.15 rad (g = 0). The column is about 40 times more compliant sideways than
+/// along its axis, so in the turned frame the normal and the tangential response
+/// of a bottom node are strongly coupled: A_NT / A_NN = 4.0 to 5.8.
+fn inclined_column() -> Data {
+    let mesh = Mesh::grid2d(2, 20, 1.0, 10.0);
+    let mut prescribed = Vec::new();
+    for &a in &mesh.top_nodes() {
+        prescribed.push((2 * a, 0.2));
+        prescribed.push((2 * a + 1, 0.02));
+    }
+    let f_ext = vec![0.0; mesh.n_dofs()];
+    let bottom = mesh.bottom_nodes();
+    let s = Scene::build(mesh, 100.0, 0.3, &prescribed, &f_ext, &bottom, |_| 0.0);
+    inclined(&Data::of(&s), 0.15)
+}
+
+#[test]
+fn large_coulomb_friction_fixed_point_does_not_contract() {
+    // For a slipping contact (lambda_T = s mu lambda_N) the Coulomb fixed point is
+    // lambda_N <- (b_N - s mu A_NT lambda_N) / A_NN, of slope -s mu A_NT / A_NN: it
+    // contracts only while mu |A_NT| < A_NN. Here mu |A_NT| / A_NN >= 4 for mu >= 1,
+    // and the plain fixed point (as in every method before the relaxation, and in
+    // Mprgp's outer loop) cycles between "slip, lambda_N small" and "stick,
+    // lambda_N large" (err 0.27 to 1.0 for 500 outer iterations). The slipping
+    // answer exists (the relaxed splittings find it; Newton does for mu = 2).
+    //
+    // Every method must end in bounded time with Converged and the KKT conditions,
+    // or NotConverged with the best (lowest err) iterate it met. The splittings and
+    // PGS, whose Coulomb loop is relaxed by Aitken's factor, must converge.
+    let data = inclined_column();
+    let m = data.m();
+    let coupling = {
+        let pb = data.problem();
+        let dual = pb.dual();
+        let c = dual.c;
+        (0..m)
+            .map(|i| dual.a[i + (m + i) * c].abs() / dual.a[i + i * c])
+            .fold(f64::INFINITY, f64::min)
+    };
+    println!("   inclined column: min_i |A_NT,ii| / A_NN,ii = {coupling:.2}");
+    assert!(
+        coupling > 1.0,
+        "the scene is not strongly coupled: {coupling}"
+    );
+    let o = Options {
+        max_outer: 500,
+        max_inner: 200,
+        ..Options::default()
+    };
+    for mu_v in [1.0, 2.0, 5.0] {
+        let mu = vec![mu_v; m];
+        let friction = Friction::Coulomb(&mu);
+        let scene = format!("inclined column, Coulomb mu = {mu_v}");
+        header(&scene);
+        for method in Method::ALL {
+            let o = Options { method, ..o };
+            let mut best = f64::INFINITY;
+            let mut monitor = |p: &dualsplit::Progress| {
+                best = best.min(p.err);
+                true
+            };
+            let start = Instant::now();
+            let sol = data
+                .problem()
+                .solve_monitored(&data.f, &data.g, friction, &o, Some(&mut monitor))
+                .unwrap();
+            let secs = start.elapsed().as_secs_f64();
+            row(&sol);
+            let what = format!("{scene} [{}]", method.name());
+            check_honest(&what, &data, friction, &o, &sol);
+            assert!(secs < 30.0, "{what}: {secs:.1} s");
+            let r = &sol.report;
+            // Newton (methods/newton.rs) and Mprgp's Coulomb loop (methods/mod.rs)
+            // still return their last iterate: Newton stops here for mu = 1 at err
+            // 0.117 after meeting 0.0197, Mprgp at 1.0 after meeting 0.268.
+            let best_kept = !matches!(method, Method::Newton | Method::Mprgp);
+            if r.status == SolveStatus::NotConverged && best_kept {
+                // The best iterate, up to the rounding between the dual err the
+                // monitor sees and the err measured on the recovered u.
+                assert!(
+                    r.err <= best * (1.0 + 1e-6) + 1e-14,
+                    "{what}: NotConverged with err {:.3e}, but it met {best:.3e}",
+                    r.err
+                );
+            }
+            if matches!(
+                method,
+                Method::Split | Method::BlockGs | Method::Pgs | Method::SplitMprgp
+            ) {
+                assert_eq!(r.status, SolveStatus::Converged, "{what}: {r:?}");
+            }
+        }
     }
 }
 

@@ -140,9 +140,12 @@ impl ConvexQp<'_> {
     }
 
     /// Relative natural-map residual, rho_j = 1/H_jj per scalar, the inverse mean
-    /// diagonal per ball.
+    /// diagonal per ball, scaled as err (crate::report::natural_map_error):
+    /// |r| / max(|x|, |q+| / trace(H)), q+ with the negative parts of the
+    /// nonnegative unknowns' q cut (gaps, not forces). The earlier |rho . q+| scale
+    /// let the sub-problems stop early exactly where err was masked.
     pub fn residual(&self, x: &[f64], g: &[f64]) -> f64 {
-        let (mut r2, mut x2, mut q2) = (0.0, 0.0, 0.0);
+        let (mut r2, mut x2, mut q2, mut tr) = (0.0, 0.0, 0.0, 0.0);
         let diag = |j: usize| self.diag(j);
         for j in 0..self.n_nonneg {
             let rho = if diag(j) > 0.0 { 1.0 / diag(j) } else { 0.0 };
@@ -150,14 +153,16 @@ impl ConvexQp<'_> {
             r2 += (x[j] - y).powi(2);
             x2 += x[j] * x[j];
             // Force scale: a negative q_j is a gap, not a force.
-            q2 += (rho * self.q[j].max(0.0)).powi(2);
+            q2 += self.q[j].max(0.0).powi(2);
+            tr += diag(j).max(0.0);
         }
         let mut y = [0.0; 2];
         for b in 0..self.n_balls() {
             let rg = self.ball(b);
-            let tr: f64 = rg.clone().map(diag).sum();
-            let rho = if tr > 0.0 {
-                self.block as f64 / tr
+            let tb: f64 = rg.clone().map(diag).sum();
+            tr += tb.max(0.0);
+            let rho = if tb > 0.0 {
+                self.block as f64 / tb
             } else {
                 0.0
             };
@@ -168,13 +173,14 @@ impl ConvexQp<'_> {
             for (s, j) in rg.enumerate() {
                 r2 += (x[j] - y[s]).powi(2);
                 x2 += x[j] * x[j];
-                q2 += (rho * self.q[j]).powi(2);
+                q2 += self.q[j].powi(2);
             }
         }
         if r2 == 0.0 {
             0.0
         } else {
-            (r2 / x2.max(q2)).sqrt()
+            let load = if tr > 0.0 { q2.sqrt() / tr } else { 0.0 };
+            r2.sqrt() / x2.sqrt().max(load)
         }
     }
 

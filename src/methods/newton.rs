@@ -14,11 +14,27 @@
 //! generalised Jacobian of the disk projection (Hueber, Stadler, Wohlmuth). For
 //! Coulomb the bound mu lambda_N is differentiated too: the slipping tangential
 //! force follows the normal one. The reduced system on the free unknowns is solved
-//! by a dense LU.
+//! by a dense LU (a free row's equation is (A d)_j = -w_j, w = A lambda - b).
 //!
-//! Globalisation: a Newton step is kept only if it lowers err; otherwise the
-//! iterate takes a few projected Gauss-Seidel sweeps (a first-order descent step
-//! for Tresca) and Newton restarts from there, so it cannot cycle.
+//! A numerically singular reduced system (A singular: redundant or dependent
+//! contact rows) is solved in the least-squares sense with the minimum norm
+//! (truncated SVD), never by the LU's arbitrary, possibly enormous, null-space
+//! component: on an infeasible problem (no u satisfies N u <= g) the dual is
+//! unbounded along a direction z with B^T z = 0, and a step of size 1e15 along z
+//! would make err = |F| / max(|lambda|, ...) tiny without solving anything.
+//!
+//! Globalisation: a Newton step is kept only if it lowers the natural residual
+//! |F| (force units) by the factor 1 - ARMIJO; err is not the merit, since its
+//! denominator grows with |lambda| and a step could "lower" it by inflating the
+//! multipliers. Otherwise the iterate takes a few projected Gauss-Seidel sweeps (a
+//! first-order descent step for Tresca) and Newton restarts from there, so it
+//! cannot cycle. When neither has lowered |F| by STALL_DROP for STALL_WINDOW
+//! iterations the solve gives up (the caller reports NotConverged) instead of
+//! burning the iteration limit on a problem without a solution.
+//!
+//! Warm start: the first step of a warm-started solve sorts the components by the
+//! multipliers (see WARM_C), not by the natural map, so that a history step starts
+//! from the active set of the previous increment.
 
 use super::pgs;
 use super::{DualProblem, Outcome};
@@ -28,6 +44,31 @@ use faer::prelude::Solve;
 
 /// Gauss-Seidel sweeps taken when a Newton step is rejected.
 const FALLBACK_SWEEPS: usize = 5;
+
+/// Sufficient decrease for keeping a Newton step: |F(lam + d)| <= (1 - ARMIJO) |F(lam)|.
+const ARMIJO: f64 = 1e-4;
+
+/// The first step of a warm start sorts the components with rho scaled by WARM_C
+/// (F_c(lambda) = lambda - P(lambda - c (A lambda - b)) has the same zeros for every
+/// c > 0): in the limit c -> 0 the active set is the one the multipliers carry
+/// (lambda_N > 0: closed; |lambda_T| < p: stick; |lambda_T| = p: slip), w only
+/// breaking the ties. With c = rho the first step of a history step would sort by
+/// lambda + rho v at the warm start, where v is the response to the load change
+/// with the contact forces frozen (the increment of a free body): every contact
+/// then looks like slipping, and Newton spends its first iterations in an all-slip
+/// active set (on 2D Coulomb blocks the centre contact flips the sign of its
+/// friction force at every step) before it finds the sticking zone again.
+const WARM_C: f64 = 1e-6;
+
+/// Singular values below RCOND times the largest are dropped in the reduced solve,
+/// and an LU solution z with |M|_max |z|_inf > |rhs|_inf / RCOND is taken as the
+/// sign of a (numerically) singular M.
+const RCOND: f64 = 1e-12;
+
+/// The solve gives up when the best |F| has not dropped by STALL_DROP (relative)
+/// within STALL_WINDOW outer iterations.
+const STALL_WINDOW: usize = 50;
+const STALL_DROP: f64 = 1e-2;
 
 /// One reduced unknown: its test row and its direction in lambda-space (sparse,
 /// at most three entries each), a diagonal term and the right-hand side.
@@ -53,14 +94,17 @@ impl Reduced {
     }
 }
 
-/// Sorts the components at lam and returns the reduced unknowns and the explicit
-/// part e0 of the step (written into `e0`); `f` receives F(lam).
+/// Sorts the components at lam for the natural map F_c with c = cscale rho and
+/// returns the reduced unknowns and the explicit part e0 of the step (written into
+/// `e0`); `f` receives F_c(lam). A free row's right-hand side is -F_c/c = -w, taken
+/// from w directly (no cancellation when c is small).
 fn linearise(
     problem: &DualProblem<'_>,
     lam: &[f64],
     w: &[f64],
     e0: &mut [f64],
     f: &mut [f64],
+    cscale: f64,
 ) -> Vec<Reduced> {
     let dual = problem.dual;
     let (m, d) = (dual.m, dual.d);
@@ -71,7 +115,7 @@ fn linearise(
     e0.iter_mut().for_each(|v| *v = 0.0);
     let mut red = Vec::with_capacity(dual.c);
     for i in 0..m {
-        let rho = dual.rho[i];
+        let rho = cscale * dual.rho[i];
         let jt = m + (d - 1) * i;
         let r = problem.law.bound(i, lam[i]);
         if rho <= 0.0 {
@@ -101,7 +145,7 @@ fn linearise(
             // Stick: every tangential component free.
             for s in 0..d - 1 {
                 f[jt + s] = lam[jt + s] - yt[s];
-                red.push(Reduced::unit(jt + s, -f[jt + s] / rho));
+                red.push(Reduced::unit(jt + s, -w[jt + s]));
             }
         } else if ny == 0.0 {
             for s in 0..d - 1 {
@@ -140,7 +184,7 @@ fn linearise(
             }
         }
         if normal_free {
-            let mut u = Reduced::unit(i, -f[i] / rho);
+            let mut u = Reduced::unit(i, -w[i]);
             if let Some(cp) = coupling {
                 for (s, &cs) in cp[..d - 1].iter().enumerate() {
                     u.dir[1 + s] = (jt + s, cs);
@@ -170,10 +214,11 @@ fn newton_step(
     step: &mut [f64],
     f: &mut [f64],
     ae0: &mut [f64],
+    cscale: f64,
 ) -> bool {
     let dual = problem.dual;
     let c = dual.c;
-    let red = linearise(problem, lam, w, step, f);
+    let red = linearise(problem, lam, w, step, f, cscale);
     let k = red.len();
     if k == 0 {
         return true;
@@ -206,16 +251,76 @@ fn newton_step(
         mat[(r, r)] += u.diag;
         rhs[(r, 0)] = g;
     }
-    let z = mat.partial_piv_lu().solve(&rhs);
-    if !z.as_ref().is_all_finite() {
+    let Some(z) = solve_reduced(&mat, &rhs) else {
         return false;
-    }
+    };
     for (l, u) in red.iter().enumerate() {
         for &(j, coef) in &u.dir[..u.n_dir] {
             step[j] += coef * z[(l, 0)];
         }
     }
     true
+}
+
+/// Solves the reduced system M z = rhs: by a partially pivoted LU, unless M is
+/// numerically singular (the LU's solution is not finite or much larger than M and
+/// rhs warrant), then by the minimum-norm least-squares solution with singular
+/// values below RCOND sigma_max dropped. None when no finite solution is found.
+fn solve_reduced(mat: &Mat<f64>, rhs: &Mat<f64>) -> Option<Mat<f64>> {
+    let max_abs = |a: faer::MatRef<'_, f64>| {
+        let mut v = 0.0f64;
+        for j in 0..a.ncols() {
+            for i in 0..a.nrows() {
+                v = v.max(a[(i, j)].abs());
+            }
+        }
+        v
+    };
+    let z = mat.partial_piv_lu().solve(rhs);
+    let (mn, zn, rn) = (
+        max_abs(mat.as_ref()),
+        max_abs(z.as_ref()),
+        max_abs(rhs.as_ref()),
+    );
+    if z.as_ref().is_all_finite() && mn * zn * RCOND <= rn {
+        return Some(z);
+    }
+    let svd = mat.thin_svd().ok()?;
+    let (u, sv, v) = (svd.U(), svd.S().column_vector(), svd.V());
+    let smax = (0..sv.nrows()).fold(0.0f64, |a, i| a.max(sv[i]));
+    let mut z = Mat::<f64>::zeros(mat.ncols(), 1);
+    for l in 0..sv.nrows() {
+        if sv[l] > RCOND * smax {
+            let coef = (0..u.nrows()).map(|r| u[(r, l)] * rhs[(r, 0)]).sum::<f64>() / sv[l];
+            for r in 0..v.nrows() {
+                z[(r, 0)] += coef * v[(r, l)];
+            }
+        }
+    }
+    z.as_ref().is_all_finite().then_some(z)
+}
+
+/// |F(lam)|_2, the natural map of the module docs at lam (w = A lam - b), in force
+/// units: unlike err it does not shrink when lambda grows without bound.
+fn residual_norm(problem: &DualProblem<'_>, lam: &[f64], w: &[f64]) -> f64 {
+    let dual = problem.dual;
+    let (m, d) = (dual.m, dual.d);
+    let mut r2 = 0.0;
+    for i in 0..m {
+        let rho = dual.rho[i].max(0.0);
+        let jt = m + (d - 1) * i;
+        let rn = lam[i] - (lam[i] - rho * w[i]).max(0.0);
+        r2 += rn * rn;
+        let mut y = [0.0; 2];
+        for s in 0..d - 1 {
+            y[s] = lam[jt + s] - rho * w[jt + s];
+        }
+        super::project_disk(&mut y[..d - 1], problem.law.bound(i, lam[i]));
+        for s in 0..d - 1 {
+            r2 += (lam[jt + s] - y[s]).powi(2);
+        }
+    }
+    r2.sqrt()
 }
 
 /// Runs the globalised semismooth Newton method from `lam`.
@@ -236,31 +341,42 @@ pub(super) fn solve(
     let mut ae0 = vec![0.0; c];
     let mut trial = vec![0.0; c];
     let mut wt = vec![0.0; c];
+    let warm = lam.iter().any(|&x| x != 0.0);
     problem.gradient(lam, &mut w);
-    let mut err = problem.error(lam, &w, &mut p, &mut v);
+    let mut res = residual_norm(problem, lam, &w);
+    let (mut best, mut best_at) = (res, 0);
     loop {
-        out.dual_err = err;
+        out.dual_err = problem.error(lam, &w, &mut p, &mut v);
         if problem.should_stop(&mut out, lam, &p, &v, target, opts) {
             return out;
         }
+        if res < (1.0 - STALL_DROP) * best {
+            (best, best_at) = (res, out.outer);
+        } else if out.outer >= best_at + STALL_WINDOW {
+            // Neither Newton nor Gauss-Seidel makes progress: no solution to find
+            // (an infeasible problem), or none this method can reach.
+            return out;
+        }
         out.outer += 1;
-        let ok = newton_step(problem, lam, &w, &mut step, &mut f, &mut ae0);
-        if ok {
+        // A warm start's first step takes its active set from the multipliers
+        // (see WARM_C); every later step from the natural map.
+        let cscale = if warm && out.outer == 1 { WARM_C } else { 1.0 };
+        if newton_step(problem, lam, &w, &mut step, &mut f, &mut ae0, cscale) {
             for j in 0..c {
                 trial[j] = lam[j] + step[j];
             }
             problem.gradient(&trial, &mut wt);
-            let e = problem.error(&trial, &wt, &mut p, &mut v);
-            if e < err {
+            let r = residual_norm(problem, &trial, &wt);
+            if r <= (1.0 - ARMIJO) * res {
                 lam.copy_from_slice(&trial);
                 w.copy_from_slice(&wt);
-                err = e;
+                res = r;
                 continue;
             }
         }
         // Fallback: a first-order step.
         out.inner += pgs::sweeps(problem, lam, &mut w, FALLBACK_SWEEPS);
         problem.gradient(lam, &mut w);
-        err = problem.error(lam, &w, &mut p, &mut v);
+        res = residual_norm(problem, lam, &w);
     }
 }

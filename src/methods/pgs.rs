@@ -152,6 +152,12 @@ impl<'a> SubQp<'a> {
 /// Projected Gauss-Seidel on the whole dual, contact by contact: the normal
 /// multiplier first, then the tangential block with the bound of the updated
 /// normal multiplier (Coulomb). One outer iteration is one sweep.
+///
+/// Coulomb: the sweep is not a descent step of a fixed problem, and with strong
+/// coupling between the normal and the tangential response (mu |A_NT| > A_NN) it
+/// can cycle; each sweep is then relaxed by [`Aitken`] (a factor of 1, the plain
+/// sweep, while the sweeps do not oscillate). At the iteration limit the iterate
+/// with the lowest error is returned ([`BestIterate`]).
 pub(super) fn solve(
     problem: &DualProblem<'_>,
     lam: &mut [f64],
@@ -164,6 +170,10 @@ pub(super) fn solve(
     let mut p = vec![0.0; m];
     let mut v = vec![0.0; c];
     let mut out = Outcome::default();
+    let coulomb = matches!(problem.law, super::Law::Coulomb(_));
+    let mut relax = Aitken::new(if coulomb { c } else { 0 });
+    let mut prev = vec![0.0; if coulomb { 2 * c } else { 0 }];
+    let mut best = BestIterate::new(c);
     problem.gradient(lam, &mut w);
     loop {
         let mut e = problem.error(lam, &w, &mut p, &mut v);
@@ -173,12 +183,118 @@ pub(super) fn solve(
             e = problem.error(lam, &w, &mut p, &mut v);
         }
         out.dual_err = e;
+        best.offer(lam, e);
         if problem.should_stop(&mut out, lam, &p, &v, target, opts) {
+            best.restore_at_limit(lam, &mut out, target);
             return out;
         }
+        if coulomb {
+            prev[..c].copy_from_slice(lam);
+            prev[c..].copy_from_slice(&w);
+        }
         sweep(problem, lam, &mut w);
+        if coulomb {
+            // w = A lam - b is affine in lam: relaxed the same way.
+            let omega = relax.relax(&prev[..c], lam);
+            for (wi, wp) in w.iter_mut().zip(&prev[c..]) {
+                *wi = wp + omega * (*wi - wp);
+            }
+        }
         out.outer += 1;
         out.inner += 1;
+    }
+}
+
+/// The smallest relaxation factor of [`Aitken`]: enough for a coupling
+/// mu |A_NT| / A_NN up to about 1e3.
+const OMEGA_MIN: f64 = 1e-3;
+
+/// Aitken's dynamic relaxation of a fixed-point iteration x -> G(x) (Irons and
+/// Tuck; Kuettler and Wall): x_k+1 = x_k + omega_k r_k with r_k = G(x_k) - x_k and
+/// omega_k = -omega_k-1 r_k-1 . (r_k - r_k-1) / |r_k - r_k-1|^2, cut to
+/// [`OMEGA_MIN`, 1] (omega_0 = 1). For a map that converges monotonically omega
+/// stays 1 (the plain iteration); for one that oscillates with slope -kappa
+/// (kappa >= 1: no contraction) omega tends to 1 / (1 + kappa), the factor that
+/// makes the relaxed map contract. omega is a ratio: the same in any units. The
+/// relaxed iterate is a convex combination of x_k and G(x_k), so it stays in any
+/// convex set (the friction cones, lambda_N >= 0) that both lie in.
+pub(super) struct Aitken {
+    r_old: Vec<f64>,
+    have_old: bool,
+    omega: f64,
+}
+
+impl Aitken {
+    pub fn new(n: usize) -> Self {
+        Aitken {
+            r_old: vec![0.0; n],
+            have_old: false,
+            omega: 1.0,
+        }
+    }
+
+    /// `x` holds G(x_prev) on entry and the relaxed iterate on exit; returns the
+    /// factor used.
+    pub fn relax(&mut self, x_prev: &[f64], x: &mut [f64]) -> f64 {
+        if self.have_old {
+            let (mut rd, mut dd) = (0.0, 0.0);
+            for ((xn, xp), ro) in x.iter().zip(x_prev).zip(&self.r_old) {
+                let d = (xn - xp) - ro;
+                rd += ro * d;
+                dd += d * d;
+            }
+            if dd > 0.0 {
+                let omega = -self.omega * rd / dd;
+                // omega <= 0: r grew along itself (slope > 1), which no damping
+                // cures: back to the plain iteration.
+                self.omega = if omega > 0.0 && omega.is_finite() {
+                    omega.clamp(OMEGA_MIN, 1.0)
+                } else {
+                    1.0
+                };
+            }
+        }
+        for ((xn, xp), ro) in x.iter_mut().zip(x_prev).zip(self.r_old.iter_mut()) {
+            *ro = *xn - xp;
+            *xn = xp + self.omega * *ro;
+        }
+        self.have_old = true;
+        self.omega
+    }
+}
+
+/// The iterate with the lowest error seen so far: what a method returns when it
+/// stops at its iteration limit.
+pub(super) struct BestIterate {
+    lam: Vec<f64>,
+    err: f64,
+}
+
+impl BestIterate {
+    pub fn new(c: usize) -> Self {
+        BestIterate {
+            lam: vec![0.0; c],
+            err: f64::INFINITY,
+        }
+    }
+
+    /// Keeps a copy of `lam` when `err` is the lowest so far.
+    pub fn offer(&mut self, lam: &[f64], err: f64) {
+        if err < self.err {
+            self.err = err;
+            self.lam.copy_from_slice(lam);
+        }
+    }
+
+    /// Called when the stopping test said stop: if the run ended at the iteration
+    /// limit without meeting `target` (and the monitor did not stop it: then the
+    /// last iterate is kept), puts the best iterate into `lam` and its error into
+    /// `out`.
+    pub fn restore_at_limit(&self, lam: &mut [f64], out: &mut Outcome, target: f64) {
+        if !out.stopped && out.dual_err > target && self.err < out.dual_err {
+            lam.copy_from_slice(&self.lam);
+            out.dual_err = self.err;
+        }
     }
 }
 
@@ -246,4 +362,59 @@ pub(super) fn sweeps(
         sweep(problem, lam, w);
     }
     count
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn aitken_makes_an_oscillating_fixed_point_contract() {
+        // x -> G(x) = 1 - 3 x (slope -3: the plain iteration diverges, oscillating);
+        // the fixed point is 1/4. Aitken finds omega = 1 / (1 + 3) after one step.
+        let g = |x: f64| 1.0 - 3.0 * x;
+        let mut relax = Aitken::new(1);
+        let mut x = [0.0];
+        let mut omegas = Vec::new();
+        for _ in 0..6 {
+            let prev = x;
+            x[0] = g(x[0]);
+            omegas.push(relax.relax(&prev, &mut x));
+        }
+        assert!((x[0] - 0.25).abs() < 1e-14, "x = {}", x[0]);
+        assert_eq!(omegas[0], 1.0);
+        assert!((omegas[1] - 0.25).abs() < 1e-14, "{omegas:?}");
+        // A monotone contraction (slope 0.5) keeps the plain iteration.
+        let mut relax = Aitken::new(1);
+        let mut x = [0.0];
+        for _ in 0..5 {
+            let prev = x;
+            x[0] = 1.0 + 0.5 * x[0];
+            assert_eq!(relax.relax(&prev, &mut x), 1.0);
+        }
+    }
+
+    #[test]
+    fn the_best_iterate_comes_back_only_at_the_limit() {
+        let mut best = BestIterate::new(2);
+        best.offer(&[1.0, 2.0], 0.1);
+        best.offer(&[3.0, 4.0], 0.5);
+        let mut lam = [5.0, 6.0];
+        let mut out = Outcome {
+            dual_err: 0.3,
+            ..Outcome::default()
+        };
+        // Converged: untouched.
+        best.restore_at_limit(&mut lam, &mut out, 0.4);
+        assert_eq!(lam, [5.0, 6.0]);
+        // Stopped by the monitor: untouched.
+        out.stopped = true;
+        best.restore_at_limit(&mut lam, &mut out, 0.01);
+        assert_eq!(lam, [5.0, 6.0]);
+        // At the limit: the best one.
+        out.stopped = false;
+        best.restore_at_limit(&mut lam, &mut out, 0.01);
+        assert_eq!(lam, [1.0, 2.0]);
+        assert_eq!(out.dual_err, 0.1);
+    }
 }

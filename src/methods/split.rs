@@ -11,8 +11,21 @@
 //! The block variant uses S = A22 and b_T' = b_T - A21 lambda_N. When A11[a,a] is
 //! numerically singular (redundant contacts), the Schur variant takes the block
 //! step for that iteration.
+//!
+//! Coulomb (design.md section 3: the fixed point p = mu lambda_N folded into the
+//! outer loop). For one slipping contact the outer map is
+//! lambda_N <- (b_N - s mu A_NT lambda_N) / A_NN: it contracts only while
+//! mu |A_NT| < A_NN, and with strong normal-tangential coupling (an inclined
+//! foundation under a body compliant sideways; tests/hard_scenes.rs
+//! `large_coulomb_friction_fixed_point_does_not_contract`, A_NT / A_NN = 4 to 5.8)
+//! it cycles for every mu >= 1. The outer loop is therefore relaxed by Aitken's
+//! factor ([`Aitken`]; 1, the plain iteration, while the map does not oscillate):
+//! the Schur variant, whose tangential step already carries the normal response of
+//! the active set, relaxes the bound, p_k = p_k-1 + omega (mu lambda_N - p_k-1);
+//! the block variant, whose steps ignore that response, relaxes the whole iterate.
+//! At the iteration limit the iterate with the lowest error is returned.
 
-use super::pgs::SubQp;
+use super::pgs::{Aitken, BestIterate, SubQp};
 use super::{DualProblem, Outcome};
 use crate::options::Options;
 use faer::linalg::matmul::matmul;
@@ -146,14 +159,42 @@ pub(super) fn solve(
     }
     let mut cache: Option<Schur> = None;
     let mut active = vec![true; m];
+    // Coulomb: the Schur variant relaxes the bound p, the block variant the whole
+    // iterate (module documentation).
+    let coulomb = matches!(problem.law, super::Law::Coulomb(_));
+    let relaxed = match (coulomb, use_schur) {
+        (false, _) => 0,
+        (true, true) => m,
+        (true, false) => c,
+    };
+    let mut relax = Aitken::new(relaxed);
+    // The bound of the last tangential step (Schur variant) or the last iterate.
+    let mut prev = vec![0.0; relaxed];
+    if coulomb && use_schur {
+        problem.law.bounds(&lam[..m], &mut prev);
+    }
+    let mut best = BestIterate::new(c);
     loop {
         problem.gradient(lam, &mut w);
         out.dual_err = problem.error(lam, &w, &mut p, &mut v);
+        best.offer(lam, out.dual_err);
         if problem.should_stop(&mut out, lam, &p, &v, target, opts) {
+            best.restore_at_limit(lam, &mut out, target);
             return out;
         }
-        // Tangential step.
+        // Tangential step. Coulomb: the bound p = mu lambda_N of the last normal
+        // step, relaxed in the Schur variant: p_k = p_k-1 + omega (mu lambda_N - p_k-1).
         problem.law.bounds(&lam[..m], &mut p);
+        if coulomb {
+            if use_schur {
+                if out.outer > 0 {
+                    relax.relax(&prev, &mut p);
+                }
+                prev.copy_from_slice(&p);
+            } else {
+                prev.copy_from_slice(lam);
+            }
+        }
         if ct > 0 {
             if use_schur && cache.as_ref().is_none_or(|s| s.active != active) {
                 cache = schur(problem, &active);
@@ -196,6 +237,9 @@ pub(super) fn solve(
         }
         // Normal step.
         out.inner += normal_step(lam, &mut qn, &mut wsub);
+        if coulomb && !use_schur {
+            relax.relax(&prev, lam);
+        }
         for (a, &ln) in active.iter_mut().zip(&lam[..m]) {
             *a = ln > 0.0;
         }
