@@ -374,6 +374,11 @@ impl ContactProblem {
             }
             law.bounds(&lam[..m], &mut p);
             err = natural_map_error(lam, &v, &self.dual.rho, &b, &p, self.d);
+            if o.infeasible {
+                // No u satisfies N u <= g: no error can be small (report.rs).
+                err = f64::INFINITY;
+                break;
+            }
             if stopped || err <= opts.tol || o.dual_err > target || outer >= opts.max_outer {
                 break;
             }

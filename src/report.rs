@@ -8,9 +8,10 @@ use crate::options::Method;
 pub enum SolveStatus {
     /// err <= tol was reached (checked on the recovered u, not only in the dual).
     Converged,
-    /// The iteration limit was reached first. Split, BlockGs, SplitMprgp and Pgs
-    /// return the iterate with the lowest err they met (a Coulomb fixed point that
-    /// cycles need not end on its best point); Newton and Mprgp the last one.
+    /// The iteration limit was reached first, or the method found the problem
+    /// infeasible (err is then infinite, see [`Report::err`]). At the limit (and
+    /// when Newton stalls) every method returns the iterate with the lowest err it
+    /// met (a Coulomb fixed point that cycles need not end on its best point).
     NotConverged,
     /// The monitor callback asked to stop; the iterate is the last one.
     Stopped,
@@ -24,7 +25,13 @@ pub struct Report {
     /// The method that ran.
     pub method: Method,
     /// |r| / max(|lambda|, |b+| / trace(A)), design.md section 5 with the scale of
-    /// [`natural_map_error`] (dimensionless).
+    /// [`natural_map_error`] (dimensionless). Infinite when the contact constraints
+    /// admit no displacement (no u with N u <= g): a penetrating contact without
+    /// rows in N and T, or, for SplitMprgp and Mprgp, a dual unbounded below (a
+    /// combination z >= 0 of normal rows with N^T z = 0 and g . z < 0, e.g. two
+    /// opposite normals on one DOF with gaps that overlap). The other methods do not
+    /// detect the latter: they end NotConverged at their iteration limit (Newton
+    /// earlier, when it stalls).
     pub err: f64,
     /// |K u - f + N^T lambda_N + T^T lambda_T| / |f| (dimensionless; when f = 0 the
     /// denominator is max(|K u|, |B^T lambda|), and 0 when all three vanish).

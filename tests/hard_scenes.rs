@@ -23,7 +23,6 @@ use common::{Kkt, Mesh, Scene, dense_solve, kkt, kkt_of, max_diff, norm_inf, opt
 use dualsplit::dual::{Condensation, Dual, contact_dofs, stack_rows};
 use dualsplit::factor::Factor;
 use dualsplit::{ContactProblem, Csc, Friction, Method, Options, Solution, SolveStatus};
-use std::time::Instant;
 
 // ---------------------------------------------------------------------------------
 // Running every method and printing the table
@@ -701,19 +700,24 @@ fn large_coulomb_friction_terminates_honestly() {
     };
     for mu_v in [1.0, 2.0, 5.0] {
         let mu = vec![mu_v; s.m()];
-        let start = Instant::now();
         let sols = run_all_with(
             &format!("Coulomb mu = {mu_v}"),
             &data,
             Friction::Coulomb(&mu),
             &o,
         );
-        let secs = start.elapsed().as_secs_f64();
-        assert!(secs < 120.0, "mu = {mu_v}: {secs:.1} s for four solves");
         // The answer of the converged methods satisfies KKT (checked); for Coulomb
-        // it need not be unique, so only the u of methods is compared loosely when
-        // the contact states agree.
-        let _ = sols;
+        // it need not be unique. Bounded time: the iteration limits hold (timings
+        // belong in the benchmark, not in tests).
+        for (method, sol) in &sols {
+            let r = &sol.report;
+            let what = format!("mu = {mu_v} [{}]", method.name());
+            assert!(r.outer_iterations <= o.max_outer, "{what}: {r:?}");
+            assert!(
+                r.inner_iterations <= (o.max_outer + 1) * o.max_inner * 4,
+                "{what}: {r:?}"
+            );
+        }
     }
 }
 
@@ -761,14 +765,13 @@ fn large_coulomb_friction_fixed_point_does_not_contract() {
     // For a slipping contact (lambda_T = s mu lambda_N) the Coulomb fixed point is
     // lambda_N <- (b_N - s mu A_NT lambda_N) / A_NN, of slope -s mu A_NT / A_NN: it
     // contracts only while mu |A_NT| < A_NN. Here mu |A_NT| / A_NN >= 4 for mu >= 1,
-    // and the plain fixed point (as in every method before the relaxation, and in
-    // Mprgp's outer loop) cycles between "slip, lambda_N small" and "stick,
+    // and the plain fixed point (as in every method before the relaxation) cycles between "slip, lambda_N small" and "stick,
     // lambda_N large" (err 0.27 to 1.0 for 500 outer iterations). The slipping
     // answer exists (the relaxed splittings find it; Newton does for mu = 2).
     //
     // Every method must end in bounded time with Converged and the KKT conditions,
-    // or NotConverged with the best (lowest err) iterate it met. The splittings and
-    // PGS, whose Coulomb loop is relaxed by Aitken's factor, must converge.
+    // or NotConverged with the best (lowest err) iterate it met. The splittings,
+    // PGS and Mprgp, whose Coulomb loop is relaxed by Aitken's factor, must converge.
     let data = inclined_column();
     let m = data.m();
     let coupling = {
@@ -801,22 +804,19 @@ fn large_coulomb_friction_fixed_point_does_not_contract() {
                 best = best.min(p.err);
                 true
             };
-            let start = Instant::now();
             let sol = data
                 .problem()
                 .solve_monitored(&data.f, &data.g, friction, &o, Some(&mut monitor))
                 .unwrap();
-            let secs = start.elapsed().as_secs_f64();
             row(&sol);
             let what = format!("{scene} [{}]", method.name());
             check_honest(&what, &data, friction, &o, &sol);
-            assert!(secs < 30.0, "{what}: {secs:.1} s");
             let r = &sol.report;
-            // Newton (methods/newton.rs) and Mprgp's Coulomb loop (methods/mod.rs)
-            // still return their last iterate: Newton stops here for mu = 1 at err
-            // 0.117 after meeting 0.0197, Mprgp at 1.0 after meeting 0.268.
-            let best_kept = !matches!(method, Method::Newton | Method::Mprgp);
-            if r.status == SolveStatus::NotConverged && best_kept {
+            assert!(r.outer_iterations <= o.max_outer, "{what}: {r:?}");
+            // Every method returns its best iterate at the limit (Newton used to
+            // stop here for mu = 1 at err 0.117 after meeting 0.0197, Mprgp's
+            // unrelaxed Coulomb loop at 1.0 after meeting 0.268).
+            if r.status == SolveStatus::NotConverged {
                 // The best iterate, up to the rounding between the dual err the
                 // monitor sees and the err measured on the recovered u.
                 assert!(
@@ -827,7 +827,7 @@ fn large_coulomb_friction_fixed_point_does_not_contract() {
             }
             if matches!(
                 method,
-                Method::Split | Method::BlockGs | Method::Pgs | Method::SplitMprgp
+                Method::Split | Method::BlockGs | Method::Pgs | Method::SplitMprgp | Method::Mprgp
             ) {
                 assert_eq!(r.status, SolveStatus::Converged, "{what}: {r:?}");
             }

@@ -69,6 +69,27 @@ pub struct Outcome {
     pub dual_err: f64,
     /// The monitor asked to stop.
     pub stopped: bool,
+    /// An MPRGP solve found the dual unbounded below: the contact constraints
+    /// admit no displacement (see [`mprgp::Unbounded`]); the method stopped.
+    pub infeasible: bool,
+}
+
+impl Outcome {
+    /// Adds a sub-problem solve's iterations to `inner`; true (and `infeasible`
+    /// set) when the sub-problem was unbounded, and the method must stop.
+    fn add_inner(&mut self, run: Result<usize, mprgp::Unbounded>) -> bool {
+        match run {
+            Ok(its) => {
+                self.inner += its;
+                false
+            }
+            Err(u) => {
+                self.inner += u.iterations;
+                self.infeasible = true;
+                true
+            }
+        }
+    }
 }
 
 /// What the monitor sees after every outer iteration.
@@ -217,14 +238,17 @@ fn signorini(
             block: 1,
             radii: None,
         };
-        out.inner += if use_mprgp {
+        let run = if use_mprgp {
             let mut qp = sub.as_convex();
             qp.op = dual.is_matrix_free().then_some(dual);
             qp.solve(&mut lam[..m], 0.1 * target, opts.max_inner)
         } else {
-            sub.solve(&mut lam[..m], &mut wn, 0.1 * target, opts.max_inner)
+            Ok(sub.solve(&mut lam[..m], &mut wn, 0.1 * target, opts.max_inner))
         };
         out.outer += 1;
+        if out.add_inner(run) {
+            return out;
+        }
     }
 }
 
@@ -239,13 +263,27 @@ fn whole_mprgp(problem: &DualProblem<'_>, lam: &mut [f64], opts: &Options, targe
     let mut p = vec![0.0; m];
     let mut v = vec![0.0; c];
     let mut radii = vec![0.0; m];
+    // Coulomb: the bound is relaxed as in split.rs (Aitken; the plain fixed point
+    // while it does not oscillate), and the limit returns the best iterate.
+    let coulomb = matches!(problem.law, Law::Coulomb(_));
+    let mut relax = pgs::Aitken::new(if coulomb { m } else { 0 });
+    let mut prev = vec![0.0; if coulomb { m } else { 0 }];
+    let mut best = pgs::BestIterate::new(c);
     loop {
         problem.gradient(lam, &mut w);
         out.dual_err = problem.error(lam, &w, &mut p, &mut v);
+        best.offer(lam, out.dual_err);
         if problem.should_stop(&mut out, lam, &p, &v, target, opts) {
+            best.restore_at_limit(lam, &mut out, target);
             return out;
         }
         problem.law.bounds(&lam[..m], &mut radii);
+        if coulomb {
+            if out.outer > 0 {
+                relax.relax(&prev, &mut radii);
+            }
+            prev.copy_from_slice(&radii);
+        }
         let qp = mprgp::ConvexQp {
             h: &dual.a,
             ld: c,
@@ -256,7 +294,10 @@ fn whole_mprgp(problem: &DualProblem<'_>, lam: &mut [f64], opts: &Options, targe
             block: dual.d - 1,
             radii: &radii,
         };
-        out.inner += qp.solve(lam, 0.1 * target, opts.max_inner);
+        let run = qp.solve(lam, 0.1 * target, opts.max_inner);
         out.outer += 1;
+        if out.add_inner(run) {
+            return out;
+        }
     }
 }

@@ -30,6 +30,28 @@ pub(super) struct ConvexQp<'a> {
 /// Relative distance to the boundary under which a disk block counts as active.
 const ON_BOUNDARY: f64 = 1e-14;
 
+/// A direction p with p^T H p <= FLAT |H| |p|^2 has (numerically) no curvature:
+/// below this the curvature is within the rounding of the product H p.
+const FLAT: f64 = 1e-13;
+
+/// A flat descent direction whose boundary lies further than REACH times the scale
+/// of x (|x|, or |q| / |H| at x = 0) counts as unbounded: there the step would
+/// leave the multipliers beyond what the dual resolves (w = A x - q is computed
+/// with an absolute rounding of about eps |A| |x|, which then exceeds |q| 1e-8);
+/// a boundary that rounding noise in p's components put at a finite distance
+/// (7e18 on an infeasible test problem) is no boundary.
+const REACH: f64 = 1e8;
+
+/// The quadratic is unbounded below on the feasible set: MPRGP met a descent
+/// direction without curvature along which no constraint ever stops it (for the
+/// condensed dual: B^T z = 0 with z_N >= 0 and g . z < 0, so no u satisfies
+/// N u <= g; Farkas). `iterations` were done before it stopped; x is the last
+/// iterate before the unbounded step.
+#[derive(Copy, Clone, Debug, PartialEq)]
+pub(super) struct Unbounded {
+    pub iterations: usize,
+}
+
 impl ConvexQp<'_> {
     #[inline]
     fn col(&self, j: usize) -> &[f64] {
@@ -111,6 +133,12 @@ impl ConvexQp<'_> {
                 }
             }
         }
+    }
+
+    /// The scale of x for [`REACH`]: max(|x|, |q| / |H|), `norm` an estimate of |H|.
+    fn scale(&self, x: &[f64], norm: f64) -> f64 {
+        let n2 = |v: &[f64]| v.iter().map(|a| a * a).sum::<f64>().sqrt();
+        n2(x).max(n2(self.q) / norm)
     }
 
     /// The largest step a >= 0 with x - a p feasible.
@@ -214,18 +242,19 @@ impl ConvexQp<'_> {
 
     /// Runs MPRGP from x (projected first) until the relative residual is at most
     /// `tol` or `max` iterations (matrix-vector products), at least one; returns
-    /// the iterations.
-    pub fn solve(&self, x: &mut [f64], tol: f64, max: usize) -> usize {
+    /// the iterations, or [`Unbounded`] when the quadratic has no minimiser.
+    pub fn solve(&self, x: &mut [f64], tol: f64, max: usize) -> Result<usize, Unbounded> {
         let k = self.k;
         if k == 0 {
-            return 0;
+            return Ok(0);
         }
         let mut g = vec![0.0; k];
         let mut p = vec![0.0; k];
         let mut hp = vec![0.0; k];
         let mut phi = vec![0.0; k];
         let mut beta = vec![0.0; k];
-        let alpha = 1.9 / self.norm_estimate(&mut p, &mut hp);
+        let norm = self.norm_estimate(&mut p, &mut hp);
+        let alpha = 1.9 / norm;
         let gamma2 = 1.0;
         self.project(x);
         let gradient = |x: &[f64], g: &mut [f64]| {
@@ -239,19 +268,29 @@ impl ConvexQp<'_> {
         // At least one iteration, so that an outer loop around it cannot stall.
         for it in 0..max {
             if it > 0 && self.residual(x, &g) <= tol {
-                return it;
+                return Ok(it);
             }
             let (bb, pf) = (dot(&beta, &beta), dot(&phi, &phi));
             if bb <= gamma2 * pf {
                 // Proportional: conjugate gradient step, or expansion.
                 self.apply(&p, &mut hp);
-                let php = dot(&p, &hp);
-                if php <= 0.0 {
-                    p.copy_from_slice(&phi);
+                let (php, pp) = (dot(&p, &hp), dot(&p, &p));
+                if pp == 0.0 {
+                    // x is stationary: the residual test ends the loop.
                     continue;
                 }
-                let a_cg = dot(&g, &p) / php;
                 let a_f = self.feasible_step(x, &p);
+                // CG's p descends (g . p = |phi|^2 > 0). Without curvature the
+                // minimiser along p is the boundary, or there is none.
+                let flat = php <= FLAT * norm * pp;
+                if flat && a_f * pp.sqrt() > REACH * self.scale(x, norm) {
+                    return Err(Unbounded { iterations: it + 1 });
+                }
+                let a_cg = if flat {
+                    f64::INFINITY
+                } else {
+                    dot(&g, &p) / php
+                };
                 if a_cg <= a_f {
                     for j in 0..k {
                         x[j] -= a_cg * p[j];
@@ -305,7 +344,7 @@ impl ConvexQp<'_> {
                 p.copy_from_slice(&phi);
             }
         }
-        max
+        Ok(max)
     }
 }
 
@@ -344,7 +383,7 @@ mod tests {
             radii: &[],
         };
         let mut x = vec![0.0; k];
-        let its = qp.solve(&mut x, 1e-14, 1000);
+        let its = qp.solve(&mut x, 1e-14, 1000).expect("bounded");
         assert!(its < 100, "{its} iterations");
         // KKT: x >= 0, g >= 0, x g = 0.
         let mut g = vec![0.0; k];
@@ -376,7 +415,7 @@ mod tests {
             radii: &radii,
         };
         let mut x = vec![0.0; k];
-        let its = qp.solve(&mut x, 1e-13, 2000);
+        let its = qp.solve(&mut x, 1e-13, 2000).expect("bounded");
         assert!(its < 100, "{its} iterations");
         let mut g = vec![0.0; k];
         qp.apply(&x, &mut g);
@@ -388,5 +427,44 @@ mod tests {
             assert!((x[j] - y[j]).abs() <= 1e-11, "{j}: {} vs {}", x[j], y[j]);
         }
         assert!(qp.ball_active(&x, 0) || qp.ball_active(&x, 3));
+    }
+
+    /// H = [1 -1; -1 1] (singular, null vector z = (1, 1) >= 0) over x >= 0.
+    fn singular_qp<'a>(h: &'a [f64], q: &'a [f64]) -> ConvexQp<'a> {
+        ConvexQp {
+            h,
+            ld: 2,
+            op: None,
+            k: 2,
+            q,
+            n_nonneg: 2,
+            block: 1,
+            radii: &[],
+        }
+    }
+
+    #[test]
+    fn an_unbounded_quadratic_is_detected_before_x_blows_up() {
+        // q . z = 2 > 0: 1/2 x^T H x - q^T x -> -infinity along z (no x >= 0 is a
+        // minimiser; for a contact dual: no u with N u <= g).
+        let h = [1.0, -1.0, -1.0, 1.0];
+        let q = [1.0, 1.0];
+        let mut x = [0.0; 2];
+        let run = singular_qp(&h, &q).solve(&mut x, 1e-14, 1000);
+        assert!(run.is_err(), "{run:?}, x = {x:?}");
+        assert!(x.iter().all(|v| v.abs() < 1e3), "x = {x:?}");
+    }
+
+    #[test]
+    fn a_bounded_singular_quadratic_is_solved() {
+        // q . z = 0: bounded; the minimisers are x1 - x2 = 1, x >= 0 (KKT: g = 0).
+        let h = [1.0, -1.0, -1.0, 1.0];
+        let q = [1.0, -1.0];
+        let mut x = [0.0; 2];
+        singular_qp(&h, &q)
+            .solve(&mut x, 1e-14, 1000)
+            .expect("bounded");
+        assert!((x[0] - x[1] - 1.0).abs() < 1e-12, "x = {x:?}");
+        assert!(x[0] >= 0.0 && x[1] >= 0.0);
     }
 }

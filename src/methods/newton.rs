@@ -345,9 +345,12 @@ pub(super) fn solve(
     problem.gradient(lam, &mut w);
     let mut res = residual_norm(problem, lam, &w);
     let (mut best, mut best_at) = (res, 0);
+    let mut best_iterate = pgs::BestIterate::new(c);
     loop {
         out.dual_err = problem.error(lam, &w, &mut p, &mut v);
+        best_iterate.offer(lam, out.dual_err);
         if problem.should_stop(&mut out, lam, &p, &v, target, opts) {
+            best_iterate.restore_at_limit(lam, &mut out, target);
             return out;
         }
         if res < (1.0 - STALL_DROP) * best {
@@ -355,6 +358,7 @@ pub(super) fn solve(
         } else if out.outer >= best_at + STALL_WINDOW {
             // Neither Newton nor Gauss-Seidel makes progress: no solution to find
             // (an infeasible problem), or none this method can reach.
+            best_iterate.restore_at_limit(lam, &mut out, target);
             return out;
         }
         out.outer += 1;

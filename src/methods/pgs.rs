@@ -5,7 +5,7 @@
 //! Every sweep keeps w = H x - q current by rank-one updates, so a sweep costs one
 //! column of H per changed unknown and the stopping test costs O(k).
 
-use super::mprgp::ConvexQp;
+use super::mprgp::{ConvexQp, Unbounded};
 use super::projection::{project_disk, solve_disk_qp};
 use super::{DualProblem, Outcome};
 use crate::options::Options;
@@ -51,7 +51,8 @@ impl<'a> SubQp<'a> {
     }
 
     /// Solves by projected Gauss-Seidel (`mprgp` false) or MPRGP; returns the
-    /// sweeps or iterations. `w` is scratch of length k.
+    /// sweeps or iterations, or MPRGP's [`Unbounded`] (Gauss-Seidel does not
+    /// detect an unbounded sub-problem). `w` is scratch of length k.
     pub fn solve_with(
         &self,
         mprgp: bool,
@@ -59,11 +60,11 @@ impl<'a> SubQp<'a> {
         w: &mut [f64],
         tol: f64,
         max: usize,
-    ) -> usize {
+    ) -> Result<usize, Unbounded> {
         if mprgp {
             self.as_convex().solve(x, tol, max)
         } else {
-            self.solve(x, w, tol, max)
+            Ok(self.solve(x, w, tol, max))
         }
     }
     #[inline]

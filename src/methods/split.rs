@@ -127,7 +127,7 @@ pub(super) fn solve(
     let mut wsub = vec![0.0; c];
     let mut qn = vec![0.0; m];
     let mut qt = vec![0.0; ct];
-    let normal_step = |lam: &mut [f64], qn: &mut [f64], wsub: &mut [f64]| -> usize {
+    let normal_step = |lam: &mut [f64], qn: &mut [f64], wsub: &mut [f64]| {
         // q_N = b_N - A12 lambda_T
         qn.copy_from_slice(&problem.b[..m]);
         for j in 0..ct {
@@ -154,8 +154,8 @@ pub(super) fn solve(
         )
     };
     // Start: lambda_N of the frictionless problem unless warm-started.
-    if lam.iter().all(|&x| x == 0.0) {
-        out.inner += normal_step(lam, &mut qn, &mut wsub);
+    if lam.iter().all(|&x| x == 0.0) && out.add_inner(normal_step(lam, &mut qn, &mut wsub)) {
+        return out;
     }
     let mut cache: Option<Schur> = None;
     let mut active = vec![true; m];
@@ -227,16 +227,21 @@ pub(super) fn solve(
                     }
                 }
             };
-            out.inner += sub.solve_with(
+            let run = sub.solve_with(
                 mprgp,
                 &mut lam[m..],
                 &mut wsub[..ct],
                 inner_tol,
                 opts.max_inner,
             );
+            if out.add_inner(run) {
+                return out;
+            }
         }
         // Normal step.
-        out.inner += normal_step(lam, &mut qn, &mut wsub);
+        if out.add_inner(normal_step(lam, &mut qn, &mut wsub)) {
+            return out;
+        }
         if coulomb && !use_schur {
             relax.relax(&prev, lam);
         }
