@@ -221,7 +221,8 @@ fn signorini(
     lam[m..].iter_mut().for_each(|x| *x = 0.0);
     let mut out = Outcome::default();
     let mut w = vec![0.0; c];
-    let mut wn = vec![0.0; m];
+    let mut scratch = mprgp::Scratch::new(m);
+    let mut norm = None;
     let mut p = vec![0.0; m];
     let mut v = vec![0.0; c];
     loop {
@@ -241,9 +242,15 @@ fn signorini(
         let run = if use_mprgp {
             let mut qp = sub.as_convex();
             qp.op = dual.is_matrix_free().then_some(dual);
-            qp.solve(&mut lam[..m], 0.1 * target, opts.max_inner)
+            qp.solve_in(
+                &mut lam[..m],
+                0.1 * target,
+                opts.max_inner,
+                &mut scratch,
+                &mut norm,
+            )
         } else {
-            Ok(sub.solve(&mut lam[..m], &mut wn, 0.1 * target, opts.max_inner))
+            Ok(sub.solve(&mut lam[..m], scratch.one(m), 0.1 * target, opts.max_inner))
         };
         out.outer += 1;
         if out.add_inner(run) {
@@ -269,6 +276,9 @@ fn whole_mprgp(problem: &DualProblem<'_>, lam: &mut [f64], opts: &Options, targe
     let mut relax = pgs::Aitken::new(if coulomb { m } else { 0 });
     let mut prev = vec![0.0; if coulomb { m } else { 0 }];
     let mut best = pgs::BestIterate::new(c);
+    // H = A for every outer iteration: one scratch and one norm estimate.
+    let mut scratch = mprgp::Scratch::new(c);
+    let mut norm = None;
     loop {
         problem.gradient(lam, &mut w);
         out.dual_err = problem.error(lam, &w, &mut p, &mut v);
@@ -294,7 +304,7 @@ fn whole_mprgp(problem: &DualProblem<'_>, lam: &mut [f64], opts: &Options, targe
             block: dual.d - 1,
             radii: &radii,
         };
-        let run = qp.solve(lam, 0.1 * target, opts.max_inner);
+        let run = qp.solve_in(lam, 0.1 * target, opts.max_inner, &mut scratch, &mut norm);
         out.outer += 1;
         if out.add_inner(run) {
             return out;

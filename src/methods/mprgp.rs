@@ -42,6 +42,35 @@ const FLAT: f64 = 1e-13;
 /// (7e18 on an infeasible test problem) is no boundary.
 const REACH: f64 = 1e8;
 
+/// Work vectors of MPRGP (five of length k) and of projected Gauss-Seidel (one),
+/// allocated once per method run and reused by every sub-problem solve.
+pub(super) struct Scratch {
+    buf: Vec<f64>,
+}
+
+impl Scratch {
+    /// Room for sub-problems of up to `k` unknowns.
+    pub fn new(k: usize) -> Self {
+        Scratch {
+            buf: vec![0.0; 5 * k],
+        }
+    }
+
+    /// Five vectors of length k (k at most the size given to `new`).
+    fn vectors(&mut self, k: usize) -> [&mut [f64]; 5] {
+        let (a, rest) = self.buf[..5 * k].split_at_mut(k);
+        let (b, rest) = rest.split_at_mut(k);
+        let (c, rest) = rest.split_at_mut(k);
+        let (d, e) = rest.split_at_mut(k);
+        [a, b, c, d, e]
+    }
+
+    /// One vector of length k, for projected Gauss-Seidel.
+    pub fn one(&mut self, k: usize) -> &mut [f64] {
+        &mut self.buf[..k]
+    }
+}
+
 /// The quadratic is unbounded below on the feasible set: MPRGP met a descent
 /// direction without curvature along which no constraint ever stops it (for the
 /// condensed dual: B^T z = 0 with z_N >= 0 and g . z < 0, so no u satisfies
@@ -240,20 +269,33 @@ impl ConvexQp<'_> {
         (1.1 * lam).min(gersh).max(f64::MIN_POSITIVE)
     }
 
+    /// [`ConvexQp::solve_in`] with its own scratch (allocates 5 k values).
+    #[cfg(test)]
+    pub fn solve(&self, x: &mut [f64], tol: f64, max: usize) -> Result<usize, Unbounded> {
+        self.solve_in(x, tol, max, &mut Scratch::new(self.k), &mut None)
+    }
+
     /// Runs MPRGP from x (projected first) until the relative residual is at most
     /// `tol` or `max` iterations (matrix-vector products), at least one; returns
     /// the iterations, or [`Unbounded`] when the quadratic has no minimiser.
-    pub fn solve(&self, x: &mut [f64], tol: f64, max: usize) -> Result<usize, Unbounded> {
+    ///
+    /// `scratch` holds at least k values per vector (no allocation here); `norm`
+    /// caches the estimate of |H| (30 products): None is filled in, Some is used,
+    /// so the caller resets it to None when H changes.
+    pub fn solve_in(
+        &self,
+        x: &mut [f64],
+        tol: f64,
+        max: usize,
+        scratch: &mut Scratch,
+        norm: &mut Option<f64>,
+    ) -> Result<usize, Unbounded> {
         let k = self.k;
         if k == 0 {
             return Ok(0);
         }
-        let mut g = vec![0.0; k];
-        let mut p = vec![0.0; k];
-        let mut hp = vec![0.0; k];
-        let mut phi = vec![0.0; k];
-        let mut beta = vec![0.0; k];
-        let norm = self.norm_estimate(&mut p, &mut hp);
+        let [g, p, hp, phi, beta] = scratch.vectors(k);
+        let norm = *norm.get_or_insert_with(|| self.norm_estimate(p, hp));
         let alpha = 1.9 / norm;
         let gamma2 = 1.0;
         self.project(x);
@@ -261,43 +303,39 @@ impl ConvexQp<'_> {
             self.apply(x, g);
             g.iter_mut().zip(self.q).for_each(|(gi, qi)| *gi -= qi);
         };
-        gradient(x, &mut g);
-        self.split_gradient(x, &g, alpha, &mut phi, &mut beta);
-        p.copy_from_slice(&phi);
+        gradient(x, g);
+        self.split_gradient(x, g, alpha, phi, beta);
+        p.copy_from_slice(phi);
         let dot = |a: &[f64], b: &[f64]| a.iter().zip(b).map(|(x, y)| x * y).sum::<f64>();
         // At least one iteration, so that an outer loop around it cannot stall.
         for it in 0..max {
-            if it > 0 && self.residual(x, &g) <= tol {
+            if it > 0 && self.residual(x, g) <= tol {
                 return Ok(it);
             }
-            let (bb, pf) = (dot(&beta, &beta), dot(&phi, &phi));
+            let (bb, pf) = (dot(beta, beta), dot(phi, phi));
             if bb <= gamma2 * pf {
                 // Proportional: conjugate gradient step, or expansion.
-                self.apply(&p, &mut hp);
-                let (php, pp) = (dot(&p, &hp), dot(&p, &p));
+                self.apply(p, hp);
+                let (php, pp) = (dot(p, hp), dot(p, p));
                 if pp == 0.0 {
                     // x is stationary: the residual test ends the loop.
                     continue;
                 }
-                let a_f = self.feasible_step(x, &p);
+                let a_f = self.feasible_step(x, p);
                 // CG's p descends (g . p = |phi|^2 > 0). Without curvature the
                 // minimiser along p is the boundary, or there is none.
                 let flat = php <= FLAT * norm * pp;
                 if flat && a_f * pp.sqrt() > REACH * self.scale(x, norm) {
                     return Err(Unbounded { iterations: it + 1 });
                 }
-                let a_cg = if flat {
-                    f64::INFINITY
-                } else {
-                    dot(&g, &p) / php
-                };
+                let a_cg = if flat { f64::INFINITY } else { dot(g, p) / php };
                 if a_cg <= a_f {
                     for j in 0..k {
                         x[j] -= a_cg * p[j];
                         g[j] -= a_cg * hp[j];
                     }
-                    self.split_gradient(x, &g, alpha, &mut phi, &mut beta);
-                    let gamma = dot(&phi, &hp) / php;
+                    self.split_gradient(x, g, alpha, phi, beta);
+                    let gamma = dot(phi, hp) / php;
                     for j in 0..k {
                         p[j] = phi[j] - gamma * p[j];
                     }
@@ -307,19 +345,19 @@ impl ConvexQp<'_> {
                         x[j] -= a_f * p[j];
                         g[j] -= a_f * hp[j];
                     }
-                    self.split_gradient(x, &g, alpha, &mut phi, &mut beta);
+                    self.split_gradient(x, g, alpha, phi, beta);
                     for j in 0..k {
                         x[j] -= alpha * phi[j];
                     }
                     self.project(x);
-                    gradient(x, &mut g);
-                    self.split_gradient(x, &g, alpha, &mut phi, &mut beta);
-                    p.copy_from_slice(&phi);
+                    gradient(x, g);
+                    self.split_gradient(x, g, alpha, phi, beta);
+                    p.copy_from_slice(phi);
                 }
             } else {
                 // Proportioning: release active constraints along the chopped gradient.
-                self.apply(&beta, &mut hp);
-                let bhb = dot(&beta, &hp);
+                self.apply(beta, hp);
+                let bhb = dot(beta, hp);
                 // The exact line minimiser, cut at the boundary. An active disk
                 // block moves along -beta on a chord that leaves the circle: there the
                 // step is alpha, which is the projected gradient step (it lands on
@@ -328,20 +366,16 @@ impl ConvexQp<'_> {
                 let a = if disk_moves {
                     alpha
                 } else {
-                    let a_cg = if bhb > 0.0 {
-                        dot(&g, &beta) / bhb
-                    } else {
-                        alpha
-                    };
-                    a_cg.min(self.feasible_step(x, &beta))
+                    let a_cg = if bhb > 0.0 { dot(g, beta) / bhb } else { alpha };
+                    a_cg.min(self.feasible_step(x, beta))
                 };
                 for j in 0..k {
                     x[j] -= a * beta[j];
                 }
                 self.project(x);
-                gradient(x, &mut g);
-                self.split_gradient(x, &g, alpha, &mut phi, &mut beta);
-                p.copy_from_slice(&phi);
+                gradient(x, g);
+                self.split_gradient(x, g, alpha, phi, beta);
+                p.copy_from_slice(phi);
             }
         }
         Ok(max)

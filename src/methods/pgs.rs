@@ -5,7 +5,7 @@
 //! Every sweep keeps w = H x - q current by rank-one updates, so a sweep costs one
 //! column of H per changed unknown and the stopping test costs O(k).
 
-use super::mprgp::{ConvexQp, Unbounded};
+use super::mprgp::{ConvexQp, Scratch, Unbounded};
 use super::projection::{project_disk, solve_disk_qp};
 use super::{DualProblem, Outcome};
 use crate::options::Options;
@@ -52,19 +52,21 @@ impl<'a> SubQp<'a> {
 
     /// Solves by projected Gauss-Seidel (`mprgp` false) or MPRGP; returns the
     /// sweeps or iterations, or MPRGP's [`Unbounded`] (Gauss-Seidel does not
-    /// detect an unbounded sub-problem). `w` is scratch of length k.
+    /// detect an unbounded sub-problem). `scratch` holds sub-problems of size k;
+    /// `norm` is MPRGP's cached estimate of |H| (see [`ConvexQp::solve_in`]).
     pub fn solve_with(
         &self,
         mprgp: bool,
         x: &mut [f64],
-        w: &mut [f64],
+        scratch: &mut Scratch,
+        norm: &mut Option<f64>,
         tol: f64,
         max: usize,
     ) -> Result<usize, Unbounded> {
         if mprgp {
-            self.as_convex().solve(x, tol, max)
+            self.as_convex().solve_in(x, tol, max, scratch, norm)
         } else {
-            Ok(self.solve(x, w, tol, max))
+            Ok(self.solve(x, scratch.one(self.k), tol, max))
         }
     }
     #[inline]

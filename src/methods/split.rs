@@ -25,6 +25,7 @@
 //! the block variant, whose steps ignore that response, relaxes the whole iterate.
 //! At the iteration limit the iterate with the lowest error is returned.
 
+use super::mprgp::Scratch;
 use super::pgs::{Aitken, BestIterate, SubQp};
 use super::{DualProblem, Outcome};
 use crate::options::Options;
@@ -124,37 +125,46 @@ pub(super) fn solve(
     let mut w = vec![0.0; c];
     let mut p = vec![0.0; m];
     let mut v = vec![0.0; c];
-    let mut wsub = vec![0.0; c];
+    // Sub-problem work space, and MPRGP's estimates of |A_NN| (fixed) and of the
+    // tangential matrix's norm (reset when that matrix changes).
+    let mut scratch = Scratch::new(m.max(ct));
+    let mut norm_n = None;
+    let mut norm_t = None;
+    let mut norm_t_of_schur = false;
     let mut qn = vec![0.0; m];
     let mut qt = vec![0.0; ct];
-    let normal_step = |lam: &mut [f64], qn: &mut [f64], wsub: &mut [f64]| {
-        // q_N = b_N - A12 lambda_T
-        qn.copy_from_slice(&problem.b[..m]);
-        for j in 0..ct {
-            let lt = lam[m + j];
-            if lt != 0.0 {
-                let col = &dual.col(m + j)[..m];
-                qn.iter_mut().zip(col).for_each(|(q, a)| *q -= a * lt);
+    let normal_step =
+        |lam: &mut [f64], qn: &mut [f64], scratch: &mut Scratch, norm: &mut Option<f64>| {
+            // q_N = b_N - A12 lambda_T
+            qn.copy_from_slice(&problem.b[..m]);
+            for j in 0..ct {
+                let lt = lam[m + j];
+                if lt != 0.0 {
+                    let col = &dual.col(m + j)[..m];
+                    qn.iter_mut().zip(col).for_each(|(q, a)| *q -= a * lt);
+                }
             }
-        }
-        let sub = SubQp {
-            h: &dual.a,
-            ld: c,
-            k: m,
-            q: qn,
-            block: 1,
-            radii: None,
+            let sub = SubQp {
+                h: &dual.a,
+                ld: c,
+                k: m,
+                q: qn,
+                block: 1,
+                radii: None,
+            };
+            sub.solve_with(
+                mprgp,
+                &mut lam[..m],
+                scratch,
+                norm,
+                inner_tol,
+                opts.max_inner,
+            )
         };
-        sub.solve_with(
-            mprgp,
-            &mut lam[..m],
-            &mut wsub[..m],
-            inner_tol,
-            opts.max_inner,
-        )
-    };
     // Start: lambda_N of the frictionless problem unless warm-started.
-    if lam.iter().all(|&x| x == 0.0) && out.add_inner(normal_step(lam, &mut qn, &mut wsub)) {
+    if lam.iter().all(|&x| x == 0.0)
+        && out.add_inner(normal_step(lam, &mut qn, &mut scratch, &mut norm_n))
+    {
         return out;
     }
     let mut cache: Option<Schur> = None;
@@ -198,6 +208,13 @@ pub(super) fn solve(
         if ct > 0 {
             if use_schur && cache.as_ref().is_none_or(|s| s.active != active) {
                 cache = schur(problem, &active);
+                norm_t = None;
+            }
+            // The tangential matrix is the cached Schur complement or A22.
+            let of_schur = use_schur && cache.is_some();
+            if of_schur != norm_t_of_schur {
+                norm_t = None;
+                norm_t_of_schur = of_schur;
             }
             let sub = match (&cache, use_schur) {
                 (Some(sc), true) => SubQp {
@@ -230,7 +247,8 @@ pub(super) fn solve(
             let run = sub.solve_with(
                 mprgp,
                 &mut lam[m..],
-                &mut wsub[..ct],
+                &mut scratch,
+                &mut norm_t,
                 inner_tol,
                 opts.max_inner,
             );
@@ -239,7 +257,7 @@ pub(super) fn solve(
             }
         }
         // Normal step.
-        if out.add_inner(normal_step(lam, &mut qn, &mut wsub)) {
+        if out.add_inner(normal_step(lam, &mut qn, &mut scratch, &mut norm_n)) {
             return out;
         }
         if coulomb && !use_schur {
