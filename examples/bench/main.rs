@@ -3,27 +3,38 @@
 //! ```text
 //! cargo run --release --example bench -- [--quick | --big] [--scenes A,B,..]
 //!     [--out DIR] [--cap SECONDS] [--rep-below S] [--solves-cap S]
-//!     [--no-clarabel] [--clarabel-max-n N] [--clarabel-max-n-3d N]
-//!     [--clarabel-limit S] [--only ours|clarabel] [--frictions tresca,coulomb]
-//!     [--append] [--report-only]
+//!     [--no-clarabel] [--no-free] [--clarabel-max-n N] [--clarabel-max-n-3d N]
+//!     [--clarabel-limit S] [--only ours|ours-dense|ours-free|clarabel]
+//!     [--frictions tresca,coulomb] [--append] [--report-only]
 //! ```
 //!
 //! For each scene (2D Q4 / 3D H8 blocks on a rigid foundation with a curved gap, see
-//! `scene.rs`) a child process (this binary with `--child`) measures, so that each
-//! scene gets its own peak memory:
+//! `scene.rs`) child processes (this binary with `--child`) measure, so that each
+//! part gets its own peak memory:
 //!
-//! - the sparse Cholesky factorisation of K alone (plain AMD ordering), one solve;
-//! - `ContactProblem::from_csc` (factor with the contact DOFs last + the condensed
-//!   dual from the factor's trailing block), and the condensation by solves (run
-//!   where its estimate is below a cap, extrapolated from a block of solves beyond);
-//! - every method of `Method::ALL` at the tolerances 1e-2 .. 1e-12, Tresca and
-//!   Coulomb: wall time (median of 3 when a run is short), err, iterations;
-//! - a history: the first step (cold) and a second, warm-started step with the
-//!   load raised by 5 %;
-//! - in a second child: Clarabel on the same Tresca problem.
+//! - child `ours` (the dense condensed dual):
+//!   - the sparse Cholesky factorisation of K alone (plain AMD ordering), one solve;
+//!   - the setup: `ContactProblem::from_csc` (factor with the contact DOFs last +
+//!     the dual); where `DualForm::Auto` leaves it matrix-free (c > `DENSE_MAX`),
+//!     the dense assembly of A that the dense methods need is forced before any
+//!     method is timed and added to the setup row (row `condense_trailing`);
+//!   - the condensation by solves (run where its estimate is below a cap,
+//!     extrapolated from a block of solves beyond);
+//!   - every method of `Method::ALL` with `DualForm::Dense` at the tolerances
+//!     1e-2 .. 1e-12, Tresca and Coulomb: wall time (median of 3 when a run is
+//!     short), err, iterations;
+//!   - a history: the first step (cold) and a second, warm-started step with the
+//!     load raised by 5 %;
+//! - child `ours-free` (the matrix-free dual, `DualForm::MatrixFree`): the setup in
+//!   matrix-free form (`Factor::with_last` + `Dual::build(.., MatrixFree)`, or
+//!   `from_csc` where Auto is matrix-free anyway), its peak memory before anything
+//!   dense is formed, then `Method::Mprgp` matrix-free as the series `mprgp-free`
+//!   (tolerances and history as above);
+//! - child `clarabel`: Clarabel on the same Tresca problem.
 //!
-//! The rows go to DIR/results.csv; the figures (SVG) and DIR/summary.md are drawn
-//! from that file (`--report-only` redraws them without measuring).
+//! The rows go to DIR/results.csv (with `--append`, the rows of the scenes and parts
+//! measured again replace the old ones); the figures (SVG) and DIR/summary.md are
+//! drawn from that file (`--report-only` redraws them without measuring).
 
 mod clarabel_ref;
 mod plot;
@@ -31,10 +42,11 @@ mod report;
 mod row;
 mod scene;
 
-use dualsplit::dual::{Condensation, Dual};
+use dualsplit::dual::{Condensation, Dual, contact_dofs, stack_rows};
 use dualsplit::factor::Factor;
-use dualsplit::{ContactProblem, Friction, Method, Options, SolveStatus};
-use row::{Row, median, peak_mb};
+use dualsplit::options::DENSE_MAX;
+use dualsplit::{ContactProblem, DualForm, Friction, Method, Options, SolveStatus};
+use row::{Part, Row, median, peak_mb, reset_peak, rss_mb};
 use scene::{Scene, Spec};
 use std::io::Write as _;
 use std::path::PathBuf;
@@ -77,14 +89,18 @@ struct Config {
     /// The condensation by solves runs only when its estimate is below this.
     solves_cap: f64,
     clarabel: bool,
+    /// Run the matrix-free child (`ours-free`).
+    free: bool,
     /// Clarabel runs on 2D scenes up to this many DOFs ...
     clarabel_max_n: usize,
     /// ... and on 3D scenes up to this many (its default direct solver, QDLDL,
     /// fills in badly in 3D: about 65 s on 13,230 DOFs).
     clarabel_max_n_3d: usize,
-    /// Only this part of each scene ("ours" or "clarabel"); both when None.
+    /// Only these parts of each scene: "ours" (= ours-dense and ours-free),
+    /// "ours-dense", "ours-free", "clarabel"; all when None.
     only: Option<String>,
-    /// Append to an existing results.csv instead of starting a new one.
+    /// Append to an existing results.csv instead of starting a new one (the rows of
+    /// a scene and part measured again replace the old ones).
     append: bool,
     clarabel_limit: f64,
     frictions: Vec<String>,
@@ -104,6 +120,7 @@ impl Config {
             rep_below: if quick { 0.1 } else { 0.5 },
             solves_cap: if quick { 2.0 } else { 30.0 },
             clarabel: true,
+            free: true,
             clarabel_max_n: 1_100_000,
             clarabel_max_n_3d: 15_000,
             only: None,
@@ -126,6 +143,7 @@ impl Config {
                 "--rep-below" => c.rep_below = val().parse().unwrap_or_else(|_| usage(a)),
                 "--solves-cap" => c.solves_cap = val().parse().unwrap_or_else(|_| usage(a)),
                 "--no-clarabel" => c.clarabel = false,
+                "--no-free" => c.free = false,
                 "--clarabel-max-n" => c.clarabel_max_n = val().parse().unwrap_or_else(|_| usage(a)),
                 "--clarabel-max-n-3d" => {
                     c.clarabel_max_n_3d = val().parse().unwrap_or_else(|_| usage(a))
@@ -157,6 +175,11 @@ impl Config {
             if f != "tresca" && f != "coulomb" {
                 usage(f);
             }
+        }
+        if let Some(o) = &c.only
+            && !["ours", "ours-dense", "ours-free", "clarabel"].contains(&o.as_str())
+        {
+            usage(o);
         }
         c
     }
@@ -193,8 +216,9 @@ fn usage(bad: &str) -> ! {
     eprintln!(
         "usage: cargo run --release --example bench -- [--quick | --big] [--scenes 2d-200x25,3d-20x20x10,..]\n\
          \x20   [--out DIR] [--cap S] [--rep-below S] [--solves-cap S] [--frictions tresca,coulomb]\n\
-         \x20   [--no-clarabel] [--clarabel-max-n N] [--clarabel-max-n-3d N] [--clarabel-limit S]\n\
-         \x20   [--only ours|clarabel] [--append] [--report-only]\n\
+         \x20   [--no-clarabel] [--no-free] [--clarabel-max-n N] [--clarabel-max-n-3d N]\n\
+         \x20   [--clarabel-limit S] [--only ours|ours-dense|ours-free|clarabel] [--append]\n\
+         \x20   [--report-only]\n\
          scenes: 2d-NXxNY (Q4 plane strain, NX x NY cells) or 3d-NXxNYxNZ (H8)"
     );
     std::process::exit(2);
@@ -206,6 +230,7 @@ fn main() {
         let spec = Spec::parse(&cfg.scenes[0]).expect("checked");
         let rows = match what.as_str() {
             "ours" => child_ours(&cfg, spec),
+            "ours-free" => child_free(&cfg, spec),
             "clarabel" => child_clarabel(&cfg, spec),
             "profile-setup" => {
                 // Only the scene and the contact problem (for a profiler).
@@ -215,8 +240,9 @@ fn main() {
                         .expect("valid scene")
                 });
                 eprintln!(
-                    "setup {t:.3} s, condensation {:.3} s",
-                    pb.dual().condense_seconds
+                    "setup {t:.3} s, condensation {:.3} s (matrix-free: {})",
+                    pb.dual().condense_seconds,
+                    pb.dual().is_matrix_free()
                 );
                 Vec::new()
             }
@@ -233,55 +259,81 @@ fn main() {
     let csv = cfg.out.join("results.csv");
     if !cfg.report_only {
         scene::check_assembly();
-        let mut file = if cfg.append && csv.exists() {
-            std::fs::OpenOptions::new()
-                .append(true)
-                .open(&csv)
-                .expect("open results.csv")
-        } else {
-            let mut f = std::fs::File::create(&csv).expect("create results.csv");
-            writeln!(f, "{}", row::HEADER).expect("write");
-            f
-        };
-        let exe = std::env::current_exe().expect("own path");
-        let total = Instant::now();
+        // What runs: (scene, part) in order.
+        let mut plan: Vec<(String, Part)> = Vec::new();
         for name in &cfg.scenes {
             let spec = Spec::parse(name).expect("checked");
-            let mut parts = vec!["ours"];
+            let mut parts = vec![Part::Dense];
+            if cfg.free {
+                parts.push(Part::Free);
+            }
             let limit = if spec.dim == 2 {
                 cfg.clarabel_max_n
             } else {
                 cfg.clarabel_max_n_3d
             };
             if cfg.clarabel && spec.n_dofs() <= limit {
-                parts.push("clarabel");
+                parts.push(Part::Clarabel);
             }
             if let Some(only) = &cfg.only {
-                parts.retain(|p| p == only);
+                parts.retain(|p| match only.as_str() {
+                    "ours" => *p != Part::Clarabel,
+                    o => p.name() == o,
+                });
             }
-            for part in parts {
-                eprintln!(
-                    "[{:7.1} s] scene {name} (n = {}, m = {}): {part}",
-                    total.elapsed().as_secs_f64(),
-                    spec.n_dofs(),
-                    spec.n_contacts()
-                );
-                let out = Command::new(&exe)
-                    .args(cfg.child_args(part, name))
-                    .stderr(std::process::Stdio::inherit())
-                    .output()
-                    .expect("run the child");
-                if !out.status.success() {
-                    eprintln!("  child {part} for {name} failed: {}", out.status);
-                }
-                let text = String::from_utf8_lossy(&out.stdout);
-                for line in text.lines() {
-                    if let Some(r) = line.strip_prefix("ROW,") {
-                        writeln!(file, "{r}").expect("write");
-                    }
-                }
-                file.flush().expect("flush");
+            plan.extend(parts.into_iter().map(|p| (name.clone(), p)));
+        }
+        // With --append, the rows of a (scene, part) measured again are dropped first.
+        let kept: Vec<String> = if cfg.append && csv.exists() {
+            let text = std::fs::read_to_string(&csv).expect("read results.csv");
+            text.lines()
+                .skip(1)
+                .filter(|l| match Row::from_csv(l) {
+                    Some(r) => !plan.iter().any(|(s, p)| *s == r.scene && *p == r.part()),
+                    None => false,
+                })
+                .map(String::from)
+                .collect()
+        } else {
+            Vec::new()
+        };
+        if cfg.append {
+            eprintln!("keeping {} rows of {}", kept.len(), csv.display());
+        }
+        let mut file = std::fs::File::create(&csv).expect("create results.csv");
+        writeln!(file, "{}", row::HEADER).expect("write");
+        for l in &kept {
+            writeln!(file, "{l}").expect("write");
+        }
+        file.flush().expect("flush");
+        let exe = std::env::current_exe().expect("own path");
+        let total = Instant::now();
+        for (name, part) in &plan {
+            let spec = Spec::parse(name).expect("checked");
+            eprintln!(
+                "[{:7.1} s] scene {name} (n = {}, m = {}, c = {}): {} (load {})",
+                total.elapsed().as_secs_f64(),
+                spec.n_dofs(),
+                spec.n_contacts(),
+                spec.dim * spec.n_contacts(),
+                part.name(),
+                row::load1()
+            );
+            let out = Command::new(&exe)
+                .args(cfg.child_args(part.name(), name))
+                .stderr(std::process::Stdio::inherit())
+                .output()
+                .expect("run the child");
+            if !out.status.success() {
+                eprintln!("  child {} for {name} failed: {}", part.name(), out.status);
             }
+            let text = String::from_utf8_lossy(&out.stdout);
+            for line in text.lines() {
+                if let Some(r) = line.strip_prefix("ROW,") {
+                    writeln!(file, "{r}").expect("write");
+                }
+            }
+            file.flush().expect("flush");
         }
         eprintln!("measured in {:.1} s", total.elapsed().as_secs_f64());
     }
@@ -322,6 +374,18 @@ fn mem_row(base: &Row, stage: &str) -> Row {
     }
 }
 
+/// A row of one timed quantity.
+fn time_row(base: &Row, kind: &str, walls: &[f64], note: String) -> Row {
+    Row {
+        kind: kind.into(),
+        reps: Some(walls.len()),
+        time_s: Some(median(walls)),
+        time_min_s: walls.iter().copied().reduce(f64::min),
+        note,
+        ..base.clone()
+    }
+}
+
 /// Repeats `f` (which returns its own wall time first) while the runs are short.
 fn repeated<T>(rep_below: f64, mut f: impl FnMut() -> (f64, T)) -> (Vec<f64>, T) {
     let (t0, mut last) = f();
@@ -332,6 +396,14 @@ fn repeated<T>(rep_below: f64, mut f: impl FnMut() -> (f64, T)) -> (Vec<f64>, T)
         last = x;
     }
     (times, last)
+}
+
+fn friction_of<'a>(sc: &'a Scene, name: &str) -> Friction<'a> {
+    if name == "tresca" {
+        Friction::Tresca(&sc.p)
+    } else {
+        Friction::Coulomb(&sc.mu)
+    }
 }
 
 fn child_ours(cfg: &Config, spec: Spec) -> Vec<Row> {
@@ -361,30 +433,14 @@ fn child_ours(cfg: &Config, spec: Spec) -> Vec<Row> {
     });
     let t_fac = median(&walls);
     eprintln!("  factor of K alone: {t_fac:.3} s (numeric {numeric:.3} s)");
-    rows.push(Row {
-        kind: "factor".into(),
-        reps: Some(walls.len()),
-        time_s: Some(t_fac),
-        time_min_s: walls.iter().copied().reduce(f64::min),
-        ..base.clone()
-    });
-    rows.push(Row {
-        kind: "factor_numeric".into(),
-        reps: Some(1),
-        time_s: Some(numeric),
-        ..base.clone()
-    });
+    rows.push(time_row(&base, "factor", &walls, String::new()));
+    rows.push(time_row(&base, "factor_numeric", &[numeric], String::new()));
     let (ts, _) = repeated(cfg.rep_below, || {
         let mut x = sc.f.clone();
         let ((), t) = time(|| fac.solve_vec(&mut x));
         (t, ())
     });
-    rows.push(Row {
-        kind: "solve1".into(),
-        reps: Some(ts.len()),
-        time_s: Some(median(&ts)),
-        ..base.clone()
-    });
+    rows.push(time_row(&base, "solve1", &ts, String::new()));
     // Condensation by one solve per dual unknown (blocks of 32): estimate from one
     // block of 32 solves, run it when the estimate is below the cap.
     let t_block = {
@@ -403,12 +459,13 @@ fn child_ours(cfg: &Config, spec: Spec) -> Vec<Row> {
         let (dual, t) =
             time(|| Dual::build_with(&fac, &sc.n, &sc.t, d, Condensation::Solves).expect("fits"));
         rows.push(Row {
-            kind: "condense_solves".into(),
-            reps: Some(1),
-            time_s: Some(t),
             status: "measured".into(),
-            note: format!("estimate={est:.3e}"),
-            ..base.clone()
+            ..time_row(
+                &base,
+                "condense_solves",
+                &[t],
+                format!("estimate={est:.3e}"),
+            )
         });
         drop(dual);
     } else {
@@ -423,7 +480,13 @@ fn child_ours(cfg: &Config, spec: Spec) -> Vec<Row> {
     drop(fac);
     rows.push(mem_row(&base, "factor"));
 
-    // The contact problem: factor with the contact DOFs last + condensation.
+    // The contact problem: factor with the contact DOFs last + the dual. The peak
+    // memory from here on is that of the setup (and the scene, still resident).
+    reset_peak();
+    rows.push(Row {
+        mem_mb: rss_mb(),
+        ..mem_row(&base, "setup-start")
+    });
     let (walls, mut pb) = repeated(cfg.rep_below, || {
         let (pb, t) = time(|| {
             ContactProblem::from_csc(d, sc.k.clone(), sc.n.clone(), sc.t.clone())
@@ -431,194 +494,333 @@ fn child_ours(cfg: &Config, spec: Spec) -> Vec<Row> {
         });
         (t, pb)
     });
-    let t_setup = median(&walls);
+    let t_from_csc = median(&walls);
+    let auto_free = pb.dual().is_matrix_free();
+    let mut t_setup = walls.clone();
+    let mut note = String::new();
+    if auto_free {
+        // DualForm::Auto left it matrix-free (c > DENSE_MAX): the dense methods need
+        // A, assembled by the first solve with DualForm::Dense. Force it here (one
+        // outer iteration), and charge the assembly to the setup.
+        let t_free_build = pb.dual().condense_seconds;
+        let opts = Options {
+            method: Method::Pgs,
+            max_outer: 1,
+            dual_form: DualForm::Dense,
+            ..Options::default()
+        };
+        let (_, t_first) = time(|| {
+            pb.solve(&sc.f, &sc.g, Friction::Tresca(&sc.p), &opts)
+                .expect("valid input")
+        });
+        assert!(!pb.dual().is_matrix_free());
+        let t_asm = pb.dual().condense_seconds;
+        t_setup.iter_mut().for_each(|t| *t += t_asm);
+        note = format!(
+            "from_csc (auto: matrix-free) {t_from_csc:.3} s incl. matrix-free build \
+             {t_free_build:.3} s + dense assembly {t_asm:.3} s (first dense solve {t_first:.3} s)"
+        );
+        rows.push(time_row(&base, "setup_auto", &walls, "matrix-free".into()));
+    }
     let t_cond = pb.dual().condense_seconds;
     eprintln!(
-        "  setup (factor with contacts last + condensation): {t_setup:.3} s (condensation {t_cond:.3} s)"
-    );
-    rows.push(Row {
-        kind: "setup".into(),
-        reps: Some(walls.len()),
-        time_s: Some(t_setup),
-        time_min_s: walls.iter().copied().reduce(f64::min),
-        ..base.clone()
-    });
-    rows.push(Row {
-        kind: "condense_trailing".into(),
-        reps: Some(1),
-        time_s: Some(t_cond),
-        ..base.clone()
-    });
-    rows.push(mem_row(&base, "setup"));
-    let mut setup_factor_logged = false;
-
-    for fr_name in &cfg.frictions {
-        let fr = if fr_name == "tresca" {
-            Friction::Tresca(&sc.p)
+        "  setup (factor with contacts last + dense dual): {:.3} s (dense condensation {t_cond:.3} s){}",
+        median(&t_setup),
+        if auto_free {
+            " [auto: matrix-free, then assembled]"
         } else {
-            Friction::Coulomb(&sc.mu)
-        };
+            ""
+        }
+    );
+    rows.push(time_row(&base, "setup", &t_setup, note));
+    rows.push(time_row(
+        &base,
+        "condense_trailing",
+        &[t_cond],
+        String::new(),
+    ));
+    rows.push(mem_row(&base, "setup"));
+    // The solves: peak from here on (A, the factor, the scene, the iterations).
+    reset_peak();
+
+    let mut setup_factor_logged = false;
+    for fr_name in &cfg.frictions {
         for method in Method::ALL {
-            let solve = |pb: &mut ContactProblem, tol: f64, max_outer: usize| {
-                let opts = Options {
-                    method,
-                    tol,
-                    max_outer,
-                    ..Options::default()
-                };
-                time(|| pb.solve(&sc.f, &sc.g, fr, &opts).expect("valid input"))
-            };
-            // Cost of one outer iteration: (4 iterations - 1 iteration) / 3.
-            let (s1, t1) = solve(&mut pb, 1e-15, 1);
-            let (s4, t4) = solve(&mut pb, 1e-15, 4);
+            let (r, fs) = method_series(
+                cfg,
+                &sc,
+                &base,
+                &mut pb,
+                fr_name,
+                method,
+                DualForm::Dense,
+                method.name(),
+            );
             if !setup_factor_logged {
-                rows.push(Row {
-                    kind: "setup_factor".into(),
-                    reps: Some(1),
-                    time_s: Some(s1.report.factor_seconds),
-                    ..base.clone()
-                });
+                rows.push(time_row(&base, "setup_factor", &[fs], String::new()));
                 setup_factor_logged = true;
             }
-            let di = s4
-                .report
-                .outer_iterations
-                .saturating_sub(s1.report.outer_iterations)
-                .max(1);
-            // A safety net against runaway runs on a loaded machine: twice the
-            // iterations that fit in the cap, raised below when a run hits it early.
-            let t_it = ((t4 - t1) / di as f64).max(1e-7);
-            let mut max_outer = ((2.0 * cfg.cap / t_it) as usize).max(10);
-            let mut stopped = false;
-            let mut reached = false;
-            for tol in TOLS {
-                let r0 = Row {
-                    friction: fr_name.clone(),
-                    kind: "solve".into(),
-                    method: method.name().into(),
-                    tol: Some(tol),
-                    ..base.clone()
-                };
-                if stopped {
-                    rows.push(Row {
-                        status: "skipped".into(),
-                        ..r0
-                    });
-                    continue;
-                }
-                let (times, sol) = loop {
-                    let (times, sol) = repeated(cfg.rep_below, || {
-                        let (s, t) = solve(&mut pb, tol, max_outer);
-                        (t, s)
-                    });
-                    let r = &sol.report;
-                    let t = median(&times);
-                    if r.status == SolveStatus::Converged
-                        || r.outer_iterations < max_outer
-                        || t >= 0.5 * cfg.cap
-                    {
-                        break (times, sol);
-                    }
-                    // The iteration limit, not the time cap, stopped it: allow more.
-                    let per = t / r.outer_iterations.max(1) as f64;
-                    max_outer = ((0.9 * cfg.cap / per) as usize).max(2 * max_outer);
-                };
-                let r = &sol.report;
-                let t = median(&times);
-                eprintln!(
-                    "  {fr_name:7} {:10} tol {tol:.0e}: {t:8.3} s err {:.2e} outer {} inner {} {:?}",
-                    method.name(),
-                    r.err,
-                    r.outer_iterations,
-                    r.inner_iterations,
-                    r.status
-                );
-                let converged = r.status == SolveStatus::Converged;
-                rows.push(Row {
-                    reps: Some(times.len()),
-                    time_s: Some(t),
-                    time_min_s: times.iter().copied().reduce(f64::min),
-                    err: Some(r.err),
-                    eq_res: Some(r.equilibrium_residual),
-                    outer: Some(r.outer_iterations),
-                    inner: Some(r.inner_iterations),
-                    status: format!("{:?}", r.status),
-                    open: Some(r.n_open),
-                    stick: Some(r.n_stick),
-                    slip: Some(r.n_slip),
-                    note: format!("max_outer={max_outer}"),
-                    ..r0
-                });
-                if converged && tol <= 1e-10 {
-                    reached = true;
-                }
-                if !converged || t > cfg.cap {
-                    stopped = true;
-                }
-            }
-            if !reached {
-                for kind in ["step_cold", "step_warm"] {
-                    rows.push(Row {
-                        friction: fr_name.clone(),
-                        kind: kind.into(),
-                        method: method.name().into(),
-                        tol: Some(1e-10),
-                        status: "skipped".into(),
-                        ..base.clone()
-                    });
-                }
-                continue;
-            }
-            // History: a cold first step, then a warm-started one with 5 % more load.
-            let f2 = sc.scaled_load(1.05);
-            let opts = Options {
-                method,
-                tol: 1e-10,
-                max_outer,
-                ..Options::default()
-            };
-            let (walls, (s1, t1, s2)) = repeated(cfg.rep_below, || {
-                pb.reset_history();
-                let (s1, t1) = time(|| pb.step(&sc.f, &sc.g, fr, &opts).expect("valid"));
-                let (s2, t2) = time(|| pb.step(&f2, &sc.g, fr, &opts).expect("valid"));
-                (t2, (s1, t1, s2))
-            });
-            pb.reset_history();
-            for (kind, s, t, reps) in [
-                ("step_cold", &s1, t1, 1),
-                ("step_warm", &s2, median(&walls), walls.len()),
-            ] {
-                let r = &s.report;
-                rows.push(Row {
-                    friction: fr_name.clone(),
-                    kind: kind.into(),
-                    method: method.name().into(),
-                    tol: Some(1e-10),
-                    reps: Some(reps),
-                    time_s: Some(t),
-                    err: Some(r.err),
-                    eq_res: Some(r.equilibrium_residual),
-                    outer: Some(r.outer_iterations),
-                    inner: Some(r.inner_iterations),
-                    status: format!("{:?}", r.status),
-                    open: Some(r.n_open),
-                    stick: Some(r.n_stick),
-                    slip: Some(r.n_slip),
-                    ..base.clone()
-                });
-            }
-            eprintln!(
-                "  {fr_name:7} {:10} history: cold {t1:.3} s ({} outer), warm {:.3} s ({} outer, err {:.1e})",
-                method.name(),
-                s1.report.outer_iterations,
-                median(&walls),
-                s2.report.outer_iterations,
-                s2.report.err
-            );
+            rows.extend(r);
         }
     }
     rows.push(mem_row(&base, "ours"));
     rows
+}
+
+/// The matrix-free child: setup in matrix-free form, then MPRGP matrix-free.
+fn child_free(cfg: &Config, spec: Spec) -> Vec<Row> {
+    let mut rows = Vec::new();
+    let sc = Scene::build(spec);
+    let base = base_row(&sc);
+    let d = sc.d;
+    rows.push(mem_row(&base, "free-assembly"));
+    reset_peak();
+    rows.push(Row {
+        mem_mb: rss_mb(),
+        ..mem_row(&base, "free-setup-start")
+    });
+    // The setup in matrix-free form, without ever forming A: where Auto is
+    // matrix-free (c > DENSE_MAX) this is from_csc; below, from_csc would assemble
+    // A, so the factor (contact DOFs last) and the matrix-free dual are built here,
+    // timed and measured, then dropped, and the problem is made afterwards.
+    let direct = base.c > DENSE_MAX;
+    let (walls, (t_factor, t_build, pb)) = repeated(cfg.rep_below, || {
+        if direct {
+            let (pb, t) = time(|| {
+                ContactProblem::from_csc(d, sc.k.clone(), sc.n.clone(), sc.t.clone())
+                    .expect("valid scene")
+            });
+            assert!(pb.dual().is_matrix_free());
+            let (tf, tb) = (0.0, pb.dual().condense_seconds);
+            (t, (tf, tb, Some(pb)))
+        } else {
+            let ((fac, dual), t) = time(|| {
+                let last = contact_dofs(&stack_rows(&sc.n, &sc.t));
+                let fac = Factor::with_last(&sc.k, &last).expect("K is SPD");
+                let dual = Dual::build(&fac, &sc.n, &sc.t, d, DualForm::MatrixFree).expect("fits");
+                (fac, dual)
+            });
+            assert!(dual.is_matrix_free());
+            (t, (fac.factor_seconds, dual.condense_seconds, None))
+        }
+    });
+    let how = if direct {
+        "from_csc (auto: matrix-free)"
+    } else {
+        "Factor::with_last + Dual::build(MatrixFree)"
+    };
+    eprintln!(
+        "  setup matrix-free: {:.3} s (matrix-free build {t_build:.3} s) by {how}",
+        median(&walls)
+    );
+    rows.push(time_row(&base, "setup_free", &walls, how.into()));
+    rows.push(time_row(&base, "condense_free", &[t_build], String::new()));
+    rows.push(mem_row(&base, "free-setup"));
+    let mut pb = match pb {
+        Some(pb) => pb,
+        None => {
+            // c <= DENSE_MAX: Auto assembles A here; the first matrix-free solve
+            // below replaces it by the matrix-free form (peak memory past the
+            // reading above is not the matrix-free setup's).
+            ContactProblem::from_csc(d, sc.k.clone(), sc.n.clone(), sc.t.clone())
+                .expect("valid scene")
+        }
+    };
+    let mut t_factor = t_factor;
+    for fr_name in &cfg.frictions {
+        let (r, fs) = method_series(
+            cfg,
+            &sc,
+            &base,
+            &mut pb,
+            fr_name,
+            Method::Mprgp,
+            DualForm::MatrixFree,
+            "mprgp-free",
+        );
+        assert!(pb.dual().is_matrix_free());
+        if t_factor == 0.0 {
+            t_factor = fs;
+        }
+        rows.extend(r);
+    }
+    rows.push(time_row(
+        &base,
+        "setup_free_factor",
+        &[t_factor],
+        String::new(),
+    ));
+    rows.push(mem_row(&base, "free"));
+    rows
+}
+
+/// One method in one dual form on one friction law: the tolerance series and the
+/// history steps. Returns the rows and the numeric factorisation time of the
+/// problem's factor (from a report).
+#[allow(clippy::too_many_arguments)]
+fn method_series(
+    cfg: &Config,
+    sc: &Scene,
+    base: &Row,
+    pb: &mut ContactProblem,
+    fr_name: &str,
+    method: Method,
+    form: DualForm,
+    label: &str,
+) -> (Vec<Row>, f64) {
+    let mut rows = Vec::new();
+    let fr = friction_of(sc, fr_name);
+    let solve = |pb: &mut ContactProblem, tol: f64, max_outer: usize| {
+        let opts = Options {
+            method,
+            tol,
+            max_outer,
+            dual_form: form,
+            ..Options::default()
+        };
+        time(|| pb.solve(&sc.f, &sc.g, fr, &opts).expect("valid input"))
+    };
+    // A first, untimed call puts the dual in the form asked for (a change of form
+    // rebuilds it: not part of any method's time).
+    if pb.dual().is_matrix_free() != (form == DualForm::MatrixFree) {
+        solve(pb, 1e-15, 1);
+    }
+    // Cost of one outer iteration: (4 iterations - 1 iteration) / 3.
+    let (s1, t1) = solve(pb, 1e-15, 1);
+    let (s4, t4) = solve(pb, 1e-15, 4);
+    let factor_seconds = s1.report.factor_seconds;
+    let di = s4
+        .report
+        .outer_iterations
+        .saturating_sub(s1.report.outer_iterations)
+        .max(1);
+    // A safety net against runaway runs on a loaded machine: twice the iterations
+    // that fit in the cap, raised below when a run hits it early.
+    let t_it = ((t4 - t1) / di as f64).max(1e-7);
+    let mut max_outer = ((2.0 * cfg.cap / t_it) as usize).max(10);
+    let mut stopped = false;
+    let mut reached = false;
+    for tol in TOLS {
+        let r0 = Row {
+            friction: fr_name.into(),
+            kind: "solve".into(),
+            method: label.into(),
+            tol: Some(tol),
+            ..base.clone()
+        };
+        if stopped {
+            rows.push(Row {
+                status: "skipped".into(),
+                ..r0
+            });
+            continue;
+        }
+        let (times, sol) = loop {
+            let (times, sol) = repeated(cfg.rep_below, || {
+                let (s, t) = solve(pb, tol, max_outer);
+                (t, s)
+            });
+            let r = &sol.report;
+            let t = median(&times);
+            if r.status == SolveStatus::Converged
+                || r.outer_iterations < max_outer
+                || t >= 0.5 * cfg.cap
+            {
+                break (times, sol);
+            }
+            // The iteration limit, not the time cap, stopped it: allow more.
+            let per = t / r.outer_iterations.max(1) as f64;
+            max_outer = ((0.9 * cfg.cap / per) as usize).max(2 * max_outer);
+        };
+        let r = &sol.report;
+        let t = median(&times);
+        eprintln!(
+            "  {fr_name:7} {label:11} tol {tol:.0e}: {t:8.3} s err {:.2e} outer {} inner {} {:?}",
+            r.err, r.outer_iterations, r.inner_iterations, r.status
+        );
+        let converged = r.status == SolveStatus::Converged;
+        rows.push(Row {
+            reps: Some(times.len()),
+            time_s: Some(t),
+            time_min_s: times.iter().copied().reduce(f64::min),
+            err: Some(r.err),
+            eq_res: Some(r.equilibrium_residual),
+            outer: Some(r.outer_iterations),
+            inner: Some(r.inner_iterations),
+            status: format!("{:?}", r.status),
+            open: Some(r.n_open),
+            stick: Some(r.n_stick),
+            slip: Some(r.n_slip),
+            note: format!("max_outer={max_outer}"),
+            ..r0
+        });
+        if converged && tol <= 1e-10 {
+            reached = true;
+        }
+        if !converged || t > cfg.cap {
+            stopped = true;
+        }
+    }
+    if !reached {
+        for kind in ["step_cold", "step_warm"] {
+            rows.push(Row {
+                friction: fr_name.into(),
+                kind: kind.into(),
+                method: label.into(),
+                tol: Some(1e-10),
+                status: "skipped".into(),
+                ..base.clone()
+            });
+        }
+        return (rows, factor_seconds);
+    }
+    // History: a cold first step, then a warm-started one with 5 % more load.
+    let f2 = sc.scaled_load(1.05);
+    let opts = Options {
+        method,
+        tol: 1e-10,
+        max_outer,
+        dual_form: form,
+        ..Options::default()
+    };
+    let (walls, (s1, t1, s2)) = repeated(cfg.rep_below, || {
+        pb.reset_history();
+        let (s1, t1) = time(|| pb.step(&sc.f, &sc.g, fr, &opts).expect("valid"));
+        let (s2, t2) = time(|| pb.step(&f2, &sc.g, fr, &opts).expect("valid"));
+        (t2, (s1, t1, s2))
+    });
+    pb.reset_history();
+    for (kind, s, t, reps) in [
+        ("step_cold", &s1, t1, 1),
+        ("step_warm", &s2, median(&walls), walls.len()),
+    ] {
+        let r = &s.report;
+        rows.push(Row {
+            friction: fr_name.into(),
+            kind: kind.into(),
+            method: label.into(),
+            tol: Some(1e-10),
+            reps: Some(reps),
+            time_s: Some(t),
+            err: Some(r.err),
+            eq_res: Some(r.equilibrium_residual),
+            outer: Some(r.outer_iterations),
+            inner: Some(r.inner_iterations),
+            status: format!("{:?}", r.status),
+            open: Some(r.n_open),
+            stick: Some(r.n_stick),
+            slip: Some(r.n_slip),
+            ..base.clone()
+        });
+    }
+    eprintln!(
+        "  {fr_name:7} {label:11} history: cold {t1:.3} s ({} outer), warm {:.3} s ({} outer, err {:.1e})",
+        s1.report.outer_iterations,
+        median(&walls),
+        s2.report.outer_iterations,
+        s2.report.err
+    );
+    (rows, factor_seconds)
 }
 
 fn child_clarabel(cfg: &Config, spec: Spec) -> Vec<Row> {

@@ -1,7 +1,7 @@
 //! SVG figures (plotters): work-precision diagrams per scene and scaling curves.
 
 use crate::report::{
-    best_to, best_total, best_warm, find, frictions, methods, scenes, series, time_of,
+    best_to, best_total, best_warm, find, frictions, methods, scenes, series, setup_of, time_of,
 };
 use crate::row::Row;
 use plotters::prelude::*;
@@ -48,6 +48,33 @@ fn sci(x: &f64) -> String {
     format!("{x:.0e}")
 }
 
+type Chart<'a, 'b> = ChartContext<
+    'a,
+    SVGBackend<'b>,
+    Cartesian2d<
+        plotters::coord::combinators::LogCoord<f64>,
+        plotters::coord::combinators::LogCoord<f64>,
+    >,
+>;
+
+/// A labelled line through `p`, solid or dashed (legend alike).
+fn line(chart: &mut Chart, p: &[(f64, f64)], label: &str, style: ShapeStyle, dashed: bool) -> Res {
+    if dashed {
+        chart
+            .draw_series(DashedLineSeries::new(p.to_vec(), 8, 5, style))?
+            .label(label)
+            .legend(move |(x, y)| {
+                plotters::element::DashedPathElement::new(vec![(x, y), (x + 20, y)], 6, 3, style)
+            });
+    } else {
+        chart
+            .draw_series(LineSeries::new(p.to_vec(), style))?
+            .label(label)
+            .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], style));
+    }
+    Ok(())
+}
+
 /// Draws every figure into `out`.
 pub fn draw_all(rows: &[Row], out: &Path) -> Res {
     for s in scenes(rows) {
@@ -77,7 +104,6 @@ fn work_precision(rows: &[Row], scene: &str, path: &Path) -> Res {
     top.titled(&title, ("sans-serif", 22))?;
     let panels = body.split_evenly((nfr, 2));
     let tf = time_of(rows, scene, "factor");
-    let setup = time_of(rows, scene, "setup").unwrap_or(0.0);
     let clar: Vec<&Row> = rows
         .iter()
         .filter(|r| r.scene == scene && r.kind == "clarabel" && r.time_s.is_some())
@@ -97,6 +123,7 @@ fn work_precision(rows: &[Row], scene: &str, path: &Path) -> Res {
                             && r.time_s.is_some()
                     })
                     .map(|r| {
+                        let setup = setup_of(rows, scene, m).unwrap_or(0.0);
                         let t = r.time_s.unwrap() + if total { setup } else { 0.0 };
                         (r.err.unwrap().max(1e-17), t)
                     })
@@ -138,13 +165,13 @@ fn work_precision(rows: &[Row], scene: &str, path: &Path) -> Res {
                 if p.is_empty() {
                     continue;
                 }
-                let c = color(mi);
-                chart
-                    .draw_series(LineSeries::new(p.clone(), c.stroke_width(2)))?
-                    .label(m.as_str())
-                    .legend(move |(x, y)| {
-                        PathElement::new(vec![(x, y), (x + 20, y)], c.stroke_width(2))
-                    });
+                // A matrix-free series: the colour of its dense counterpart, dashed.
+                let dense = m.strip_suffix("-free");
+                let ci = dense
+                    .and_then(|d| ms.iter().position(|x| x == d))
+                    .unwrap_or(mi);
+                let c = color(ci);
+                line(&mut chart, &p, m, c.stroke_width(2), dense.is_some())?;
                 chart.draw_series(p.iter().map(|&q| Circle::new(q, 3, c.filled())))?;
             }
             if let Some(t) = tf {
@@ -221,6 +248,10 @@ fn scaling(rows: &[Row], path: &Path) -> Res {
                     Box::new(|s: &str| time_of(rows, s, "setup")),
                 ),
                 (
+                    "setup matrix-free".into(),
+                    Box::new(|s: &str| time_of(rows, s, "setup_free")),
+                ),
+                (
                     "condensation by solves".into(),
                     Box::new(|s: &str| time_of(rows, s, "condense_solves")),
                 ),
@@ -270,12 +301,8 @@ fn scaling(rows: &[Row], path: &Path) -> Res {
                 }
                 let c = if i == 0 { BLACK } else { color(i - 1) };
                 let w = if i == 0 { 3 } else { 2 };
-                chart
-                    .draw_series(LineSeries::new(p.clone(), c.stroke_width(w)))?
-                    .label(label.as_str())
-                    .legend(move |(x, y)| {
-                        PathElement::new(vec![(x, y), (x + 20, y)], c.stroke_width(w))
-                    });
+                let dashed = label.contains("-free") || label.contains("matrix-free");
+                line(&mut chart, p, label, c.stroke_width(w), dashed)?;
                 chart.draw_series(p.iter().map(|&q| Circle::new(q, 3, c.filled())))?;
             }
             chart

@@ -1,14 +1,21 @@
 //! The summary tables (bench_results/summary.md) computed from the rows.
 
-use crate::row::Row;
+use crate::row::{Part, Row};
 use crate::scene::Spec;
 use std::collections::BTreeSet;
 use std::fmt::Write as _;
 
-/// Scenes in order of appearance.
+/// Scenes in the order of their `factor` rows (the order of the run that measured
+/// them; rows kept by `--append` come first in the file), then the others in order
+/// of appearance.
 pub fn scenes(rows: &[Row]) -> Vec<String> {
     let mut seen = BTreeSet::new();
     let mut v = Vec::new();
+    for r in rows.iter().filter(|r| r.kind == "factor") {
+        if seen.insert(r.scene.clone()) {
+            v.push(r.scene.clone());
+        }
+    }
     for r in rows {
         if seen.insert(r.scene.clone()) {
             v.push(r.scene.clone());
@@ -142,10 +149,37 @@ pub fn series(
         .collect()
 }
 
-/// Total time (setup + solve) of the best method to `target`.
+/// The setup a method needs: `setup_free` (matrix-free form) for the `-free`
+/// series, `setup` (dense A) for the others.
+pub fn setup_of(rows: &[Row], scene: &str, method: &str) -> Option<f64> {
+    if method.ends_with("-free") {
+        time_of(rows, scene, "setup_free")
+    } else {
+        time_of(rows, scene, "setup")
+    }
+}
+
+/// The method with the smallest total (its setup + its fastest solve to `target`):
+/// (method, total, solve row).
+pub fn best_total_method<'a>(
+    rows: &'a [Row],
+    scene: &str,
+    friction: &str,
+    target: f64,
+) -> Option<(String, f64, &'a Row)> {
+    methods(rows)
+        .into_iter()
+        .filter_map(|m| {
+            let r = best_to(rows, scene, friction, &m, target)?;
+            let t = setup_of(rows, scene, &m)? + r.time_s?;
+            Some((m, t, r))
+        })
+        .min_by(|a, b| a.1.total_cmp(&b.1))
+}
+
+/// Total time (setup + solve) of the method with the smallest total to `target`.
 pub fn best_total(rows: &[Row], scene: &str, friction: &str, target: f64) -> Option<f64> {
-    let setup = time_of(rows, scene, "setup")?;
-    best_method(rows, scene, friction, target).map(|(_, r)| setup + r.time_s.unwrap())
+    best_total_method(rows, scene, friction, target).map(|x| x.1)
 }
 
 /// The fastest warm step (err <= 1e-10, converged) of a scene: (method, time).
@@ -177,13 +211,17 @@ pub fn summary(rows: &[Row]) -> String {
         "Times in seconds (wall, median of up to 3 runs), memory in MB (peak resident, \
          per child process). `factor` = sparse Cholesky of K alone (AMD, symbolic + \
          numeric); `setup` = `ContactProblem::from_csc` (factor with the contact DOFs \
-         last + condensed dual from the trailing block); `total` = setup + solve.\n"
+         last + condensed dual A from the trailing block; where `DualForm::Auto` leaves \
+         it matrix-free, c > 8,000, plus the dense assembly of A that the dense methods \
+         need); `setup (m-free)` = the same factor + the matrix-free dual (no A); \
+         `total` = the method's setup + its solve; `mprgp-free` = MPRGP matrix-free \
+         (the other series run on the dense A).\n"
     );
     // Scenes and setup costs.
     let _ = writeln!(s, "## Scenes and the cost of the setup\n");
     let _ = writeln!(
         s,
-        "| scene | d | n | m | c | factor | of which numeric | solve1 | setup | of which numeric factor (contacts last) | of which condensation | condensation by solves | peak MB (ours) | peak MB (Clarabel) | load avg |"
+        "| scene | d | n | m | c | factor | of which numeric | solve1 | setup | of which numeric factor (contacts last) | of which condensation | condensation by solves | peak MB (ours, dense) | peak MB (Clarabel) | load avg |"
     );
     let _ = writeln!(
         s,
@@ -201,9 +239,13 @@ pub fn summary(rows: &[Row]) -> String {
             };
             format!("{}{tag}", f3(r.time_s))
         });
-        let mem = |stage: &str| {
-            find(rows, name, "mem", Some(stage))
-                .and_then(|r| r.mem_mb)
+        // The peak of a child: the largest of its readings (they are stage peaks
+        // where the peak was reset between stages).
+        let mem = |part: Part| {
+            rows.iter()
+                .filter(|r| r.scene == *name && r.kind == "mem" && r.part() == part)
+                .filter_map(|r| r.mem_mb)
+                .reduce(f64::max)
                 .map(|v| format!("{v:.0}"))
                 .unwrap_or_else(|| "-".into())
         };
@@ -226,11 +268,12 @@ pub fn summary(rows: &[Row]) -> String {
             f3(time_of(rows, name, "setup_factor")),
             f3(time_of(rows, name, "condense_trailing")),
             solves.unwrap_or_else(|| "-".into()),
-            mem("ours"),
-            mem("clarabel"),
+            mem(Part::Dense),
+            mem(Part::Clarabel),
             loads.join(" "),
         );
     }
+    free_table(&mut s, rows, &sc, &frs);
     // Time to 1e-10.
     for fr in &frs {
         let _ = writeln!(
@@ -243,7 +286,9 @@ pub fn summary(rows: &[Row]) -> String {
             let _ = write!(head, " {m} |");
             sep.push_str("---|");
         }
-        head.push_str(" best | total / factor | warm step (best) | warm / factor |");
+        head.push_str(
+            " fastest solve | best total / factor (method) | warm step (best) | warm / factor |",
+        );
         sep.push_str("---|---|---|---|");
         let _ = writeln!(s, "{head}\n{sep}");
         for name in &sc {
@@ -263,14 +308,14 @@ pub fn summary(rows: &[Row]) -> String {
                 let _ = write!(line, " {cell} |");
             }
             let best = best_method(rows, name, fr, 1e-10).map(|(m, _)| m);
-            let total = best_total(rows, name, fr, 1e-10);
+            let total = best_total_method(rows, name, fr, 1e-10);
             let warm = best_warm(rows, name, fr);
             let _ = write!(
                 line,
                 " {} | {} | {} | {} |",
                 best.unwrap_or_else(|| "-".into()),
                 total
-                    .map(|t| format!("{:.2}", t / tf))
+                    .map(|(m, t, _)| format!("{:.2} ({m})", t / tf))
                     .unwrap_or_else(|| "-".into()),
                 warm.as_ref()
                     .map(|(m, t)| format!("{} ({m})", f3(Some(*t))))
@@ -338,11 +383,9 @@ pub fn summary(rows: &[Row]) -> String {
             .filter(|r| r.scene == *name && r.kind == "clarabel")
         {
             let e = r.err.unwrap_or(f64::INFINITY);
-            let ours = best_method(rows, name, "tresca", e);
-            let setup = time_of(rows, name, "setup");
-            let (om, ot, oe) = match (&ours, setup) {
-                (Some((m, o)), Some(su)) => (m.clone(), Some(su + o.time_s.unwrap()), o.err),
-                _ => ("-".into(), None, None),
+            let (om, ot, oe) = match best_total_method(rows, name, "tresca", e) {
+                Some((m, t, o)) => (m, Some(t), o.err),
+                None => ("-".into(), None, None),
             };
             let _ = writeln!(
                 s,
@@ -385,6 +428,14 @@ pub fn summary(rows: &[Row]) -> String {
         (
             "condensation (trailing block)".into(),
             Box::new(|sn: &str| time_of(rows, sn, "condense_trailing")),
+        ),
+        (
+            "setup, matrix-free (factor contacts last + matrix-free build)".into(),
+            Box::new(|sn: &str| time_of(rows, sn, "setup_free")),
+        ),
+        (
+            "matrix-free build (L_CC, diagonal of A)".into(),
+            Box::new(|sn: &str| time_of(rows, sn, "condense_free")),
         ),
         (
             "condensation by solves (measured or extrapolated)".into(),
@@ -440,4 +491,81 @@ pub fn summary(rows: &[Row]) -> String {
         );
     }
     s
+}
+
+/// Dense against matrix-free: setup, peak memory, MPRGP to 1e-10.
+fn free_table(s: &mut String, rows: &[Row], sc: &[String], frs: &[String]) {
+    let has_free = sc.iter().any(|n| time_of(rows, n, "setup_free").is_some());
+    if !has_free {
+        return;
+    }
+    let _ = writeln!(
+        s,
+        "\n## Dense against matrix-free condensed dual\n\n\
+         `setup` builds the dense A (for c > 8,000 `from_csc` gives the matrix-free form and \
+         the dense assembly follows: both counted); `setup (m-free)` builds the matrix-free \
+         form only. Peak MB: resident peak during the setup (reset before it: \
+         /proc/self/clear_refs), the scene (K, N, T, f) still resident, and in brackets \
+         its rise over the resident memory at the start of the setup (the dense child \
+         holds freed heap from the factorisation of K alone there); the matrix-free \
+         setup forms nothing c x c. MPRGP to err <= 1e-10 on the dense A \
+         (`mprgp`) and matrix-free (`mprgp-free`), solve only (outer iterations), then \
+         the totals with each form's setup.\n"
+    );
+    let mut head = "| scene | c | setup | of which dense condensation | setup (m-free) | of which m-free build | peak MB setup (dense) | peak MB setup (m-free) |".to_string();
+    let mut sep = "|---|---|---|---|---|---|---|---|".to_string();
+    for fr in frs {
+        let _ = write!(
+            head,
+            " {fr}: mprgp | {fr}: mprgp-free | {fr}: total dense / m-free |"
+        );
+        sep.push_str("---|---|---|");
+    }
+    let _ = writeln!(s, "{head}\n{sep}");
+    // Peak of the setup stage, and its rise over the resident memory at its start.
+    let mem = |name: &str, stage: &str| {
+        let get = |st: &str| find(rows, name, "mem", Some(st)).and_then(|r| r.mem_mb);
+        match (get(stage), get(&format!("{stage}-start"))) {
+            (Some(p), Some(s0)) => format!("{p:.0} (+{:.0})", p - s0),
+            (Some(p), None) => format!("{p:.0}"),
+            _ => "-".into(),
+        }
+    };
+    for name in sc {
+        let Some(r) = find(rows, name, "factor", None) else {
+            continue;
+        };
+        if time_of(rows, name, "setup_free").is_none() {
+            continue;
+        }
+        let mut line = format!(
+            "| {name} | {} | {} | {} | {} | {} | {} | {} |",
+            r.c,
+            f3(time_of(rows, name, "setup")),
+            f3(time_of(rows, name, "condense_trailing")),
+            f3(time_of(rows, name, "setup_free")),
+            f3(time_of(rows, name, "condense_free")),
+            mem(name, "setup"),
+            mem(name, "free-setup"),
+        );
+        for fr in frs {
+            let cell = |m: &str| match best_to(rows, name, fr, m, 1e-10) {
+                Some(r) => format!("{} ({})", f3(r.time_s), r.outer.unwrap_or(0)),
+                None => "not reached".into(),
+            };
+            let tot = |m: &str| {
+                let r = best_to(rows, name, fr, m, 1e-10)?;
+                Some(setup_of(rows, name, m)? + r.time_s?)
+            };
+            let _ = write!(
+                line,
+                " {} | {} | {} / {} |",
+                cell("mprgp"),
+                cell("mprgp-free"),
+                f3(tot("mprgp")),
+                f3(tot("mprgp-free"))
+            );
+        }
+        let _ = writeln!(s, "{line}");
+    }
 }

@@ -11,11 +11,20 @@ err,eq_res,outer,inner,status,open,stick,slip,mem_mb,note";
 /// `kind` is one of: `assembly`, `factor` (sparse Cholesky of K alone, plain AMD,
 /// symbolic + numeric wall time), `factor_numeric` (its numeric part),
 /// `solve1` (one forward and back solve with that factor), `setup`
-/// (`ContactProblem::from_csc` wall time: factor with the contact DOFs last +
-/// condensation), `setup_factor` (its numeric factorisation), `condense_trailing`,
-/// `condense_solves` (status `measured` or `extrapolated`), `solve` (one method at
-/// one tolerance), `step_cold` / `step_warm` (history mode), `clarabel`, `mem`
-/// (peak resident memory of a stage, in `mem_mb`; `method` names the stage).
+/// (`ContactProblem::from_csc` wall time: factor with the contact DOFs last + dense
+/// condensation; where Auto made it matrix-free, from_csc + the dense assembly, and
+/// `setup_auto` is from_csc alone), `setup_factor` (its numeric factorisation),
+/// `condense_trailing` (the dense condensation from the trailing block),
+/// `condense_solves` (status `measured` or `extrapolated`), `setup_free` (the setup
+/// in matrix-free form), `condense_free` (its matrix-free build: L_CC, B_C^T and
+/// A's diagonal), `setup_free_factor` (its numeric factorisation), `solve` (one
+/// method at one tolerance; `mprgp-free` = MPRGP matrix-free), `step_cold` /
+/// `step_warm` (history mode), `clarabel`, `mem` (peak resident memory of a stage
+/// of a child, in `mem_mb`; `method` names the stage: `assembly`, `factor`,
+/// `setup`, `ours` in the dense child, `free-assembly`, `free-setup`, `free` in the
+/// matrix-free child, `clarabel`; the peak is reset before `setup`, `ours` and
+/// `free-setup`, and `setup-start` / `free-setup-start` hold the resident memory
+/// at the reset before the setup: the floor of the reading that follows).
 #[derive(Clone, Debug, Default)]
 pub struct Row {
     pub scene: String,
@@ -120,6 +129,47 @@ impl Row {
     }
 }
 
+/// The child process (part of a scene's measurement) that writes a row.
+#[derive(Copy, Clone, Debug, PartialEq, Eq)]
+pub enum Part {
+    /// `ours`: the factorisation of K, the dense setup, the methods on the dense A.
+    Dense,
+    /// `ours-free`: the matrix-free setup and MPRGP matrix-free.
+    Free,
+    /// `clarabel`.
+    Clarabel,
+}
+
+impl Part {
+    /// The name of the child (`--child NAME`, `--only NAME`).
+    pub fn name(self) -> &'static str {
+        match self {
+            Part::Dense => "ours",
+            Part::Free => "ours-free",
+            Part::Clarabel => "clarabel",
+        }
+    }
+}
+
+/// Kinds written by the matrix-free child only.
+pub const FREE_KINDS: [&str; 3] = ["setup_free", "condense_free", "setup_free_factor"];
+
+impl Row {
+    /// The part that wrote this row.
+    pub fn part(&self) -> Part {
+        if self.kind == "clarabel" || (self.kind == "mem" && self.method == "clarabel") {
+            Part::Clarabel
+        } else if FREE_KINDS.contains(&self.kind.as_str())
+            || self.method.ends_with("-free")
+            || (self.kind == "mem" && self.method.starts_with("free"))
+        {
+            Part::Free
+        } else {
+            Part::Dense
+        }
+    }
+}
+
 /// Peak resident memory of this process so far (VmHWM), in MB; None where
 /// /proc is not available.
 pub fn peak_mb() -> Option<f64> {
@@ -127,6 +177,21 @@ pub fn peak_mb() -> Option<f64> {
     let line = s.lines().find(|l| l.starts_with("VmHWM:"))?;
     let kb: f64 = line.split_whitespace().nth(1)?.parse().ok()?;
     Some(kb / 1024.0)
+}
+
+/// Resident memory of this process now (VmRSS), in MB.
+pub fn rss_mb() -> Option<f64> {
+    let s = std::fs::read_to_string("/proc/self/status").ok()?;
+    let line = s.lines().find(|l| l.starts_with("VmRSS:"))?;
+    let kb: f64 = line.split_whitespace().nth(1)?.parse().ok()?;
+    Some(kb / 1024.0)
+}
+
+/// Resets the peak resident memory of this process (VmHWM) to the current resident
+/// size (Linux: `5` into /proc/self/clear_refs), so that the next [`peak_mb`]
+/// reads the peak of what runs in between. Returns false where that is refused.
+pub fn reset_peak() -> bool {
+    std::fs::write("/proc/self/clear_refs", "5").is_ok()
 }
 
 /// The 1-minute load average of the machine (other processes compete for the
