@@ -348,8 +348,8 @@ typedef struct DsMatrix {
 
 /*
  What a solve reports besides u and the multipliers. Written by ds_solve / ds_step
- on DS_STATUS_OK and on DS_STATUS_NOT_CONVERGED (then it describes the last
- iterate, which is not returned).
+ on DS_STATUS_OK and on DS_STATUS_NOT_CONVERGED (then it describes the iterate
+ the method ended with, its lowest-err one, which is not returned).
  */
 typedef struct DsReport {
   /*
@@ -361,8 +361,12 @@ typedef struct DsReport {
    */
   int32_t method;
   /*
-   Relative KKT error |r| / max(|lambda|, |rho . b|) of the natural map with
-   rho_i = 1/A_ii (dimensionless, invariant under scaling K and f).
+   Relative KKT error |r| / max(|lambda|, |b+| / trace(A)) of the natural map
+   with rho_i = d / trace(A_ii) (dimensionless, invariant under scaling K and f;
+   b+ = b with the negative parts of b_N cut). Infinite when no u satisfies
+   N u <= g (a penetrating contact without rows in N and T, or an unbounded
+   dual found by the MPRGP methods); the status is then
+   DS_STATUS_NOT_CONVERGED.
    */
   double err;
   /*

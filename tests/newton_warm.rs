@@ -120,15 +120,13 @@ fn newton_warm_step_2d_coulomb_no_more_iterations_than_cold() {
     let sc = block(400, 50);
     let mu = vec![0.3; sc.m()];
     let (_, warm, cold) = warm_against_cold(&sc, Friction::Coulomb(&mu), 1.05, "2d-400x50 Coulomb");
+    // Before the fixes: 14 and 14 (the first step: 7). With the Gauss-Seidel
+    // warm-up before Newton's first step (newton.rs, PRESWEEPS) both take 1.
     assert!(
         warm <= cold,
         "warm step: {warm} Newton iterations, cold start on the same increment: {cold}"
     );
-    // The warm start must pay off (before the fix: 14 and 14).
-    assert!(
-        warm < cold,
-        "warm step: {warm} Newton iterations, no fewer than the cold start ({cold})"
-    );
+    assert!(warm <= 2, "warm step: {warm} Newton iterations");
 }
 
 #[test]
@@ -146,7 +144,7 @@ fn newton_warm_step_2d_tresca_no_more_iterations_than_cold() {
 /// The benchmark's larger scene (before the fix: 11 Newton iterations for the
 /// first step, 23 for the warm one). Slow outside release builds.
 #[test]
-#[ignore = "slow: 2d-2000x250 (500,000 DOFs); run with --release -- --ignored"]
+#[ignore = "slow: 2d-2000x250 (1,000,500 DOFs); run with --release -- --ignored"]
 fn newton_warm_step_2d_coulomb_large() {
     let sc = block(2000, 250);
     let mu = vec![0.3; sc.m()];
