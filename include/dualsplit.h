@@ -175,8 +175,9 @@ typedef enum DsMethod {
    */
   DS_METHOD_PGS = 2,
   /*
-   Semismooth Newton (primal-dual active set) on the condensed dual, globalised
-   by a fallback to Gauss-Seidel sweeps: the high-accuracy method.
+   Semismooth Newton (primal-dual active set) on the condensed dual, started by
+   up to 40 Gauss-Seidel sweeps and globalised by backtracking and a fallback
+   to Gauss-Seidel sweeps: the high-accuracy method.
    */
   DS_METHOD_NEWTON = 3,
   /*

@@ -13,9 +13,11 @@ pub enum Method {
     /// Projected Gauss-Seidel on the whole dual, contact by contact (Siconos NSGS).
     Pgs,
     /// Semismooth Newton (primal-dual active set) on the condensed dual with the
-    /// generalised Jacobian of the friction projections, globalised by a fallback
-    /// to Gauss-Seidel sweeps when a step does not lower err. One outer iteration is
-    /// one Newton step (a dense LU on the free unknowns).
+    /// generalised Jacobian of the friction projections. Up to 40 Gauss-Seidel
+    /// sweeps first (counted as inner iterations); a step (or half, a quarter, an
+    /// eighth of it) is kept when it lowers the natural residual |F|, otherwise
+    /// Gauss-Seidel sweeps follow. One outer iteration is one Newton step (a dense
+    /// LU on the free unknowns).
     Newton,
     /// Pop's splitting (Schur variant) with MPRGP / MPGP for the sub-problems instead
     /// of projected Gauss-Seidel.

@@ -59,8 +59,9 @@ pub enum DsMethod {
     BlockGs = 1,
     /// Projected Gauss-Seidel on the whole dual, contact by contact (Siconos NSGS).
     Pgs = 2,
-    /// Semismooth Newton (primal-dual active set) on the condensed dual, globalised
-    /// by a fallback to Gauss-Seidel sweeps: the high-accuracy method.
+    /// Semismooth Newton (primal-dual active set) on the condensed dual, started by
+    /// up to 40 Gauss-Seidel sweeps and globalised by backtracking and a fallback
+    /// to Gauss-Seidel sweeps: the high-accuracy method.
     Newton = 3,
     /// Pop's splitting (Schur variant) with MPRGP / MPGP (Dostal) for the normal and
     /// tangential sub-problems.
