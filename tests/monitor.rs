@@ -63,9 +63,11 @@ fn callback_sees_err_fall_to_the_reported_err() {
             seen.windows(2)
                 .all(|w| w[1].elapsed_seconds >= w[0].elapsed_seconds)
         );
+        // Newton after its Gauss-Seidel warm-up may need a single step, and then
+        // the monitor sees one err only.
         let (first, last) = (seen[0].err, seen.last().unwrap().err);
         assert!(
-            last < first,
+            seen.len() == 1 || last < first,
             "{method:?}: err did not fall ({first:e} -> {last:e})"
         );
         assert!(last <= 1e-10, "{method:?}: last monitored err {last:e}");
