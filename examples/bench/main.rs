@@ -739,21 +739,16 @@ fn method_series(
             r.err, r.outer_iterations, r.inner_iterations, r.status
         );
         let converged = r.status == SolveStatus::Converged;
-        rows.push(Row {
-            reps: Some(times.len()),
-            time_s: Some(t),
-            time_min_s: times.iter().copied().reduce(f64::min),
-            err: Some(r.err),
-            eq_res: Some(r.equilibrium_residual),
-            outer: Some(r.outer_iterations),
-            inner: Some(r.inner_iterations),
-            status: format!("{:?}", r.status),
-            open: Some(r.n_open),
-            stick: Some(r.n_stick),
-            slip: Some(r.n_slip),
-            note: format!("max_outer={max_outer}"),
-            ..r0
-        });
+        rows.push(
+            Row {
+                reps: Some(times.len()),
+                time_s: Some(t),
+                time_min_s: times.iter().copied().reduce(f64::min),
+                note: format!("max_outer={max_outer}"),
+                ..r0
+            }
+            .with_report(r),
+        );
         if converged && tol <= 1e-10 {
             reached = true;
         }
@@ -795,23 +790,18 @@ fn method_series(
         ("step_warm", &s2, median(&walls), walls.len()),
     ] {
         let r = &s.report;
-        rows.push(Row {
-            friction: fr_name.into(),
-            kind: kind.into(),
-            method: label.into(),
-            tol: Some(1e-10),
-            reps: Some(reps),
-            time_s: Some(t),
-            err: Some(r.err),
-            eq_res: Some(r.equilibrium_residual),
-            outer: Some(r.outer_iterations),
-            inner: Some(r.inner_iterations),
-            status: format!("{:?}", r.status),
-            open: Some(r.n_open),
-            stick: Some(r.n_stick),
-            slip: Some(r.n_slip),
-            ..base.clone()
-        });
+        rows.push(
+            Row {
+                friction: fr_name.into(),
+                kind: kind.into(),
+                method: label.into(),
+                tol: Some(1e-10),
+                reps: Some(reps),
+                time_s: Some(t),
+                ..base.clone()
+            }
+            .with_report(r),
+        );
     }
     eprintln!(
         "  {fr_name:7} {label:11} history: cold {t1:.3} s ({} outer), warm {:.3} s ({} outer, err {:.1e})",

@@ -64,6 +64,22 @@ fn clean(s: &str) -> String {
 }
 
 impl Row {
+    /// This row with the outcome of a solve: err, equilibrium residual,
+    /// iterations, status and contact states.
+    pub fn with_report(self, r: &dualsplit::Report) -> Row {
+        Row {
+            err: Some(r.err),
+            eq_res: Some(r.equilibrium_residual),
+            outer: Some(r.outer_iterations),
+            inner: Some(r.inner_iterations),
+            status: format!("{:?}", r.status),
+            open: Some(r.n_open),
+            stick: Some(r.n_stick),
+            slip: Some(r.n_slip),
+            ..self
+        }
+    }
+
     pub fn to_csv(&self) -> String {
         let mut s = String::new();
         let _ = write!(

@@ -289,10 +289,7 @@ fn whole_mprgp(problem: &DualProblem<'_>, lam: &mut [f64], opts: &Options, targe
         }
         problem.law.bounds(&lam[..m], &mut radii);
         if coulomb {
-            if out.outer > 0 {
-                relax.relax(&prev, &mut radii);
-            }
-            prev.copy_from_slice(&radii);
+            relax.relax_bound(&mut prev, &mut radii, out.outer == 0);
         }
         let qp = mprgp::ConvexQp {
             h: &dual.a,

@@ -264,6 +264,16 @@ impl Aitken {
         self.have_old = true;
         self.omega
     }
+
+    /// The Coulomb bound of an outer loop: relaxes the new bound `p` (mu lambda_N)
+    /// against `prev`, the bound the last step used (not on the first step), and
+    /// keeps the result in `prev` for the next one.
+    pub fn relax_bound(&mut self, prev: &mut [f64], p: &mut [f64], first: bool) {
+        if !first {
+            self.relax(prev, p);
+        }
+        prev.copy_from_slice(p);
+    }
 }
 
 /// The iterate with the lowest error seen so far: what a method returns when it

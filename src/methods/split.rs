@@ -197,10 +197,7 @@ pub(super) fn solve(
         problem.law.bounds(&lam[..m], &mut p);
         if coulomb {
             if use_schur {
-                if out.outer > 0 {
-                    relax.relax(&prev, &mut p);
-                }
-                prev.copy_from_slice(&p);
+                relax.relax_bound(&mut prev, &mut p, out.outer == 0);
             } else {
                 prev.copy_from_slice(lam);
             }
