@@ -123,6 +123,25 @@ impl Factor {
         worst
     }
 
+    /// The size of the factor: (nonzeros of L, dense supernodal blocks included;
+    /// flops of the numeric factorisation, sum over columns of (rows below + 1)^2).
+    pub fn nnz_and_flops(&self) -> (usize, f64) {
+        let SymbolicCholeskyRaw::Supernodal(sym) = self.symbolic.raw() else {
+            unreachable!("the factorisation is always supernodal");
+        };
+        let mut flops = 0.0;
+        for s in 0..sym.n_supernodes() {
+            let node = sym.supernode(s);
+            let width = sym.supernode_end()[s] - sym.supernode_begin()[s];
+            let below = node.pattern().len();
+            for jl in 0..width {
+                let r = (width - jl + below) as f64;
+                flops += r * r;
+            }
+        }
+        (sym.len_val(), flops)
+    }
+
     /// The DOFs ordered last (empty when the ordering is plain AMD).
     pub fn last(&self) -> &[usize] {
         &self.last
