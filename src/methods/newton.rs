@@ -240,41 +240,42 @@ fn newton_step(
     cscale: f64,
 ) -> bool {
     let dual = problem.dual;
-    let c = dual.c;
     let red = linearise(problem, lam, w, step, f, cscale);
     let k = red.len();
     if k == 0 {
         return true;
     }
     dual.apply(step, ae0);
-    // AV: column l = A * dir_l.
-    let mut av = Mat::<f64>::zeros(c, k);
+    // M = T^T A V + diag, column by column: column l is the sum over the entries of
+    // dir_l of coef times T^T A[:, j], gathered from one column of A.
+    let mut mat = Mat::<f64>::zeros(k, k);
+    let mut rhs = Mat::<f64>::zeros(k, 1);
     for (l, u) in red.iter().enumerate() {
-        let col = av
+        let col = mat
             .col_mut(l)
             .try_as_col_major_mut()
             .expect("contiguous")
             .as_slice_mut();
-        for &(j, coef) in &u.dir[..u.n_dir] {
-            for (x, a) in col.iter_mut().zip(dual.col(j)) {
-                *x += coef * a;
+        for &(jd, cd) in &u.dir[..u.n_dir] {
+            let a = dual.col(jd);
+            for (x, ur) in col.iter_mut().zip(&red) {
+                let t = &ur.test[..ur.n_test];
+                *x += cd * t.iter().map(|&(jt, ct)| ct * a[jt]).sum::<f64>();
             }
         }
-    }
-    let mut mat = Mat::<f64>::zeros(k, k);
-    let mut rhs = Mat::<f64>::zeros(k, 1);
-    for (r, u) in red.iter().enumerate() {
+        col[l] += u.diag;
         let mut g = u.rhs;
         for &(j, coef) in &u.test[..u.n_test] {
             g -= coef * ae0[j];
-            for l in 0..k {
-                mat[(r, l)] += coef * av[(j, l)];
-            }
         }
-        mat[(r, r)] += u.diag;
-        rhs[(r, 0)] = g;
+        rhs[(l, 0)] = g;
     }
-    let Some(z) = solve_reduced(&mat, &rhs) else {
+    // Test and direction vectors equal (every unknown but a Coulomb normal that
+    // drags its slip force): M is symmetric, positive definite unless A is singular.
+    let symmetric = red
+        .iter()
+        .all(|u| u.n_test == u.n_dir && u.test[..u.n_test] == u.dir[..u.n_dir]);
+    let Some(z) = solve_reduced(&mat, &rhs, symmetric) else {
         return false;
     };
     for (l, u) in red.iter().enumerate() {
@@ -285,11 +286,13 @@ fn newton_step(
     true
 }
 
-/// Solves the reduced system M z = rhs: by a partially pivoted LU, unless M is
-/// numerically singular (the LU's solution is not finite or much larger than M and
-/// rhs warrant), then by the minimum-norm least-squares solution with singular
-/// values below RCOND sigma_max dropped. None when no finite solution is found.
-fn solve_reduced(mat: &Mat<f64>, rhs: &Mat<f64>) -> Option<Mat<f64>> {
+/// Solves the reduced system M z = rhs: by Cholesky when M is `symmetric` (half the
+/// flops of LU: on 2d-2000x250 Tresca, k ~ 4,000, a Newton step took 0.6-1.0 s with
+/// LU), else or when that fails by a partially pivoted LU, unless M is numerically
+/// singular (the solution is not finite or much larger than M and rhs warrant),
+/// then by the minimum-norm least-squares solution with singular values below
+/// RCOND sigma_max dropped. None when no finite solution is found.
+fn solve_reduced(mat: &Mat<f64>, rhs: &Mat<f64>, symmetric: bool) -> Option<Mat<f64>> {
     let max_abs = |a: faer::MatRef<'_, f64>| {
         let mut v = 0.0f64;
         for j in 0..a.ncols() {
@@ -299,13 +302,17 @@ fn solve_reduced(mat: &Mat<f64>, rhs: &Mat<f64>) -> Option<Mat<f64>> {
         }
         v
     };
+    let (mn, rn) = (max_abs(mat.as_ref()), max_abs(rhs.as_ref()));
+    let acceptable =
+        |z: &Mat<f64>| z.as_ref().is_all_finite() && mn * max_abs(z.as_ref()) * RCOND <= rn;
+    if symmetric && let Ok(llt) = mat.llt(faer::Side::Lower) {
+        let z = llt.solve(rhs);
+        if acceptable(&z) {
+            return Some(z);
+        }
+    }
     let z = mat.partial_piv_lu().solve(rhs);
-    let (mn, zn, rn) = (
-        max_abs(mat.as_ref()),
-        max_abs(z.as_ref()),
-        max_abs(rhs.as_ref()),
-    );
-    if z.as_ref().is_all_finite() && mn * zn * RCOND <= rn {
+    if acceptable(&z) {
         return Some(z);
     }
     let svd = mat.thin_svd().ok()?;
@@ -427,5 +434,33 @@ pub(super) fn solve(
         out.inner += pgs::sweeps(problem, lam, &mut w, FALLBACK_SWEEPS);
         problem.gradient(lam, &mut w);
         res = residual_norm(problem, lam, &w);
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn mat(rows: &[&[f64]]) -> Mat<f64> {
+        Mat::from_fn(rows.len(), rows[0].len(), |i, j| rows[i][j])
+    }
+
+    #[test]
+    fn the_reduced_solve_takes_cholesky_lu_or_least_squares_as_the_matrix_allows() {
+        let rhs = mat(&[&[1.0], &[2.0]]);
+        // SPD: Cholesky; z solves M z = rhs.
+        let spd = mat(&[&[4.0, 1.0], &[1.0, 3.0]]);
+        let z = solve_reduced(&spd, &rhs, true).unwrap();
+        assert!((4.0 * z[(0, 0)] + z[(1, 0)] - 1.0).abs() < 1e-15);
+        assert!((z[(0, 0)] + 3.0 * z[(1, 0)] - 2.0).abs() < 1e-15);
+        // Symmetric but indefinite: Cholesky fails, LU solves it: z = (2, 1).
+        let indef = mat(&[&[0.0, 1.0], &[1.0, 0.0]]);
+        let z = solve_reduced(&indef, &rhs, true).unwrap();
+        assert!((z[(0, 0)] - 2.0).abs() < 1e-15 && (z[(1, 0)] - 1.0).abs() < 1e-15);
+        // Singular: the minimum-norm least-squares solution of [1 1; 1 1] z = (1, 2)
+        // is z = (0.75, 0.75).
+        let sing = mat(&[&[1.0, 1.0], &[1.0, 1.0]]);
+        let z = solve_reduced(&sing, &rhs, true).unwrap();
+        assert!((z[(0, 0)] - 0.75).abs() < 1e-12 && (z[(1, 0)] - 0.75).abs() < 1e-12);
     }
 }
