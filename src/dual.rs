@@ -444,8 +444,14 @@ fn a_from_trailing_block(factor: &Factor, b: &Csc, a: &mut [f64]) {
     let l = factor.trailing_block();
     let mut x = Mat::<f64>::zeros(nc, nc);
     {
-        let mut mem = MemBuffer::new(llt_inverse::inverse_scratch::<f64>(nc, Par::Seq));
-        llt_inverse::inverse(x.as_mut(), l.as_ref(), Par::Seq, MemStack::new(&mut mem));
+        // faer's global parallelism (rayon, all cores unless the caller set
+        // RAYON_NUM_THREADS or faer::set_global_parallelism): the inverse is dense
+        // c^3/3 work; on 2 cores at c = 4,002 it took 0.92 s against 1.3-1.5 s
+        // sequential. (The sparse factorisation stays sequential: two threads did not
+        // measurably help it.)
+        let par = faer::get_global_parallelism();
+        let mut mem = MemBuffer::new(llt_inverse::inverse_scratch::<f64>(nc, par));
+        llt_inverse::inverse(x.as_mut(), l.as_ref(), par, MemStack::new(&mut mem));
     }
     drop(l);
     // Only the lower triangle of X = S_CC^-1 is written: mirror it, by tiles so

@@ -172,16 +172,21 @@ impl Factor {
                 continue;
             }
             let pattern = node.pattern();
-            for jl in 0..width {
+            for jl in first.saturating_sub(start)..width {
                 let j = start + jl;
-                if j < first {
-                    continue;
-                }
-                for il in jl..width {
-                    l[(start + il - first, j - first)] = val[(il, jl)];
-                }
-                for (q, &row) in pattern.iter().enumerate() {
-                    l[(row - first, j - first)] = val[(width + q, jl)];
+                let src = val
+                    .col(jl)
+                    .try_as_col_major()
+                    .expect("contiguous")
+                    .as_slice();
+                let dst = l
+                    .col_mut(j - first)
+                    .try_as_col_major_mut()
+                    .expect("contiguous")
+                    .as_slice_mut();
+                dst[j - first..start + width - first].copy_from_slice(&src[jl..width]);
+                for (&row, &v) in pattern.iter().zip(&src[width..]) {
+                    dst[row - first] = v;
                 }
             }
         }
