@@ -407,6 +407,14 @@ mod tests {
         Csc::from_triplets(nx * ny, nx * ny, &t)
     }
 
+    /// |x - reference| <= rel max|reference|, entry by entry.
+    fn assert_close(x: &[f64], reference: &[f64], rel: f64) {
+        let scale = reference.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+        for (i, (a, b)) in x.iter().zip(reference).enumerate() {
+            assert!((a - b).abs() <= rel * scale, "{i}: {a} vs {b}");
+        }
+    }
+
     #[test]
     fn the_halves_of_a_solve_make_the_full_solve() {
         let k = spd();
@@ -425,29 +433,13 @@ mod tests {
         let (mut y1, mut y2) = (vec![f64::NAN; n], vec![f64::NAN; n]);
         f.forward(&x, &mut y1);
         f.forward_from_last(&x_last, &mut y2);
-        let ys = y1.iter().fold(0.0f64, |m, v| m.max(v.abs()));
-        for i in 0..n {
-            assert!(
-                (y1[i] - y2[i]).abs() <= 1e-15 * ys,
-                "{i}: {} vs {}",
-                y1[i],
-                y2[i]
-            );
-        }
+        assert_close(&y2, &y1, 1e-15);
         // backward(forward(x)) = solve_vec(x), and K of it is x (independent check).
         let mut full = x.clone();
         f.solve_vec(&mut full);
         let mut z = vec![f64::NAN; n];
         f.backward(&mut y2, &mut z);
-        let scale = full.iter().fold(0.0f64, |m, v| m.max(v.abs()));
-        for i in 0..n {
-            assert!(
-                (z[i] - full[i]).abs() <= 1e-14 * scale,
-                "{i}: {} vs {}",
-                z[i],
-                full[i]
-            );
-        }
+        assert_close(&z, &full, 1e-14);
         let mut kz = vec![0.0; n];
         k.mul_vec(&z, &mut kz);
         assert!((0..n).all(|i| (kz[i] - x[i]).abs() <= 1e-13));
