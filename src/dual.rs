@@ -447,8 +447,8 @@ fn a_from_trailing_block(factor: &Factor, b: &Csc, a: &mut [f64]) {
         // faer's global parallelism (rayon, all cores unless the caller set
         // RAYON_NUM_THREADS or faer::set_global_parallelism): the inverse is dense
         // c^3/3 work; on 2 cores at c = 4,002 it took 0.92 s against 1.3-1.5 s
-        // sequential. (The sparse factorisation stays sequential: two threads did not
-        // measurably help it.)
+        // sequential. (The sparse factorisation decides for itself, see
+        // factor::PARALLEL_FLOPS_PER_ENTRY.)
         let par = faer::get_global_parallelism();
         let mut mem = MemBuffer::new(llt_inverse::inverse_scratch::<f64>(nc, par));
         llt_inverse::inverse(x.as_mut(), l.as_ref(), par, MemStack::new(&mut mem));
