@@ -20,7 +20,7 @@
 //! the DOF graph with a band of 1,024: 1.57e8, 1.45e11, 5.1 s; on the compressed
 //! graph with a clique: 1.49e8, 1.18e11, 0.75 s (a geometric nested dissection of
 //! the grid with the contact face last: 1.41e8, 0.89e11; without anything fixed,
-//! AMD: 1.09e8, 0.31e11, 0.72 s, was 1.15 s on the DOF graph). 3D block, 4.3e5
+//! AMD: 1.09e8, 0.31e11, 0.72 s, was 1.15 s on the DOF graph). 3D block, 4.3e4
 //! DOFs, 2,883 fixed: 1.73e11 -> 1.71e11 flops, 0.55 -> 0.11 s. A BFS nested
 //! dissection was worse.
 
@@ -57,6 +57,8 @@ fn closed_pattern(k: &Csc, j: usize) -> impl Iterator<Item = usize> + '_ {
         .chain(rows[at..].iter().copied())
 }
 
+/// The groups of DOFs of `k` (see [`Groups`]), `fixed` flagging the DOFs ordered
+/// last. None when an allocation fails.
 fn compress(k: &Csc, fixed: &[bool]) -> Option<Groups> {
     let n = k.nrows;
     // A DOF whose column equals the one before it (the usual numbering of the d
