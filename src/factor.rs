@@ -8,7 +8,7 @@ use faer::dyn_stack::{MemBuffer, MemStack, StackReq};
 use faer::linalg::cholesky::llt::factor::LltRegularization;
 use faer::perm::PermRef;
 use faer::sparse::linalg::SupernodalThreshold;
-use faer::sparse::linalg::cholesky::supernodal::SupernodalLltRef;
+use faer::sparse::linalg::cholesky::supernodal::{SupernodalLltRef, SymbolicSupernodalCholesky};
 use faer::sparse::linalg::cholesky::{
     CholeskySymbolicParams, LltRef, SymbolicCholesky, SymbolicCholeskyRaw, SymmetricOrdering,
     factorize_symbolic_cholesky,
@@ -110,9 +110,7 @@ impl Factor {
     /// The smallest relative pivot L_jj^2 / K_jj of a numeric factor `values` (j in
     /// the factor's ordering), or None for n = 0.
     fn smallest_pivot(&self, values: &[f64], k: &Csc) -> Option<(usize, f64)> {
-        let SymbolicCholeskyRaw::Supernodal(sym) = self.symbolic.raw() else {
-            unreachable!("the factorisation is always supernodal");
-        };
+        let sym = self.supernodal_symbolic();
         let llt = SupernodalLltRef::<usize, f64>::new(sym, values);
         let diag_k = |old: usize| {
             (k.col_ptr[old]..k.col_ptr[old + 1])
@@ -142,9 +140,7 @@ impl Factor {
     /// The size of the factor: (nonzeros of L, dense supernodal blocks included;
     /// flops of the numeric factorisation, sum over columns of (rows below + 1)^2).
     pub fn nnz_and_flops(&self) -> (usize, f64) {
-        let SymbolicCholeskyRaw::Supernodal(sym) = self.symbolic.raw() else {
-            unreachable!("the factorisation is always supernodal");
-        };
+        let sym = self.supernodal_symbolic();
         let mut flops = 0.0;
         for s in 0..sym.n_supernodes() {
             let node = sym.supernode(s);
@@ -175,9 +171,7 @@ impl Factor {
         }
         let first = n - nc;
         let mut l = Mat::<f64>::zeros(nc, nc);
-        let SymbolicCholeskyRaw::Supernodal(sym) = self.symbolic.raw() else {
-            unreachable!("an ordering with trailing DOFs is always supernodal");
-        };
+        let sym = self.supernodal_symbolic();
         let llt = SupernodalLltRef::<usize, f64>::new(sym, &self.l_values);
         for s in 0..sym.n_supernodes() {
             let node = llt.supernode(s);
@@ -336,9 +330,7 @@ impl Factor {
         let first = n - self.last.len();
         y[..first].iter_mut().for_each(|v| *v = 0.0);
         y[first..].copy_from_slice(x_last);
-        let SymbolicCholeskyRaw::Supernodal(sym) = self.symbolic.raw() else {
-            unreachable!("the factorisation is always supernodal");
-        };
+        let sym = self.supernodal_symbolic();
         let llt = self.supernodal();
         // Column-oriented L y = rhs over the supernodes that end after `first`.
         let from = sym.supernode_end().partition_point(|&end| end <= first);
@@ -382,10 +374,16 @@ impl Factor {
     }
 
     fn supernodal(&self) -> SupernodalLltRef<'_, usize, f64> {
+        SupernodalLltRef::<usize, f64>::new(self.supernodal_symbolic(), &self.l_values)
+    }
+
+    /// The symbolic factor: always supernodal (`with_last` forces it), since the
+    /// pivots and the trailing block are read from the supernodes.
+    fn supernodal_symbolic(&self) -> &SymbolicSupernodalCholesky<usize> {
         let SymbolicCholeskyRaw::Supernodal(sym) = self.symbolic.raw() else {
             unreachable!("the factorisation is always supernodal");
         };
-        SupernodalLltRef::<usize, f64>::new(sym, &self.l_values)
+        sym
     }
 
     /// Solves K x = rhs for one vector, in place (allocates its workspace).
