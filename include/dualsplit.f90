@@ -40,8 +40,9 @@
 !>
 !> Every function returning a status returns one of the DS_STATUS_* values; on error
 !> the outputs are untouched (DS_STATUS_NOT_CONVERGED writes the report only,
-!> DS_STATUS_STOPPED the last iterate and the report) and the handle stays usable. Compile this file with the
-!> program (gfortran -c dualsplit.f90) and link with libdualsplit (see README.md).
+!> DS_STATUS_STOPPED the last iterate and the report, DS_STATUS_STALLED and
+!> DS_STATUS_TIME_LIMIT the iterate with the lowest err and the report) and the
+!> handle stays usable. Compile this file with the program (gfortran -c dualsplit.f90) and link with libdualsplit (see README.md).
 module dualsplit
    use, intrinsic :: iso_c_binding, only: c_int, c_int32_t, c_int64_t, c_double, &
       c_ptr, c_null_ptr, c_char, c_size_t, c_associated, c_f_pointer, c_loc, c_funptr, &
@@ -71,6 +72,8 @@ module dualsplit
    integer(c_int32_t), parameter, public :: DS_STATUS_IO_ERROR = 11
    integer(c_int32_t), parameter, public :: DS_STATUS_PANIC = 12
    integer(c_int32_t), parameter, public :: DS_STATUS_STOPPED = 13
+   integer(c_int32_t), parameter, public :: DS_STATUS_STALLED = 14
+   integer(c_int32_t), parameter, public :: DS_STATUS_TIME_LIMIT = 15
 
    !> DsFormat: layout of a DsMatrix (CSparse naming).
    integer(c_int32_t), parameter, public :: DS_FORMAT_CSR = 0
@@ -107,15 +110,23 @@ module dualsplit
    ! Structs: component order and types exactly as in dualsplit.h
    ! ---------------------------------------------------------------------------------
 
-   !> Options of ds_solve / ds_step. Fill with ds_options_default, then change fields.
+   !> Options of ds_solve / ds_step. Fill with ds_options_default (which passes
+   !> c_sizeof of this type to ds_options_init), then change fields.
    type, bind(C), public :: DsOptions
-      integer(c_int32_t) :: struct_size   !< uint32_t in C: sizeof(DsOptions), set by ds_options_default
+      integer(c_int32_t) :: struct_size   !< uint32_t in C: sizeof(DsOptions), set by ds_options_init
       integer(c_int32_t) :: method        !< a DS_METHOD_* value (default DS_METHOD_SPLIT)
       real(c_double)     :: tol           !< stop when err <= tol (default 1e-10)
       integer(c_int64_t) :: max_outer     !< outer iterations, >= 0 (default 10000)
       integer(c_int64_t) :: max_inner     !< Gauss-Seidel sweeps per sub-problem, >= 1 (default 1000)
       integer(c_int32_t) :: dual_form     !< a DS_DUAL_FORM_* value (default DS_DUAL_FORM_AUTO)
+      real(c_double)     :: max_seconds   !< wall-clock budget of a solve in seconds, 0 = none (default 0)
+      integer(c_int64_t) :: stall_window  !< stagnation test window in outer iterations, 0 = off (default 100)
+      real(c_double)     :: stall_factor  !< the best err must drop by this factor per window (default 0.9)
    end type DsOptions
+
+   !> sizeof(DsOptions) in C: what ds_options_init is told (tests/fortran.rs checks
+   !> it against c_sizeof of the type above).
+   integer(c_size_t), parameter :: DS_OPTIONS_SIZE = 64
 
    !> A sparse matrix borrowed from the caller (CSparse naming); see ds_matrix_csr.
    type, bind(C), public :: DsMatrix
@@ -195,7 +206,7 @@ module dualsplit
    ! Public Fortran procedures (thin wrappers of the C functions, same names)
    ! ---------------------------------------------------------------------------------
 
-   public :: ds_last_error_message, ds_status_string, ds_options_default
+   public :: ds_last_error_message, ds_status_string, ds_options_default, ds_options_init
    public :: ds_problem_new, ds_problem_free, ds_problem_refactor, ds_problem_set_contacts
    public :: ds_problem_sizes, ds_solve, ds_step, ds_history_reset
    public :: ds_problem_set_monitor, ds_problem_set_log, ds_problem_dump, ds_string_from_c
@@ -236,11 +247,19 @@ module dualsplit
          type(c_ptr) :: msg
       end function c_ds_last_error_message
 
-      ! void ds_options_default(struct DsOptions *opts);
+      ! void ds_options_default(struct DsOptions *opts);  (programs of older headers)
       subroutine c_ds_options_default(opts) bind(C, name="ds_options_default")
          import :: DsOptions
-         type(DsOptions), intent(out) :: opts
+         type(DsOptions), intent(inout) :: opts
       end subroutine c_ds_options_default
+
+      ! enum DsStatus ds_options_init(struct DsOptions *opts, size_t size);
+      function c_ds_options_init(opts, size) result(status) bind(C, name="ds_options_init")
+         import :: c_int, c_size_t, DsOptions
+         type(DsOptions), intent(inout) :: opts
+         integer(c_size_t), value :: size
+         integer(c_int) :: status
+      end function c_ds_options_init
 
       ! enum DsStatus ds_problem_new(int32_t d, const struct DsMatrix *k,
       !     const struct DsMatrix *n, const struct DsMatrix *t, struct DsProblem **out);
@@ -425,12 +444,23 @@ contains
    ! Options, handle
    ! ---------------------------------------------------------------------------------
 
-   !> Fills opts with the defaults: struct_size, DS_METHOD_SPLIT, tol 1e-10,
-   !> max_outer 10000, max_inner 1000.
+   !> Fills opts with the defaults: struct_size = the size of this module's
+   !> DsOptions, DS_METHOD_SPLIT, tol 1e-10, max_outer 10000, max_inner 1000,
+   !> DS_DUAL_FORM_AUTO, max_seconds 0, stall_window 100, stall_factor 0.9.
    subroutine ds_options_default(opts)
       type(DsOptions), intent(out) :: opts
-      call c_ds_options_default(opts)
+      integer :: status
+      status = ds_options_init(opts)
    end subroutine ds_options_default
+
+   !> status = ds_options_init(opts): as ds_options_default, with the status of the
+   !> C function (DS_STATUS_OK). The size passed is that of this module's DsOptions,
+   !> 64 bytes (the storage size of its components: c_sizeof is Fortran 2008).
+   function ds_options_init(opts) result(status)
+      type(DsOptions), intent(out) :: opts
+      integer :: status
+      status = int(c_ds_options_init(opts, DS_OPTIONS_SIZE))
+   end function ds_options_init
 
    !> Validates K, N, T, factors K and forms the condensed dual; problem receives the
    !> new handle on success (untouched on error). d is 2 or 3.

@@ -98,6 +98,21 @@ typedef enum DsStatus {
    to u, lambda_n, lambda_t and the report; the history does not advance.
    */
   DS_STATUS_STOPPED = 13,
+  /*
+   The method stopped making progress: its lowest err did not drop by the
+   factor DsOptions.stall_factor over DsOptions.stall_window outer iterations
+   (Newton also when its natural residual stops falling). ds_solve / ds_step
+   write the iterate with the lowest err to u, lambda_n, lambda_t and the
+   report; the history does not advance. A problem without a solution (no u
+   with N u <= g) ends this way under the Gauss-Seidel methods.
+   */
+  DS_STATUS_STALLED = 14,
+  /*
+   The wall-clock budget DsOptions.max_seconds ran out. ds_solve / ds_step write
+   the iterate with the lowest err to u, lambda_n, lambda_t and the report; the
+   history does not advance.
+   */
+  DS_STATUS_TIME_LIMIT = 15,
 } DsStatus;
 
 /*
@@ -246,19 +261,26 @@ typedef struct DsProblem DsProblem;
 typedef struct DualForm DualForm;
 
 /*
- Options of ds_solve / ds_step. Fill with ds_options_default, then change fields.
+ Options of ds_solve / ds_step. Fill with ds_options_init(&opts, sizeof opts)
+ (or the ds_options_default macro, which does the same), then change fields.
  Passing NULL instead of a DsOptions uses the defaults.
 
- Errors when read: DS_STATUS_BAD_ARGUMENT if struct_size is neither
- sizeof(DsOptions) nor 32 (the struct of version 0.1, without dual_form, which
- then reads as DS_DUAL_FORM_AUTO), method is not a DsMethod, tol is not finite and
- positive, max_outer is negative, max_inner is not positive, or dual_form is not
- a DsDualForm.
+ The struct grows at its end from version to version; struct_size says which
+ version the caller was compiled against, and the library reads no byte past
+ it: 32 (version 0.1: up to max_inner), 40 (0.2: up to dual_form) and 64 (0.3)
+ are accepted, the fields an older struct lacks take their defaults.
+
+ Errors when read: DS_STATUS_BAD_ARGUMENT if struct_size is not one of those
+ sizes, method is not a DsMethod, tol is not finite and positive, max_outer is
+ negative, max_inner is not positive, dual_form is not a DsDualForm,
+ max_seconds is negative or not finite, stall_window is negative, or
+ stall_factor is not in (0, 1].
  */
 typedef struct DsOptions {
   /*
-   sizeof(DsOptions), set by ds_options_default; checked so that the struct can
-   grow in later versions without breaking compiled callers.
+   The size in bytes of the caller's struct, sizeof(DsOptions), set by
+   ds_options_init; checked so that the struct can grow in later versions
+   without breaking compiled callers.
    */
   uint32_t struct_size;
   /*
@@ -272,18 +294,39 @@ typedef struct DsOptions {
   double tol;
   /*
    Maximum number of outer iterations, >= 0 (default 10000): sweeps for PGS,
-   normal/tangential alternations for SPLIT and BLOCK_GS.
+   normal/tangential alternations for SPLIT and BLOCK_GS, Newton steps.
    */
   int64_t max_outer;
   /*
-   Maximum number of projected Gauss-Seidel sweeps per sub-problem of SPLIT and
-   BLOCK_GS, >= 1 (default 1000).
+   Maximum number of inner iterations per sub-problem (Gauss-Seidel sweeps,
+   MPRGP iterations), >= 1 (default 1000).
    */
   int64_t max_inner;
   /*
    A DsDualForm value (default DS_DUAL_FORM_AUTO). Added in version 0.2.
    */
   int32_t dual_form;
+  /*
+   Wall-clock budget of one ds_solve / ds_step in seconds, >= 0, 0 for none
+   (default 0). No outer iteration starts after it; the solve then returns
+   DS_STATUS_TIME_LIMIT with the iterate with the lowest err. Checked between
+   outer iterations (one Newton step or sub-problem solve may overrun it);
+   the factorisation and condensation are not counted. Added in version 0.3.
+   */
+  double max_seconds;
+  /*
+   Window of the stagnation test in outer iterations, >= 0, 0 to turn it off
+   (default 100). The solve returns DS_STATUS_STALLED with the iterate with the
+   lowest err when, after stall_window or more outer iterations, the lowest err
+   met is above stall_factor times the lowest err met up to stall_window
+   iterations earlier. Added in version 0.3.
+   */
+  int64_t stall_window;
+  /*
+   The factor by which the lowest err must drop over stall_window outer
+   iterations, in (0, 1] (default 0.9: by 10 %). Added in version 0.3.
+   */
+  double stall_factor;
 } DsOptions;
 
 /*
@@ -471,12 +514,32 @@ extern "C" {
 const char *ds_last_error_message(void);
 
 /*
- Fills *opts with the defaults: struct_size = sizeof(DsOptions), method
- DS_METHOD_SPLIT, tol 1e-10, max_outer 10000, max_inner 1000, dual_form
- DS_DUAL_FORM_AUTO. NULL is a no-op.
+ Fills the first `size` bytes of *opts with the defaults of the DsOptions of
+ that size: struct_size = size, method DS_METHOD_SPLIT, tol 1e-10, max_outer
+ 10000, max_inner 1000, dual_form DS_DUAL_FORM_AUTO, max_seconds 0 (none),
+ stall_window 100, stall_factor 0.9. Pass sizeof(DsOptions) as the caller sees
+ it (the ds_options_default macro does): a program compiled against an older
+ header then gets its older struct filled, and nothing is written past it.
+
+ Returns DS_STATUS_OK, DS_STATUS_NULL_POINTER (opts NULL) or
+ DS_STATUS_BAD_ARGUMENT (size is not the size of a DsOptions of any version: 32,
+ 40 or 64; opts misaligned); nothing is written on error.
 
  # Safety
- `opts` must be NULL or point to a writable DsOptions.
+ `opts` must be NULL or point to `size` writable bytes.
+ */
+enum DsStatus ds_options_init(struct DsOptions *opts, size_t size);
+
+/*
+ The entry point of programs compiled against the headers of versions 0.1 and
+ 0.2 (the header of this version makes ds_options_default a macro that calls
+ ds_options_init with sizeof *opts). The caller's size is unknown here, so only
+ the 32 bytes of the smallest DsOptions (version 0.1) are written, with
+ struct_size = 32: a program built against 0.2 then runs with the default
+ dual_form, whatever it sets there. NULL is a no-op.
+
+ # Safety
+ `opts` must be NULL or point to at least 32 writable bytes.
  */
 void ds_options_default(struct DsOptions *opts);
 
@@ -580,6 +643,9 @@ enum DsStatus ds_problem_sizes(const struct DsProblem *problem,
 
  Arrays of length 0 may be NULL. Returns DS_STATUS_OK (u, lambda_n, lambda_t and
  report written); DS_STATUS_NOT_CONVERGED (only the report written);
+ DS_STATUS_STOPPED (the last iterate and the report written), DS_STATUS_STALLED
+ and DS_STATUS_TIME_LIMIT (the iterate with the lowest err and the report
+ written);
  DS_STATUS_NULL_POINTER, DS_STATUS_BAD_ARGUMENT (friction, options),
  DS_STATUS_NOT_FINITE, DS_STATUS_NEGATIVE_FRICTION, DS_STATUS_OUT_OF_MEMORY
  (nothing written). The handle stays usable in every case.
@@ -709,3 +775,9 @@ const char *ds_status_string(int32_t status);
 #endif  // __cplusplus
 
 #endif  /* DUALSPLIT_H */
+
+#ifndef DS_NO_OPTIONS_DEFAULT_MACRO
+/* ds_options_default(opts): fills *opts (a DsOptions of this header's size) with
+ * the defaults; returns DS_STATUS_OK, or DS_STATUS_NULL_POINTER for NULL. */
+#define ds_options_default(opts) ds_options_init((opts), sizeof *(opts))
+#endif

@@ -32,6 +32,10 @@ pub enum ErrorKind {
     Panic,
     /// The monitor callback asked to stop the solve.
     Stopped,
+    /// The solve stopped making progress (the stagnation test).
+    Stalled,
+    /// The solve ran out of its wall-clock budget.
+    TimeLimit,
 }
 
 /// An error with a message that says which argument and which entry is at fault.

@@ -118,7 +118,37 @@ pub struct Options {
     pub max_inner: usize,
     /// Dense or matrix-free products with A (default `Auto`).
     pub dual_form: DualForm,
+    /// Wall-clock budget of one solve in seconds, 0 for none (default 0): no outer
+    /// iteration starts after it, and the solve ends with `SolveStatus::TimeLimit`
+    /// and the iterate with the lowest err. Checked between outer iterations, so
+    /// one iteration (a Newton step, a sub-problem solve) may overrun it; the setup
+    /// (factorisation, condensation) is not counted.
+    pub max_seconds: f64,
+    /// The stagnation test's window in outer iterations, 0 to turn it off
+    /// (default [`STALL_WINDOW`]): the solve ends with `SolveStatus::Stalled` and
+    /// the iterate with the lowest err when, after `stall_window` or more outer
+    /// iterations, the lowest err met is above `stall_factor` times the lowest err
+    /// met up to `stall_window` iterations earlier.
+    pub stall_window: usize,
+    /// The factor by which the lowest err must drop over `stall_window` outer
+    /// iterations, in (0, 1] (default [`STALL_FACTOR`]; 1 stops only when the best
+    /// err did not improve at all).
+    pub stall_factor: f64,
 }
+
+/// Default window of the stagnation test, in outer iterations.
+pub const STALL_WINDOW: usize = 100;
+
+/// Default factor of the stagnation test. With the defaults (100, 0.9) a method
+/// must lower its best err by at least 10 % every 100 outer iterations. A method
+/// that keeps to a slower pace lowers err by less than 0.9^100 = 2.7e-5 within the
+/// default `max_outer` of 10,000 iterations: the test ends early only solves that
+/// the iteration limit would have ended unconverged anyway, unless their pace
+/// picks up after a plateau longer than the window. Plateaus of 50 iterations were
+/// seen while Aitken's factor settles on a strongly coupled Coulomb fixed point
+/// (tests/hard_scenes.rs, the inclined column: PGS, the splittings, MPRGP), hence
+/// 100.
+pub const STALL_FACTOR: f64 = 0.9;
 
 impl Default for Options {
     fn default() -> Self {
@@ -128,6 +158,9 @@ impl Default for Options {
             max_outer: 10_000,
             max_inner: 1_000,
             dual_form: DualForm::Auto,
+            max_seconds: 0.0,
+            stall_window: STALL_WINDOW,
+            stall_factor: STALL_FACTOR,
         }
     }
 }

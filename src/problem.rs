@@ -5,12 +5,12 @@
 use crate::dual::{Condensation, Dual, contact_dofs, stack_rows};
 use crate::error::{ErrorKind, Result, fail};
 use crate::factor::Factor;
-use crate::methods::{self, DualProblem, Law, Monitor, Progress};
+use crate::methods::{self, DualProblem, End, Law, Monitor, Progress};
 use crate::options::{DualForm, Options};
 use crate::report::Report;
 use crate::report::{SolveStatus, contact_states, natural_map_error};
 use crate::sparse::{Csc, MatrixView};
-use std::time::Instant;
+use std::time::{Duration, Instant};
 
 /// Friction law of one increment.
 #[derive(Copy, Clone, Debug)]
@@ -259,6 +259,21 @@ impl ContactProblem {
         if opts.max_inner == 0 {
             return fail(ErrorKind::BadArgument, "max_inner must be at least 1");
         }
+        if !(opts.max_seconds.is_finite() && opts.max_seconds >= 0.0) {
+            return fail(
+                ErrorKind::BadArgument,
+                format!(
+                    "max_seconds = {} must be finite and >= 0 (0: no limit)",
+                    opts.max_seconds
+                ),
+            );
+        }
+        if !(opts.stall_factor > 0.0 && opts.stall_factor <= 1.0) {
+            return fail(
+                ErrorKind::BadArgument,
+                format!("stall_factor = {} must be in (0, 1]", opts.stall_factor),
+            );
+        }
         Ok(())
     }
 
@@ -371,9 +386,11 @@ impl ContactProblem {
             b: &b,
             law,
             monitor: Some(std::cell::RefCell::new(&mut relay)),
+            deadline: (opts.max_seconds > 0.0)
+                .then(|| start + Duration::from_secs_f64(opts.max_seconds)),
         };
         let mut target = opts.tol;
-        let mut stopped = false;
+        let mut end = End::Converged;
         let mut outer = 0;
         let mut inner = 0;
         let mut u = vec![0.0; ndof];
@@ -390,7 +407,7 @@ impl ContactProblem {
             outer += o.outer;
             inner += o.inner;
             base.set(outer);
-            stopped = o.stopped;
+            end = o.end;
             // u = K^-1 (f - B^T lambda), and the error measured on it.
             self.dual.b.mul_t_vec(lam, &mut bt_lam);
             self.recover_u(f, &y_f, &bt_lam, &mut u);
@@ -400,12 +417,21 @@ impl ContactProblem {
             }
             law.bounds(&lam[..m], &mut p);
             err = natural_map_error(lam, &v, &self.dual.rho, &b, &p, self.d);
-            if o.infeasible {
+            if end == End::Infeasible {
                 // No u satisfies N u <= g: no error can be small (report.rs).
                 err = f64::INFINITY;
                 break;
             }
-            if stopped || err <= opts.tol || o.dual_err > target || outer >= opts.max_outer {
+            // Tighten the dual target only when the dual run met it but the error
+            // on the recovered u missed the tolerance (rounding in A).
+            if end != End::Converged || err <= opts.tol || outer >= opts.max_outer {
+                if end == End::Converged && err > opts.tol {
+                    end = End::Limit;
+                }
+                break;
+            }
+            if problem.deadline.is_some_and(|d| Instant::now() >= d) {
+                end = End::TimeLimit;
                 break;
             }
             target *= 0.1;
@@ -425,12 +451,12 @@ impl ContactProblem {
         let rn = norm(&res);
         let equilibrium_residual = if rn == 0.0 { 0.0 } else { rn / denom };
         let (n_open, n_stick, n_slip) = contact_states(lam, &v, &self.dual.rho, &p, self.d);
-        let status = if stopped {
-            SolveStatus::Stopped
-        } else if err <= opts.tol {
-            SolveStatus::Converged
-        } else {
-            SolveStatus::NotConverged
+        let status = match end {
+            End::Stopped => SolveStatus::Stopped,
+            _ if err <= opts.tol => SolveStatus::Converged,
+            End::Stalled => SolveStatus::Stalled,
+            End::TimeLimit => SolveStatus::TimeLimit,
+            End::Converged | End::Limit | End::Infeasible => SolveStatus::NotConverged,
         };
         Ok(Solution {
             u,

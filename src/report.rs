@@ -9,18 +9,40 @@ pub enum SolveStatus {
     /// err <= tol was reached (checked on the recovered u, not only in the dual).
     Converged,
     /// The iteration limit was reached first, or the method found the problem
-    /// infeasible (err is then infinite, see [`Report::err`]). At the limit (and
-    /// when Newton stalls) every method returns the iterate with the lowest err it
-    /// met (a Coulomb fixed point that cycles need not end on its best point).
+    /// infeasible (err is then infinite, see [`Report::err`]). At the limit every
+    /// method returns the iterate with the lowest err it met (a Coulomb fixed point
+    /// that cycles need not end on its best point).
     NotConverged,
     /// The monitor callback asked to stop; the iterate is the last one.
     Stopped,
+    /// The method stopped making progress (`Options::stall_window`,
+    /// `Options::stall_factor`; Newton also when its natural residual |F| stops
+    /// falling): the iterate with the lowest err. On a problem without a solution
+    /// (no u with N u <= g) the Gauss-Seidel methods end this way.
+    Stalled,
+    /// The wall-clock budget `Options::max_seconds` ran out: the iterate with the
+    /// lowest err.
+    TimeLimit,
+}
+
+impl SolveStatus {
+    /// Short lower-case name, as in report.json and the command line
+    /// ("converged", "not-converged", "stopped", "stalled", "time-limit").
+    pub fn name(self) -> &'static str {
+        match self {
+            SolveStatus::Converged => "converged",
+            SolveStatus::NotConverged => "not-converged",
+            SolveStatus::Stopped => "stopped",
+            SolveStatus::Stalled => "stalled",
+            SolveStatus::TimeLimit => "time-limit",
+        }
+    }
 }
 
 /// Everything a solve reports besides u and the multipliers.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Report {
-    /// Converged or not.
+    /// Converged, or why not.
     pub status: SolveStatus,
     /// The method that ran.
     pub method: Method,

@@ -363,16 +363,10 @@ fn non_finite_values_everywhere() {
         expect(s, DsStatus::NotFinite, "non-finite mu");
         assert_usable(h, &sc, &want);
         // tol in the options.
-        let mut o = DsOptions {
-            struct_size: 0,
-            method: 0,
-            tol: 0.0,
-            max_outer: 0,
-            max_inner: 0,
-            dual_form: 0,
-        };
-        // SAFETY: o is writable.
-        unsafe { ds_options_default(&mut o) };
+        let mut o = DsOptions::default();
+        // SAFETY: o is a whole, writable DsOptions.
+        let st = unsafe { ds_options_init(&mut o, std::mem::size_of::<DsOptions>()) };
+        assert_eq!(st, DsStatus::Ok);
         o.tol = bad;
         let mut u = vec![0.0; sc.k.nrows];
         let (mut ln, mut lt) = (vec![0.0; sc.m()], vec![0.0; sc.m()]);

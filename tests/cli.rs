@@ -486,7 +486,7 @@ fn help_documents_everything() {
         let h = text(&o.stdout);
         for needle in [
             "dualsplit solve DIR --out OUTDIR [--method NAME] [--tol X] [--max-iter N] \
-             [--dual-form F] [--verbose]",
+             [--max-seconds S] [--stall-window N] [--stall-factor X] [--dual-form F] [--verbose]",
             "K.mtx",
             "N.mtx",
             "T.mtx",
@@ -498,6 +498,11 @@ fn help_documents_everything() {
             "--method",
             "--tol",
             "--max-iter",
+            "--max-seconds",
+            "--stall-window",
+            "--stall-factor",
+            "stalled",
+            "time-limit",
             "--dual-form",
             "matrix-free",
             "--verbose",

@@ -326,16 +326,10 @@ fn free(problem: *mut DsProblem) {
 }
 
 fn options() -> DsOptions {
-    let mut o = DsOptions {
-        struct_size: 0,
-        method: 0,
-        tol: 0.0,
-        max_outer: 0,
-        max_inner: 0,
-        dual_form: 0,
-    };
-    // SAFETY: o is a writable DsOptions.
-    unsafe { ds_options_default(&mut o) };
+    let mut o = DsOptions::default();
+    // SAFETY: o is a whole, writable DsOptions.
+    let st = unsafe { ds_options_init(&mut o, std::mem::size_of::<DsOptions>()) };
+    assert_eq!(st, DsStatus::Ok);
     o
 }
 
@@ -1267,7 +1261,7 @@ fn not_converged() {
 
 #[test]
 fn status_strings_and_messages() {
-    for v in 0..=13 {
+    for v in 0..=15 {
         let p = ds_status_string(v);
         assert!(!p.is_null());
         // SAFETY: static NUL-terminated string.
@@ -1275,7 +1269,7 @@ fn status_strings_and_messages() {
         assert!(!s.is_empty() && s != "unknown status", "{v}");
     }
     // SAFETY: static NUL-terminated string.
-    let s = unsafe { CStr::from_ptr(ds_status_string(14)) };
+    let s = unsafe { CStr::from_ptr(ds_status_string(16)) };
     assert_eq!(s.to_str().unwrap(), "unknown status");
     // The message is per thread, and cleared by the next successful call.
     let h = new_problem();

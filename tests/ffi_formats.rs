@@ -253,16 +253,13 @@ fn create(k: &Laid, n: &Laid, t: &Laid) -> *mut DsProblem {
 }
 
 fn solve(h: *mut DsProblem, method: DsMethod, friction: DsFriction) -> Answer {
-    let mut opts = DsOptions {
-        struct_size: 0,
-        method: 0,
-        tol: 0.0,
-        max_outer: 0,
-        max_inner: 0,
-        dual_form: 0,
+    let mut opts = std::mem::MaybeUninit::<DsOptions>::uninit();
+    // SAFETY: opts is writable for sizeof(DsOptions) bytes, which init fills.
+    let mut opts = unsafe {
+        let st = ds_options_init(opts.as_mut_ptr(), std::mem::size_of::<DsOptions>());
+        assert_eq!(st, DsStatus::Ok);
+        opts.assume_init()
     };
-    // SAFETY: opts is writable.
-    unsafe { ds_options_default(&mut opts) };
     opts.method = method as i32;
     let bound = match friction {
         DsFriction::Tresca => P,

@@ -65,8 +65,15 @@ fn is_ident(c: char) -> bool {
     c.is_ascii_alphanumeric() || c == '_'
 }
 
-/// (name, number of parameters) of every function the header declares.
+/// (name, number of parameters) of every function the header declares (preprocessor
+/// lines, such as the ds_options_default macro, are not declarations).
 fn c_functions(h: &str) -> Vec<(String, usize)> {
+    let h: String = h
+        .lines()
+        .filter(|l| !l.trim_start().starts_with('#'))
+        .collect::<Vec<_>>()
+        .join("\n");
+    let h = h.as_str();
     let mut out = Vec::new();
     let mut from = 0;
     while let Some(k) = h[from..].find("ds_") {
@@ -425,7 +432,8 @@ const LAYOUT_F90: &str = r#"program layout
    write (*, '(a,99(1x,i0))') 'DsOptions', c_sizeof(o), off(c_loc(o), c_loc(o%struct_size)), &
       off(c_loc(o), c_loc(o%method)), off(c_loc(o), c_loc(o%tol)), &
       off(c_loc(o), c_loc(o%max_outer)), off(c_loc(o), c_loc(o%max_inner)), &
-      off(c_loc(o), c_loc(o%dual_form))
+      off(c_loc(o), c_loc(o%dual_form)), off(c_loc(o), c_loc(o%max_seconds)), &
+      off(c_loc(o), c_loc(o%stall_window)), off(c_loc(o), c_loc(o%stall_factor))
    write (*, '(a,99(1x,i0))') 'DsReport', c_sizeof(r), off(c_loc(r), c_loc(r%status)), &
       off(c_loc(r), c_loc(r%method)), off(c_loc(r), c_loc(r%err)), &
       off(c_loc(r), c_loc(r%equilibrium_residual)), off(c_loc(r), c_loc(r%outer_iterations)), &
@@ -455,9 +463,10 @@ int main(void)
            O(DsMatrix, format), O(DsMatrix, index_type), O(DsMatrix, base), O(DsMatrix, storage),
            O(DsMatrix, nrows), O(DsMatrix, ncols), O(DsMatrix, nnz), O(DsMatrix, p),
            O(DsMatrix, i), O(DsMatrix, x));
-    printf("DsOptions %d %d %d %d %d %d %d\n", (int)sizeof(DsOptions), O(DsOptions, struct_size),
-           O(DsOptions, method), O(DsOptions, tol), O(DsOptions, max_outer),
-           O(DsOptions, max_inner), O(DsOptions, dual_form));
+    printf("DsOptions %d %d %d %d %d %d %d %d %d %d\n", (int)sizeof(DsOptions),
+           O(DsOptions, struct_size), O(DsOptions, method), O(DsOptions, tol),
+           O(DsOptions, max_outer), O(DsOptions, max_inner), O(DsOptions, dual_form),
+           O(DsOptions, max_seconds), O(DsOptions, stall_window), O(DsOptions, stall_factor));
     printf("DsReport %d %d %d %d %d %d %d %d %d %d %d %d %d\n", (int)sizeof(DsReport),
            O(DsReport, status), O(DsReport, method), O(DsReport, err),
            O(DsReport, equilibrium_residual), O(DsReport, outer_iterations),

@@ -318,8 +318,12 @@ fn random_problems_kkt_1e9() {
 }
 
 /// The infeasible seeds: no method may report Converged; the MPRGP methods detect
-/// the unbounded dual (err infinite) within a few outer iterations, stopping before
-/// the multipliers blow up; every other method ends NotConverged within its limit.
+/// the unbounded dual (err infinite, NotConverged) within a few outer iterations,
+/// stopping before the multipliers blow up. The other methods cannot tell: their
+/// multipliers grow along the unbounded direction, |lambda| ~ k, so err ~ 1/k
+/// falls ever slower, and the stagnation test (10 % per 100 iterations) ends them
+/// Stalled after about 1,000 outer iterations, before their limit of 5,000 (and
+/// long before err could creep to the tolerance).
 #[test]
 fn infeasible_problems_are_never_reported_converged() {
     for (seed, d) in INFEASIBLE {
@@ -335,7 +339,7 @@ fn infeasible_problems_are_never_reported_converged() {
             let o = Options {
                 method,
                 tol: 1e-10,
-                max_outer: 2000,
+                max_outer: 5000,
                 ..Options::default()
             };
             let sol = pb.solve(&c.f, &c.g, friction, &o).expect("valid solve");
@@ -353,13 +357,26 @@ fn infeasible_problems_are_never_reported_converged() {
                 r.outer_iterations,
                 r.inner_iterations
             );
-            assert_eq!(
-                r.status,
-                SolveStatus::NotConverged,
-                "seed {seed} [{}]",
-                method.name()
-            );
-            assert!(r.outer_iterations <= o.max_outer);
+            if matches!(method, Method::SplitMprgp | Method::Mprgp) {
+                assert_eq!(
+                    r.status,
+                    SolveStatus::NotConverged,
+                    "seed {seed} [{}]",
+                    method.name()
+                );
+            } else {
+                assert_eq!(
+                    r.status,
+                    SolveStatus::Stalled,
+                    "seed {seed} [{}]",
+                    method.name()
+                );
+                assert!(
+                    r.outer_iterations < 2000,
+                    "seed {seed} [{}]: {r:?}",
+                    method.name()
+                );
+            }
             if matches!(method, Method::SplitMprgp | Method::Mprgp) {
                 assert_eq!(r.err, f64::INFINITY, "seed {seed} [{}]", method.name());
                 assert!(r.outer_iterations <= 5, "seed {seed} [{}]", method.name());

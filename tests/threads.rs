@@ -132,16 +132,10 @@ fn job(sc: &Scene, method: DsMethod, barrier: Option<&Barrier>) -> Bits {
     if let Some(b) = barrier {
         b.wait();
     }
-    let mut o = DsOptions {
-        struct_size: 0,
-        method: 0,
-        tol: 0.0,
-        max_outer: 0,
-        max_inner: 0,
-        dual_form: 0,
-    };
-    // SAFETY: o is writable.
-    unsafe { ds_options_default(&mut o) };
+    let mut o = DsOptions::default();
+    // SAFETY: o is a whole, writable DsOptions.
+    let st = unsafe { ds_options_init(&mut o, std::mem::size_of::<DsOptions>()) };
+    assert_eq!(st, DsStatus::Ok);
     o.method = method as i32;
     let mut out = Vec::new();
     let p = vec![0.02; m];

@@ -14,7 +14,7 @@ const HELP: &str = "\
 dualsplit: frictional contact solver (Signorini + Tresca or Coulomb friction)
 
 USAGE:
-    dualsplit solve DIR --out OUTDIR [--method NAME] [--tol X] [--max-iter N] [--dual-form F] [--verbose] [--quiet]
+    dualsplit solve DIR --out OUTDIR [--method NAME] [--tol X] [--max-iter N] [--max-seconds S] [--stall-window N] [--stall-factor X] [--dual-form F] [--verbose] [--quiet]
     dualsplit --help
     dualsplit --version
 
@@ -48,6 +48,15 @@ OPTIONS:
     --max-iter N      maximum number of outer iterations (default {MAX_ITER}): sweeps for
                       pgs, normal/tangential alternations for split and block-gs,
                       Newton steps for newton
+    --max-seconds S   wall-clock budget of the solve in seconds, 0 for none (default
+                      0); checked between outer iterations, the setup not counted;
+                      the run ends with status \"time-limit\" and the iterate with
+                      the lowest err
+    --stall-window N  the stagnation test (default {STALL_WINDOW}, 0 turns it off):
+                      the run ends with status \"stalled\" and the iterate with the
+                      lowest err when the lowest err has not dropped by the factor
+                      --stall-factor over the last N outer iterations
+    --stall-factor X  in (0, 1] (default {STALL_FACTOR})
     --dual-form F     auto (default), dense or matrix-free: whether the condensed dual
                       A is assembled (dense while d m <= 8000) or applied through K's
                       factor; matrix-free runs only with --method mprgp
@@ -62,13 +71,16 @@ OUTPUT (OUTDIR):
     lambda_n.txt      lambda_n, m numbers (compressive normal forces, >= 0)
     lambda_t.txt      lambda_t, (d-1) m numbers, contact by contact
     report.json       one JSON object:
-        status              \"converged\", \"not-converged\", or the error that stopped the
+        status              \"converged\", \"not-converged\" (iteration limit, or
+                            infeasible: err null), \"stalled\", \"time-limit\",
+                            or the error that stopped the
                             run: \"io\" (missing or malformed file), \"bad-size\",
                             \"not-finite\", \"not-symmetric\", \"not-positive-definite\",
                             \"negative-friction\", \"out-of-memory\", \"bad-argument\"
         message             what went wrong (error statuses only)
         problem             DIR as given
-        method, tol, max_iter, friction (\"coulomb\" or \"tresca\")
+        method, tol, max_iter, max_seconds, stall_window, stall_factor,
+        friction (\"coulomb\" or \"tresca\")
         n, m, d             DOFs, contacts, contact dimension
         err                 the error reached (null if not finite)
         equilibrium_residual   |K u - f + N^T lambda_n + T^T lambda_t| / |f|
@@ -85,7 +97,8 @@ OUTPUT (OUTDIR):
 
 EXIT STATUS:
     0   converged (err <= tol)
-    1   solved, but not converged within --max-iter (outputs written)
+    1   solved, but not converged: iteration limit, stalled or time limit
+        (outputs written: the iterate with the lowest err)
     2   bad command line
     3   the problem could not be read or was rejected (missing or malformed file,
         K not symmetric or not positive definite, negative friction, ...)
@@ -120,6 +133,8 @@ fn help_text() -> String {
         .replace("{DEFAULT_METHOD}", defaults.method.name())
         .replace("{TOL}", &format!("{:e}", defaults.tol))
         .replace("{MAX_ITER}", &defaults.max_outer.to_string())
+        .replace("{STALL_WINDOW}", &defaults.stall_window.to_string())
+        .replace("{STALL_FACTOR}", &defaults.stall_factor.to_string())
 }
 
 /// Exit codes (documented in HELP).
@@ -194,7 +209,14 @@ fn parse_args(args: &[String]) -> Result<Command, String> {
         }
         if !matches!(
             name,
-            "--out" | "--method" | "--tol" | "--max-iter" | "--dual-form"
+            "--out"
+                | "--method"
+                | "--tol"
+                | "--max-iter"
+                | "--max-seconds"
+                | "--stall-window"
+                | "--stall-factor"
+                | "--dual-form"
         ) {
             return Err(format!("unknown option \"{name}\""));
         }
@@ -244,6 +266,29 @@ fn parse_args(args: &[String]) -> Result<Command, String> {
                         .ok_or_else(|| {
                             format!("--max-iter \"{value}\": expected a positive integer")
                         })?;
+            }
+            "--max-seconds" => {
+                opts.max_seconds = value
+                    .parse::<f64>()
+                    .ok()
+                    .filter(|t| t.is_finite() && *t >= 0.0)
+                    .ok_or_else(|| {
+                        format!("--max-seconds \"{value}\": expected a finite number >= 0")
+                    })?;
+            }
+            "--stall-window" => {
+                opts.stall_window = value
+                    .parse::<usize>()
+                    .map_err(|_| format!("--stall-window \"{value}\": expected an integer >= 0"))?;
+            }
+            "--stall-factor" => {
+                opts.stall_factor = value
+                    .parse::<f64>()
+                    .ok()
+                    .filter(|x| *x > 0.0 && *x <= 1.0)
+                    .ok_or_else(|| {
+                        format!("--stall-factor \"{value}\": expected a number in (0, 1]")
+                    })?;
             }
             _ => unreachable!("option names are checked above"),
         }
@@ -353,7 +398,7 @@ fn error_word(kind: ErrorKind) -> String {
 
 /// The status word of a solve ("converged", "not-converged", ...).
 fn status_word(status: SolveStatus) -> String {
-    kebab(&format!("{status:?}"))
+    status.name().to_string()
 }
 
 /// The common head of report.json.
@@ -368,6 +413,9 @@ fn report_options(j: &mut Json, args: &SolveArgs) {
     j.string("method", args.opts.method.name());
     j.number("tol", args.opts.tol);
     j.integer("max_iter", args.opts.max_outer);
+    j.number("max_seconds", args.opts.max_seconds);
+    j.integer("stall_window", args.opts.stall_window);
+    j.number("stall_factor", args.opts.stall_factor);
 }
 
 /// What report.json says about the problem.
@@ -560,6 +608,17 @@ fn print_summary(args: &SolveArgs, sizes: &Sizes, r: &dualsplit::Report, read_s:
             "NOT converged: err {:.3e} > tol {:e} after the iteration limit",
             r.err, args.opts.tol
         )
+    } else if r.status == SolveStatus::Stalled {
+        format!(
+            "NOT converged, stalled: err {:.3e} > tol {:e}, the best err not lowered by \
+             the factor {} over {} outer iterations",
+            r.err, args.opts.tol, args.opts.stall_factor, args.opts.stall_window
+        )
+    } else if r.status == SolveStatus::TimeLimit {
+        format!(
+            "NOT converged, time limit: err {:.3e} > tol {:e} after {} s",
+            r.err, args.opts.tol, args.opts.max_seconds
+        )
     } else {
         format!("{}: err {:.3e}", status_word(r.status), r.err)
     };
@@ -649,7 +708,7 @@ fn main() -> ExitCode {
         Err(msg) => {
             eprintln!("dualsplit: error: {msg}");
             eprintln!(
-                "usage: dualsplit solve DIR --out OUTDIR [--method NAME] [--tol X] [--max-iter N] [--dual-form F] [--verbose] [--quiet]"
+                "usage: dualsplit solve DIR --out OUTDIR [--method NAME] [--tol X] [--max-iter N] [--max-seconds S] [--stall-window N] [--stall-factor X] [--dual-form F] [--verbose] [--quiet]"
             );
             eprintln!("       dualsplit --help");
             ExitCode::from(EXIT_USAGE)

@@ -28,7 +28,7 @@ mod types;
 pub use last_error::ds_last_error_message;
 pub use matrix::DsMatrix;
 pub use monitor::{DsLogFn, DsMonitorFn, DsProgress};
-pub use options::{DsOptions, ds_options_default};
+pub use options::{DsOptions, ds_options_default, ds_options_init};
 pub use problem::{
     DsProblem, ds_history_reset, ds_problem_dump, ds_problem_free, ds_problem_new,
     ds_problem_refactor, ds_problem_set_contacts, ds_problem_set_log, ds_problem_set_monitor,

@@ -124,6 +124,8 @@ impl Watch {
                 SolveStatus::Converged => "converged",
                 SolveStatus::NotConverged => "NOT converged",
                 SolveStatus::Stopped => "stopped by the caller",
+                SolveStatus::Stalled => "NOT converged (stalled)",
+                SolveStatus::TimeLimit => "NOT converged (time limit)",
             };
             self.log(
                 LOG_SUMMARY,

@@ -1,24 +1,33 @@
 //! The options struct of the C API, its defaults and its translation into
 //! [`Options`].
 
+use super::boundary::entry;
+use super::status::DsStatus;
 use super::types::{CEnum, DsDualForm, DsMethod};
 use crate::error::{Error, ErrorKind, Result};
 use crate::options::Options;
 use std::panic::{AssertUnwindSafe, catch_unwind};
 
-/// Options of ds_solve / ds_step. Fill with ds_options_default, then change fields.
+/// Options of ds_solve / ds_step. Fill with ds_options_init(&opts, sizeof opts)
+/// (or the ds_options_default macro, which does the same), then change fields.
 /// Passing NULL instead of a DsOptions uses the defaults.
 ///
-/// Errors when read: DS_STATUS_BAD_ARGUMENT if struct_size is neither
-/// sizeof(DsOptions) nor 32 (the struct of version 0.1, without dual_form, which
-/// then reads as DS_DUAL_FORM_AUTO), method is not a DsMethod, tol is not finite and
-/// positive, max_outer is negative, max_inner is not positive, or dual_form is not
-/// a DsDualForm.
+/// The struct grows at its end from version to version; struct_size says which
+/// version the caller was compiled against, and the library reads no byte past
+/// it: 32 (version 0.1: up to max_inner), 40 (0.2: up to dual_form) and 64 (0.3)
+/// are accepted, the fields an older struct lacks take their defaults.
+///
+/// Errors when read: DS_STATUS_BAD_ARGUMENT if struct_size is not one of those
+/// sizes, method is not a DsMethod, tol is not finite and positive, max_outer is
+/// negative, max_inner is not positive, dual_form is not a DsDualForm,
+/// max_seconds is negative or not finite, stall_window is negative, or
+/// stall_factor is not in (0, 1].
 #[repr(C)]
 #[derive(Copy, Clone, Debug, PartialEq)]
 pub struct DsOptions {
-    /// sizeof(DsOptions), set by ds_options_default; checked so that the struct can
-    /// grow in later versions without breaking compiled callers.
+    /// The size in bytes of the caller's struct, sizeof(DsOptions), set by
+    /// ds_options_init; checked so that the struct can grow in later versions
+    /// without breaking compiled callers.
     pub struct_size: u32,
     /// A DsMethod value (default DS_METHOD_SPLIT).
     pub method: i32,
@@ -26,29 +35,68 @@ pub struct DsOptions {
     /// most tol; > 0 (default 1e-10).
     pub tol: f64,
     /// Maximum number of outer iterations, >= 0 (default 10000): sweeps for PGS,
-    /// normal/tangential alternations for SPLIT and BLOCK_GS.
+    /// normal/tangential alternations for SPLIT and BLOCK_GS, Newton steps.
     pub max_outer: i64,
-    /// Maximum number of projected Gauss-Seidel sweeps per sub-problem of SPLIT and
-    /// BLOCK_GS, >= 1 (default 1000).
+    /// Maximum number of inner iterations per sub-problem (Gauss-Seidel sweeps,
+    /// MPRGP iterations), >= 1 (default 1000).
     pub max_inner: i64,
     /// A DsDualForm value (default DS_DUAL_FORM_AUTO). Added in version 0.2.
     pub dual_form: i32,
+    /// Wall-clock budget of one ds_solve / ds_step in seconds, >= 0, 0 for none
+    /// (default 0). No outer iteration starts after it; the solve then returns
+    /// DS_STATUS_TIME_LIMIT with the iterate with the lowest err. Checked between
+    /// outer iterations (one Newton step or sub-problem solve may overrun it);
+    /// the factorisation and condensation are not counted. Added in version 0.3.
+    pub max_seconds: f64,
+    /// Window of the stagnation test in outer iterations, >= 0, 0 to turn it off
+    /// (default 100). The solve returns DS_STATUS_STALLED with the iterate with the
+    /// lowest err when, after stall_window or more outer iterations, the lowest err
+    /// met is above stall_factor times the lowest err met up to stall_window
+    /// iterations earlier. Added in version 0.3.
+    pub stall_window: i64,
+    /// The factor by which the lowest err must drop over stall_window outer
+    /// iterations, in (0, 1] (default 0.9: by 10 %). Added in version 0.3.
+    pub stall_factor: f64,
 }
 
 /// sizeof(DsOptions) of version 0.1 (struct_size, method, tol, max_outer,
-/// max_inner): still accepted, with dual_form = DS_DUAL_FORM_AUTO.
+/// max_inner).
 const V01_SIZE: usize = 32;
+/// sizeof(DsOptions) of version 0.2 (and dual_form, padded to 8 bytes).
+const V02_SIZE: usize = 40;
+/// sizeof(DsOptions) now.
+const SIZE: usize = std::mem::size_of::<DsOptions>();
+
+/// Copies the first `size` bytes of `from` to `to` (size at most sizeof(DsOptions)).
+///
+/// # Safety
+/// `to` must be valid for writing `size` bytes.
+unsafe fn write_prefix(from: &DsOptions, to: *mut DsOptions, size: usize) {
+    debug_assert!(size <= SIZE);
+    // SAFETY: `from` is a whole DsOptions (SIZE >= size bytes); `to` is writable for
+    // size bytes (contract); a Rust value and caller memory do not overlap.
+    unsafe {
+        std::ptr::copy_nonoverlapping(
+            (from as *const DsOptions).cast::<u8>(),
+            to.cast::<u8>(),
+            size,
+        )
+    };
+}
 
 impl DsOptions {
     /// The C struct holding `opts`.
     pub fn from_options(opts: &Options) -> DsOptions {
         DsOptions {
-            struct_size: std::mem::size_of::<DsOptions>() as u32,
+            struct_size: SIZE as u32,
             method: DsMethod::from(opts.method) as i32,
             tol: opts.tol,
             max_outer: i64::try_from(opts.max_outer).unwrap_or(i64::MAX),
             max_inner: i64::try_from(opts.max_inner).unwrap_or(i64::MAX),
             dual_form: DsDualForm::from(opts.dual_form) as i32,
+            max_seconds: opts.max_seconds,
+            stall_window: i64::try_from(opts.stall_window).unwrap_or(i64::MAX),
+            stall_factor: opts.stall_factor,
         }
     }
 
@@ -65,6 +113,18 @@ impl DsOptions {
                 self.tol
             )));
         }
+        if !(self.max_seconds.is_finite() && self.max_seconds >= 0.0) {
+            return Err(bad(format!(
+                "opts.max_seconds = {} must be finite and >= 0 (0: no limit)",
+                self.max_seconds
+            )));
+        }
+        if !(self.stall_factor > 0.0 && self.stall_factor <= 1.0) {
+            return Err(bad(format!(
+                "opts.stall_factor = {} must be in (0, 1]",
+                self.stall_factor
+            )));
+        }
         let count = |v: i64, name: &str, min: i64| {
             if v < min {
                 Err(bad(format!("opts.{name} = {v} must be at least {min}")))
@@ -78,11 +138,15 @@ impl DsOptions {
             max_outer: count(self.max_outer, "max_outer", 0)?,
             max_inner: count(self.max_inner, "max_inner", 1)?,
             dual_form: dual_form.into(),
+            max_seconds: self.max_seconds,
+            stall_window: count(self.stall_window, "stall_window", 0)?,
+            stall_factor: self.stall_factor,
         })
     }
 
     /// Reads the options at `ptr` (NULL: the defaults). `struct_size` is read first,
-    /// alone, so that a smaller struct is never read past its end.
+    /// alone, and no byte past it is read; the fields an older struct lacks take
+    /// their defaults.
     ///
     /// Errors: `BadArgument` (see [`DsOptions`]).
     ///
@@ -101,34 +165,33 @@ impl DsOptions {
         }
         // SAFETY: non-NULL and aligned; the first field is present whatever the
         // version of the caller's struct.
-        let size = unsafe { std::ptr::addr_of!((*ptr).struct_size).read() };
-        let expected = std::mem::size_of::<DsOptions>();
-        if size as usize == V01_SIZE {
-            // SAFETY: the caller's struct is the version 0.1 prefix of DsOptions:
-            // the same fields at the same offsets (checked in the tests), 32 bytes.
-            let v01 = unsafe {
-                DsOptions {
-                    struct_size: size,
-                    method: std::ptr::addr_of!((*ptr).method).read(),
-                    tol: std::ptr::addr_of!((*ptr).tol).read(),
-                    max_outer: std::ptr::addr_of!((*ptr).max_outer).read(),
-                    max_inner: std::ptr::addr_of!((*ptr).max_inner).read(),
-                    dual_form: DsDualForm::Auto as i32,
-                }
-            };
-            return v01.to_options();
-        }
-        if size as usize != expected {
+        let size = unsafe { std::ptr::addr_of!((*ptr).struct_size).read() } as usize;
+        if ![V01_SIZE, V02_SIZE, SIZE].contains(&size) {
             return Err(Error::new(
                 ErrorKind::BadArgument,
                 format!(
-                    "opts.struct_size = {size} but sizeof(DsOptions) = {expected}: \
-                     initialise the options with ds_options_default"
+                    "opts.struct_size = {size} is not the size of a DsOptions of any version \
+                     ({V01_SIZE}, {V02_SIZE} or {SIZE}): initialise the options with \
+                     ds_options_init(&opts, sizeof opts)"
                 ),
             ));
         }
-        // SAFETY: the caller says the struct is struct_size = sizeof(DsOptions) bytes.
-        unsafe { ptr.read() }.to_options()
+        let mut value = DsOptions::default();
+        // SAFETY: the caller's struct has `size` readable bytes (contract), a prefix
+        // of DsOptions with the same fields at the same offsets (checked in the
+        // tests); bytes are copied into a whole, initialised DsOptions.
+        unsafe {
+            std::ptr::copy_nonoverlapping(
+                ptr.cast::<u8>(),
+                (&mut value as *mut DsOptions).cast::<u8>(),
+                size,
+            )
+        };
+        if size == V01_SIZE {
+            // The 4 bytes after max_inner were never the caller's: the default.
+            value.dual_form = DsDualForm::Auto as i32;
+        }
+        value.to_options()
     }
 }
 
@@ -138,79 +201,187 @@ impl Default for DsOptions {
     }
 }
 
-/// Fills *opts with the defaults: struct_size = sizeof(DsOptions), method
-/// DS_METHOD_SPLIT, tol 1e-10, max_outer 10000, max_inner 1000, dual_form
-/// DS_DUAL_FORM_AUTO. NULL is a no-op.
+/// Fills the first `size` bytes of *opts with the defaults of the DsOptions of
+/// that size: struct_size = size, method DS_METHOD_SPLIT, tol 1e-10, max_outer
+/// 10000, max_inner 1000, dual_form DS_DUAL_FORM_AUTO, max_seconds 0 (none),
+/// stall_window 100, stall_factor 0.9. Pass sizeof(DsOptions) as the caller sees
+/// it (the ds_options_default macro does): a program compiled against an older
+/// header then gets its older struct filled, and nothing is written past it.
+///
+/// Returns DS_STATUS_OK, DS_STATUS_NULL_POINTER (opts NULL) or
+/// DS_STATUS_BAD_ARGUMENT (size is not the size of a DsOptions of any version: 32,
+/// 40 or 64; opts misaligned); nothing is written on error.
 ///
 /// # Safety
-/// `opts` must be NULL or point to a writable DsOptions.
+/// `opts` must be NULL or point to `size` writable bytes.
+#[unsafe(no_mangle)]
+pub unsafe extern "C" fn ds_options_init(opts: *mut DsOptions, size: usize) -> DsStatus {
+    entry("ds_options_init", || {
+        if opts.is_null() {
+            return Err(Error::new(ErrorKind::NullPointer, "argument opts is NULL"));
+        }
+        if !opts.is_aligned() {
+            return Err(Error::new(
+                ErrorKind::BadArgument,
+                format!("argument opts = {opts:p} is not aligned"),
+            ));
+        }
+        if ![V01_SIZE, V02_SIZE, SIZE].contains(&size) {
+            return Err(Error::new(
+                ErrorKind::BadArgument,
+                format!(
+                    "size = {size} is not the size of a DsOptions of any version \
+                     ({V01_SIZE}, {V02_SIZE} or {SIZE})"
+                ),
+            ));
+        }
+        let value = DsOptions {
+            struct_size: size as u32,
+            ..DsOptions::default()
+        };
+        // SAFETY: opts is non-NULL, aligned and writable for `size` bytes (contract).
+        unsafe { write_prefix(&value, opts, size) };
+        Ok(())
+    })
+}
+
+/// The entry point of programs compiled against the headers of versions 0.1 and
+/// 0.2 (the header of this version makes ds_options_default a macro that calls
+/// ds_options_init with sizeof *opts). The caller's size is unknown here, so only
+/// the 32 bytes of the smallest DsOptions (version 0.1) are written, with
+/// struct_size = 32: a program built against 0.2 then runs with the default
+/// dual_form, whatever it sets there. NULL is a no-op.
+///
+/// # Safety
+/// `opts` must be NULL or point to at least 32 writable bytes.
 #[unsafe(no_mangle)]
 pub unsafe extern "C" fn ds_options_default(opts: *mut DsOptions) {
     if opts.is_null() || !opts.is_aligned() {
         return;
     }
-    let Ok(value) = catch_unwind(AssertUnwindSafe(DsOptions::default)) else {
+    let Ok(value) = catch_unwind(AssertUnwindSafe(|| DsOptions {
+        struct_size: V01_SIZE as u32,
+        ..DsOptions::default()
+    })) else {
         return;
     };
-    // SAFETY: non-NULL and aligned; writable per the contract. write() does not
-    // read or drop the old (possibly uninitialised) contents.
-    unsafe { opts.write(value) };
+    // SAFETY: non-NULL and aligned; at least 32 bytes writable per the contract.
+    unsafe { write_prefix(&value, opts, V01_SIZE) };
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::options::Method;
+    use crate::options::{DualForm, Method};
+
+    /// DsOptions as compiled against the 0.1 header.
+    #[repr(C)]
+    struct V01 {
+        struct_size: u32,
+        method: i32,
+        tol: f64,
+        max_outer: i64,
+        max_inner: i64,
+    }
+
+    /// DsOptions as compiled against the 0.2 header.
+    #[repr(C)]
+    struct V02 {
+        struct_size: u32,
+        method: i32,
+        tol: f64,
+        max_outer: i64,
+        max_inner: i64,
+        dual_form: i32,
+    }
+
+    #[test]
+    fn older_layouts_are_prefixes_of_this_one() {
+        use std::mem::{offset_of, size_of};
+        assert_eq!(size_of::<V01>(), V01_SIZE);
+        assert_eq!(size_of::<V02>(), V02_SIZE);
+        assert_eq!(SIZE, 64);
+        assert_eq!(offset_of!(V01, tol), offset_of!(DsOptions, tol));
+        assert_eq!(offset_of!(V01, max_inner), offset_of!(DsOptions, max_inner));
+        assert_eq!(offset_of!(V02, dual_form), offset_of!(DsOptions, dual_form));
+        assert_eq!(offset_of!(DsOptions, max_seconds), V02_SIZE);
+    }
+
+    #[test]
+    fn init_fills_the_callers_size_and_nothing_past_it() {
+        for size in [V01_SIZE, V02_SIZE, SIZE] {
+            // A guard region after the caller's struct.
+            let mut buf = [0xA5u8; 128];
+            // An aligned start inside buf.
+            let off = buf.as_ptr().align_offset(8);
+            let ptr = buf.as_mut_ptr().wrapping_add(off).cast::<DsOptions>();
+            // SAFETY: ptr is aligned and has at least 64 writable bytes of buf.
+            assert_eq!(unsafe { ds_options_init(ptr, size) }, DsStatus::Ok);
+            assert!(buf[off + size..].iter().all(|&b| b == 0xA5), "size {size}");
+            // SAFETY: the struct just written has `size` bytes and says so.
+            let read = unsafe { DsOptions::read(ptr) }.unwrap();
+            assert_eq!(read, Options::default());
+        }
+        let mut o = DsOptions::default();
+        // SAFETY: a whole DsOptions; the size is refused before any write.
+        assert_eq!(
+            unsafe { ds_options_init(&mut o, 48) },
+            DsStatus::BadArgument
+        );
+        // SAFETY: NULL is refused.
+        let st = unsafe { ds_options_init(std::ptr::null_mut(), SIZE) };
+        assert_eq!(st, DsStatus::NullPointer);
+    }
+
+    #[test]
+    fn the_legacy_default_writes_32_bytes_only() {
+        let mut buf = [0xA5u8; 128];
+        let off = buf.as_ptr().align_offset(8);
+        let ptr = buf.as_mut_ptr().wrapping_add(off).cast::<DsOptions>();
+        // SAFETY: aligned, 64 writable bytes.
+        unsafe { ds_options_default(ptr) };
+        assert!(buf[off + V01_SIZE..].iter().all(|&b| b == 0xA5));
+        // SAFETY: a 0.1 struct that says so.
+        let read = unsafe { DsOptions::read(ptr) }.unwrap();
+        assert_eq!(read, Options::default());
+        // SAFETY: NULL is a no-op.
+        unsafe { ds_options_default(std::ptr::null_mut()) };
+    }
 
     #[test]
     fn defaults_round_trip() {
-        let mut o = DsOptions {
-            struct_size: 0,
-            method: -5,
-            tol: f64::NAN,
-            max_outer: -1,
-            max_inner: -1,
-            dual_form: 9,
-        };
-        // SAFETY: o is a valid, writable DsOptions.
-        unsafe { ds_options_default(&mut o) };
-        // SAFETY: NULL is a no-op.
-        unsafe { ds_options_default(std::ptr::null_mut()) };
-        assert_eq!(o.struct_size as usize, std::mem::size_of::<DsOptions>());
+        let o = DsOptions::default();
+        assert_eq!(o.struct_size as usize, SIZE);
         assert_eq!(o.method, DsMethod::Split as i32);
         assert_eq!((o.tol, o.max_outer, o.max_inner), (1e-10, 10_000, 1_000));
+        assert_eq!(
+            (o.max_seconds, o.stall_window, o.stall_factor),
+            (0.0, 100, 0.9)
+        );
         // SAFETY: o is a valid DsOptions.
         let read = unsafe { DsOptions::read(&o) };
         assert_eq!(read.unwrap(), Options::default());
         // SAFETY: NULL means defaults.
         let read = unsafe { DsOptions::read(std::ptr::null()) };
         assert_eq!(read.unwrap(), Options::default());
-        let pgs = DsOptions { method: 2, ..o };
+        let pgs = DsOptions {
+            method: 2,
+            max_seconds: 2.5,
+            stall_window: 0,
+            stall_factor: 1.0,
+            ..o
+        };
         // SAFETY: pgs is a valid DsOptions.
-        let read = unsafe { DsOptions::read(&pgs) };
-        assert_eq!(read.unwrap().method, Method::Pgs);
+        let read = unsafe { DsOptions::read(&pgs) }.unwrap();
+        assert_eq!(read.method, Method::Pgs);
+        assert_eq!(
+            (read.max_seconds, read.stall_window, read.stall_factor),
+            (2.5, 0, 1.0)
+        );
     }
 
     #[test]
-    fn a_version_01_struct_reads_with_the_automatic_dual_form() {
-        /// DsOptions as compiled against the 0.1 header.
-        #[repr(C)]
-        struct V01 {
-            struct_size: u32,
-            method: i32,
-            tol: f64,
-            max_outer: i64,
-            max_inner: i64,
-        }
-        assert_eq!(std::mem::size_of::<V01>(), V01_SIZE);
-        assert_eq!(
-            std::mem::offset_of!(V01, max_inner),
-            std::mem::offset_of!(DsOptions, max_inner)
-        );
-        assert_eq!(
-            std::mem::offset_of!(V01, tol),
-            std::mem::offset_of!(DsOptions, tol)
-        );
+    fn older_structs_read_with_the_defaults_of_the_fields_they_lack() {
         let old = V01 {
             struct_size: V01_SIZE as u32,
             method: DsMethod::Mprgp as i32,
@@ -220,16 +391,29 @@ mod tests {
         };
         // SAFETY: old has the 0.1 layout and says so in struct_size.
         let read = unsafe { DsOptions::read(&old as *const V01 as *const DsOptions) }.unwrap();
-        assert_eq!(
-            read,
-            Options {
-                method: Method::Mprgp,
-                tol: 1e-8,
-                max_outer: 7,
-                max_inner: 9,
-                dual_form: crate::options::DualForm::Auto,
-            }
-        );
+        let want = Options {
+            method: Method::Mprgp,
+            tol: 1e-8,
+            max_outer: 7,
+            max_inner: 9,
+            ..Options::default()
+        };
+        assert_eq!(read, want);
+        let old = V02 {
+            struct_size: V02_SIZE as u32,
+            method: DsMethod::Mprgp as i32,
+            tol: 1e-8,
+            max_outer: 7,
+            max_inner: 9,
+            dual_form: DsDualForm::MatrixFree as i32,
+        };
+        // SAFETY: old has the 0.2 layout and says so in struct_size.
+        let read = unsafe { DsOptions::read(&old as *const V02 as *const DsOptions) }.unwrap();
+        let want = Options {
+            dual_form: DualForm::MatrixFree,
+            ..want
+        };
+        assert_eq!(read, want);
     }
 
     #[test]
@@ -255,6 +439,41 @@ mod tests {
             (DsOptions { max_outer: -1, ..o }, "opts.max_outer = -1"),
             (DsOptions { max_inner: -3, ..o }, "opts.max_inner = -3"),
             (DsOptions { dual_form: 3, ..o }, "opts.dual_form = 3"),
+            (
+                DsOptions {
+                    max_seconds: -1.0,
+                    ..o
+                },
+                "opts.max_seconds = -1",
+            ),
+            (
+                DsOptions {
+                    max_seconds: f64::NAN,
+                    ..o
+                },
+                "opts.max_seconds = NaN",
+            ),
+            (
+                DsOptions {
+                    stall_window: -2,
+                    ..o
+                },
+                "opts.stall_window = -2",
+            ),
+            (
+                DsOptions {
+                    stall_factor: 0.0,
+                    ..o
+                },
+                "opts.stall_factor = 0",
+            ),
+            (
+                DsOptions {
+                    stall_factor: 1.5,
+                    ..o
+                },
+                "opts.stall_factor = 1.5",
+            ),
         ];
         for (bad, text) in cases {
             // SAFETY: bad is a valid DsOptions.

@@ -283,55 +283,61 @@ unsafe fn solve_impl(
     };
     problem.watch.on_done(&solution.report);
     let ds_report = DsReport::from(&solution.report);
-    match solution.report.status {
-        SolveStatus::Converged | SolveStatus::Stopped => {
-            u.check_len(&solution.u)?;
-            lambda_n.check_len(&solution.lambda_n)?;
-            lambda_t.check_len(&solution.lambda_t)?;
-            // SAFETY: the output arrays are valid for their lengths (contract) and no
-            // Rust reference to them exists; the inputs are no longer read.
-            unsafe {
-                u.write(&solution.u)?;
-                lambda_n.write(&solution.lambda_n)?;
-                lambda_t.write(&solution.lambda_t)?;
-                if let Some(r) = &report {
-                    r.write(&[ds_report])?;
-                }
-            }
-            if solution.report.status == SolveStatus::Stopped {
-                return Err(Error::new(
-                    ErrorKind::Stopped,
-                    format!(
-                        "{} stopped by the monitor callback after {} outer iterations \
-                         (err = {:.3e}); the last iterate was written",
-                        options.method.name(),
-                        solution.report.outer_iterations,
-                        solution.report.err
-                    ),
-                ));
-            }
-            Ok(())
-        }
-        SolveStatus::NotConverged => {
-            if let Some(r) = &report {
-                // SAFETY: report is valid for one write (contract).
-                unsafe { r.write(&[ds_report])? };
-            }
-            Err(Error::new(
-                ErrorKind::NotConverged,
-                format!(
-                    "{} did not converge: err = {:.3e} > tol = {:.3e} after {} outer \
-                     iterations (max_outer = {}, max_inner = {}); outputs not written",
-                    options.method.name(),
-                    solution.report.err,
-                    options.tol,
-                    solution.report.outer_iterations,
-                    options.max_outer,
-                    options.max_inner
-                ),
-            ))
+    let status = solution.report.status;
+    if status != SolveStatus::NotConverged {
+        u.check_len(&solution.u)?;
+        lambda_n.check_len(&solution.lambda_n)?;
+        lambda_t.check_len(&solution.lambda_t)?;
+        // SAFETY: the output arrays are valid for their lengths (contract) and no
+        // Rust reference to them exists; the inputs are no longer read.
+        unsafe {
+            u.write(&solution.u)?;
+            lambda_n.write(&solution.lambda_n)?;
+            lambda_t.write(&solution.lambda_t)?;
         }
     }
+    if let Some(r) = &report {
+        // SAFETY: report is valid for one write (contract).
+        unsafe { r.write(&[ds_report])? };
+    }
+    let (r, name) = (&solution.report, options.method.name());
+    let (err, outer) = (r.err, r.outer_iterations);
+    let message = match status {
+        SolveStatus::Converged => return Ok(()),
+        SolveStatus::Stopped => (
+            ErrorKind::Stopped,
+            format!(
+                "{name} stopped by the monitor callback after {outer} outer iterations \
+                 (err = {err:.3e}); the last iterate was written"
+            ),
+        ),
+        SolveStatus::Stalled => (
+            ErrorKind::Stalled,
+            format!(
+                "{name} stalled: err = {err:.3e} > tol = {:.3e} after {outer} outer \
+                 iterations, the best err not lowered by the factor {} over the last {} \
+                 (stall_factor, stall_window); the iterate with the lowest err was written",
+                options.tol, options.stall_factor, options.stall_window
+            ),
+        ),
+        SolveStatus::TimeLimit => (
+            ErrorKind::TimeLimit,
+            format!(
+                "{name} reached max_seconds = {} with err = {err:.3e} > tol = {:.3e} after \
+                 {outer} outer iterations; the iterate with the lowest err was written",
+                options.max_seconds, options.tol
+            ),
+        ),
+        SolveStatus::NotConverged => (
+            ErrorKind::NotConverged,
+            format!(
+                "{name} did not converge: err = {err:.3e} > tol = {:.3e} after {outer} outer \
+                 iterations (max_outer = {}, max_inner = {}); outputs not written",
+                options.tol, options.max_outer, options.max_inner
+            ),
+        ),
+    };
+    Err(Error::new(message.0, message.1))
 }
 
 /// Solves one increment exactly as given (the history of ds_step is neither used nor
@@ -353,6 +359,9 @@ unsafe fn solve_impl(
 ///
 /// Arrays of length 0 may be NULL. Returns DS_STATUS_OK (u, lambda_n, lambda_t and
 /// report written); DS_STATUS_NOT_CONVERGED (only the report written);
+/// DS_STATUS_STOPPED (the last iterate and the report written), DS_STATUS_STALLED
+/// and DS_STATUS_TIME_LIMIT (the iterate with the lowest err and the report
+/// written);
 /// DS_STATUS_NULL_POINTER, DS_STATUS_BAD_ARGUMENT (friction, options),
 /// DS_STATUS_NOT_FINITE, DS_STATUS_NEGATIVE_FRICTION, DS_STATUS_OUT_OF_MEMORY
 /// (nothing written). The handle stays usable in every case.

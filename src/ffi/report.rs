@@ -54,6 +54,8 @@ impl From<&Report> for DsReport {
                 SolveStatus::Converged => DsStatus::Ok,
                 SolveStatus::NotConverged => DsStatus::NotConverged,
                 SolveStatus::Stopped => DsStatus::Stopped,
+                SolveStatus::Stalled => DsStatus::Stalled,
+                SolveStatus::TimeLimit => DsStatus::TimeLimit,
             } as i32,
             method: DsMethod::from(r.method) as i32,
             err: r.err,

@@ -47,6 +47,17 @@ pub enum DsStatus {
     /// The monitor callback asked to stop. ds_solve / ds_step write the last iterate
     /// to u, lambda_n, lambda_t and the report; the history does not advance.
     Stopped = 13,
+    /// The method stopped making progress: its lowest err did not drop by the
+    /// factor DsOptions.stall_factor over DsOptions.stall_window outer iterations
+    /// (Newton also when its natural residual stops falling). ds_solve / ds_step
+    /// write the iterate with the lowest err to u, lambda_n, lambda_t and the
+    /// report; the history does not advance. A problem without a solution (no u
+    /// with N u <= g) ends this way under the Gauss-Seidel methods.
+    Stalled = 14,
+    /// The wall-clock budget DsOptions.max_seconds ran out. ds_solve / ds_step write
+    /// the iterate with the lowest err to u, lambda_n, lambda_t and the report; the
+    /// history does not advance.
+    TimeLimit = 15,
 }
 
 impl From<ErrorKind> for DsStatus {
@@ -65,13 +76,15 @@ impl From<ErrorKind> for DsStatus {
             ErrorKind::Io => DsStatus::IoError,
             ErrorKind::Panic => DsStatus::Panic,
             ErrorKind::Stopped => DsStatus::Stopped,
+            ErrorKind::Stalled => DsStatus::Stalled,
+            ErrorKind::TimeLimit => DsStatus::TimeLimit,
         }
     }
 }
 
 impl DsStatus {
     /// Every status, in the order of their values (index = value).
-    pub const ALL: [DsStatus; 14] = [
+    pub const ALL: [DsStatus; 16] = [
         DsStatus::Ok,
         DsStatus::NullPointer,
         DsStatus::BadSize,
@@ -86,6 +99,8 @@ impl DsStatus {
         DsStatus::IoError,
         DsStatus::Panic,
         DsStatus::Stopped,
+        DsStatus::Stalled,
+        DsStatus::TimeLimit,
     ];
 
     /// The status with C value `v`, if any.
@@ -112,6 +127,8 @@ impl DsStatus {
             DsStatus::IoError => c"a file could not be read or written",
             DsStatus::Panic => c"internal error (panic caught at the C boundary)",
             DsStatus::Stopped => c"stopped by the caller (monitor callback)",
+            DsStatus::Stalled => c"the iteration stopped making progress",
+            DsStatus::TimeLimit => c"the time limit was reached before the tolerance",
         }
     }
 }
@@ -138,7 +155,7 @@ mod tests {
             assert_eq!(DsStatus::from_i32(i as i32), Some(*s));
         }
         assert_eq!(DsStatus::from_i32(-1), None);
-        assert_eq!(DsStatus::from_i32(14), None);
+        assert_eq!(DsStatus::from_i32(16), None);
     }
 
     #[test]
@@ -157,6 +174,8 @@ mod tests {
             ErrorKind::Io,
             ErrorKind::Panic,
             ErrorKind::Stopped,
+            ErrorKind::Stalled,
+            ErrorKind::TimeLimit,
         ];
         let mapped: Vec<DsStatus> = kinds.iter().map(|&k| DsStatus::from(k)).collect();
         assert_eq!(&mapped[..], &DsStatus::ALL[1..]);

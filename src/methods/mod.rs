@@ -5,22 +5,35 @@
 //! ```
 //!
 //! all behind one entry point, [`run`], so that every method runs on the same data.
-//! Projections onto the friction sets and the small local problems live in
-//! `projection`; the projected Gauss-Seidel sweeps in `pgs`; Pop's splitting and
-//! the block Gauss-Seidel variant in `split`.
+//! `driver` owns the outer loop and its stop tests; a method is an
+//! [`driver::OuterStep`] in a file of its own (`pgs`, `split`, `newton`,
+//! `whole` for MPRGP on the whole dual, `signorini` for frictionless increments),
+//! built by [`outer_step`]. The sub-problems of the splittings are solved by a
+//! [`subproblem::SubSolver`]: projected Gauss-Seidel or MPRGP. Projections onto
+//! the friction sets and the small local problems live in `projection`.
 
+mod driver;
 mod mprgp;
 mod newton;
 mod pgs;
 mod projection;
+mod signorini;
 mod split;
+mod subproblem;
+mod whole;
 
+pub use driver::{End, Outcome};
 pub use projection::{project_disk, solve_disk_qp};
 
 use crate::dual::Dual;
 use crate::options::{Method, Options};
-use crate::report::{contact_states, natural_map_error};
+use crate::report::natural_map_error;
+use driver::OuterStep;
+use split::Split;
+use split::Variant::{Block, Schur};
 use std::cell::RefCell;
+use std::time::Instant;
+use subproblem::{GaussSeidel, Mprgp};
 
 /// The friction bound of one solve, per contact.
 #[derive(Copy, Clone, Debug)]
@@ -58,40 +71,6 @@ impl Law<'_> {
     }
 }
 
-/// What a method reports back.
-#[derive(Copy, Clone, Debug, Default)]
-pub struct Outcome {
-    /// Outer iterations done.
-    pub outer: usize,
-    /// Inner sweeps done in total.
-    pub inner: usize,
-    /// The error measured on the dual gradient at the last iterate.
-    pub dual_err: f64,
-    /// The monitor asked to stop.
-    pub stopped: bool,
-    /// An MPRGP solve found the dual unbounded below: the contact constraints
-    /// admit no displacement (see [`mprgp::Unbounded`]); the method stopped.
-    pub infeasible: bool,
-}
-
-impl Outcome {
-    /// Adds a sub-problem solve's iterations to `inner`; true (and `infeasible`
-    /// set) when the sub-problem was unbounded, and the method must stop.
-    fn add_inner(&mut self, run: Result<usize, mprgp::Unbounded>) -> bool {
-        match run {
-            Ok(its) => {
-                self.inner += its;
-                false
-            }
-            Err(u) => {
-                self.inner += u.iterations;
-                self.infeasible = true;
-                true
-            }
-        }
-    }
-}
-
 /// What the monitor sees after every outer iteration.
 #[derive(Copy, Clone, Debug, PartialEq)]
 pub struct Progress {
@@ -123,42 +102,11 @@ pub struct DualProblem<'a> {
     /// Called after every outer iteration with the iteration number relative to
     /// this run; None for no monitoring.
     pub monitor: Option<RefCell<Monitor<'a>>>,
+    /// The wall-clock budget: no outer iteration starts after it.
+    pub deadline: Option<Instant>,
 }
 
 impl DualProblem<'_> {
-    /// The common end-of-iteration test of every method: reports progress to the
-    /// monitor (after the first iteration), then says whether to stop: the monitor
-    /// asked to (`out.stopped`), `out.dual_err <= target`, or the iteration limit.
-    /// `p` and `v` are the bounds and v = -(A lam - b) left by [`DualProblem::error`].
-    pub fn should_stop(
-        &self,
-        out: &mut Outcome,
-        lam: &[f64],
-        p: &[f64],
-        v: &[f64],
-        target: f64,
-        opts: &Options,
-    ) -> bool {
-        if out.outer > 0
-            && let Some(cell) = &self.monitor
-        {
-            let (n_open, n_stick, n_slip) = contact_states(lam, v, &self.dual.rho, p, self.dual.d);
-            let progress = Progress {
-                iteration: out.outer,
-                err: out.dual_err,
-                n_open,
-                n_stick,
-                n_slip,
-                elapsed_seconds: 0.0,
-            };
-            if !(cell.borrow_mut())(&progress) {
-                out.stopped = true;
-                return true;
-            }
-        }
-        out.dual_err <= target || out.outer >= opts.max_outer
-    }
-
     /// w := A lam - b (the negative of v = [N u - g; T u]).
     pub fn gradient(&self, lam: &[f64], w: &mut [f64]) {
         self.dual.apply(lam, w);
@@ -179,132 +127,40 @@ impl DualProblem<'_> {
     }
 }
 
-/// Runs `opts.method` from the starting point in `lam` (length d m; a warm start or
-/// zeros) until the dual error is at most `target` or the iteration limit.
-pub fn run(problem: &DualProblem<'_>, lam: &mut [f64], opts: &Options, target: f64) -> Outcome {
+/// The method `opts.method` as an outer step for `problem`. A frictionless
+/// increment (every slip bound zero) is the pure Signorini problem in the m normal
+/// unknowns for the splittings and whole-dual MPRGP (design.md section 2); PGS's
+/// tangential steps cost O(1) per contact with a zero bound, and Newton drops the
+/// unknowns at zero bounds from its linear systems, so those two run as they are.
+fn outer_step(problem: &DualProblem<'_>, opts: &Options) -> Box<dyn OuterStep> {
+    let (method, max_inner) = (opts.method, opts.max_inner);
+    let (m, c) = (problem.dual.m, problem.dual.c);
     if problem.law.frictionless() {
-        match opts.method {
-            Method::Split | Method::BlockGs => return signorini(problem, lam, opts, target, false),
-            Method::SplitMprgp | Method::Mprgp => {
-                return signorini(problem, lam, opts, target, true);
+        match method {
+            Method::Split | Method::BlockGs => {
+                return Box::new(signorini::Signorini::new(GaussSeidel::new(m), max_inner));
             }
-            // PGS's tangential local steps cost O(1) per contact with a zero bound,
-            // and Newton drops unknowns at zero bounds from its linear systems.
+            Method::SplitMprgp | Method::Mprgp => {
+                return Box::new(signorini::Signorini::new(Mprgp::new(m), max_inner));
+            }
             Method::Pgs | Method::Newton => {}
         }
     }
-    match opts.method {
-        Method::Pgs => pgs::solve(problem, lam, opts, target),
-        Method::Split => split::solve(problem, lam, opts, target, true, false),
-        Method::BlockGs => split::solve(problem, lam, opts, target, false, false),
-        Method::SplitMprgp => split::solve(problem, lam, opts, target, true, true),
-        Method::Mprgp => whole_mprgp(problem, lam, opts, target),
-        Method::Newton => newton::solve(problem, lam, opts, target),
+    let k = m.max(c - m);
+    match method {
+        Method::Pgs => Box::new(pgs::Pgs::new(problem)),
+        Method::Split => Box::new(Split::new(problem, Schur, GaussSeidel::new(k), max_inner)),
+        Method::BlockGs => Box::new(Split::new(problem, Block, GaussSeidel::new(k), max_inner)),
+        Method::SplitMprgp => Box::new(Split::new(problem, Schur, Mprgp::new(k), max_inner)),
+        Method::Mprgp => Box::new(whole::WholeMprgp::new(problem, max_inner)),
+        Method::Newton => Box::new(newton::Newton::new(problem)),
     }
 }
 
-/// The pure Signorini problem of a frictionless increment (every slip bound zero:
-/// lambda_T = 0): min 1/2 y^T A_NN y - y^T b_N over y >= 0 in the m normal
-/// unknowns alone (design.md section 2: the cost follows the physics switched on),
-/// by projected Gauss-Seidel or MPRGP on the leading m x m block of A (dense) or
-/// on products with it (matrix-free). One outer iteration is one sub-problem solve
-/// to a tenth of the target; the stopping test is the whole problem's err.
-fn signorini(
-    problem: &DualProblem<'_>,
-    lam: &mut [f64],
-    opts: &Options,
-    target: f64,
-    use_mprgp: bool,
-) -> Outcome {
-    let dual = problem.dual;
-    let (m, c) = (dual.m, dual.c);
-    lam[m..].iter_mut().for_each(|x| *x = 0.0);
-    let mut out = Outcome::default();
-    let mut w = vec![0.0; c];
-    let mut scratch = mprgp::Scratch::new(m);
-    let mut norm = None;
-    let mut p = vec![0.0; m];
-    let mut v = vec![0.0; c];
-    loop {
-        problem.gradient(lam, &mut w);
-        out.dual_err = problem.error(lam, &w, &mut p, &mut v);
-        if problem.should_stop(&mut out, lam, &p, &v, target, opts) {
-            return out;
-        }
-        let sub = pgs::SubQp {
-            h: &dual.a,
-            ld: c,
-            k: m,
-            q: &problem.b[..m],
-            block: 1,
-            radii: None,
-        };
-        let run = if use_mprgp {
-            let mut qp = sub.as_convex();
-            qp.op = dual.is_matrix_free().then_some(dual);
-            qp.solve_in(
-                &mut lam[..m],
-                0.1 * target,
-                opts.max_inner,
-                &mut scratch,
-                &mut norm,
-            )
-        } else {
-            Ok(sub.solve(&mut lam[..m], scratch.one(m), 0.1 * target, opts.max_inner))
-        };
-        out.outer += 1;
-        if out.add_inner(run) {
-            return out;
-        }
-    }
-}
-
-/// MPRGP / MPGP on the whole dual, with the Coulomb fixed point p = mu lambda_N
-/// outside: each outer iteration solves the Tresca problem of the current bound
-/// (one outer iteration for Tresca).
-fn whole_mprgp(problem: &DualProblem<'_>, lam: &mut [f64], opts: &Options, target: f64) -> Outcome {
-    let dual = problem.dual;
-    let (m, c) = (dual.m, dual.c);
-    let mut out = Outcome::default();
-    let mut w = vec![0.0; c];
-    let mut p = vec![0.0; m];
-    let mut v = vec![0.0; c];
-    let mut radii = vec![0.0; m];
-    // Coulomb: the bound is relaxed as in split.rs (Aitken; the plain fixed point
-    // while it does not oscillate), and the limit returns the best iterate.
-    let coulomb = matches!(problem.law, Law::Coulomb(_));
-    let mut relax = pgs::Aitken::new(if coulomb { m } else { 0 });
-    let mut prev = vec![0.0; if coulomb { m } else { 0 }];
-    let mut best = pgs::BestIterate::new(c);
-    // H = A for every outer iteration: one scratch and one norm estimate.
-    let mut scratch = mprgp::Scratch::new(c);
-    let mut norm = None;
-    loop {
-        problem.gradient(lam, &mut w);
-        out.dual_err = problem.error(lam, &w, &mut p, &mut v);
-        best.offer(lam, out.dual_err);
-        if problem.should_stop(&mut out, lam, &p, &v, target, opts) {
-            best.restore_at_limit(lam, &mut out, target);
-            return out;
-        }
-        problem.law.bounds(&lam[..m], &mut radii);
-        if coulomb {
-            relax.relax_bound(&mut prev, &mut radii, out.outer == 0);
-        }
-        let qp = mprgp::ConvexQp {
-            h: &dual.a,
-            ld: c,
-            op: dual.is_matrix_free().then_some(dual),
-            k: c,
-            q: problem.b,
-            n_nonneg: m,
-            block: dual.d - 1,
-            radii: &radii,
-        };
-        let run = qp.solve_in(lam, 0.1 * target, opts.max_inner, &mut scratch, &mut norm);
-        out.outer += 1;
-        if out.add_inner(run) {
-            return out;
-        }
-    }
+/// Runs `opts.method` from the starting point in `lam` (length d m; a warm start or
+/// zeros) until the dual error is at most `target` or another stop test fires
+/// (see [`End`]).
+pub fn run(problem: &DualProblem<'_>, lam: &mut [f64], opts: &Options, target: f64) -> Outcome {
+    let mut method = outer_step(problem, opts);
+    driver::drive(problem, lam, opts, target, method.as_mut())
 }

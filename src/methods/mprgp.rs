@@ -42,8 +42,8 @@ const FLAT: f64 = 1e-13;
 /// (7e18 on an infeasible test problem) is no boundary.
 const REACH: f64 = 1e8;
 
-/// Work vectors of MPRGP (five of length k) and of projected Gauss-Seidel (one),
-/// allocated once per method run and reused by every sub-problem solve.
+/// Work vectors of MPRGP (five of length k), allocated once per method run and
+/// reused by every sub-problem solve.
 pub(super) struct Scratch {
     buf: Vec<f64>,
 }
@@ -63,11 +63,6 @@ impl Scratch {
         let (c, rest) = rest.split_at_mut(k);
         let (d, e) = rest.split_at_mut(k);
         [a, b, c, d, e]
-    }
-
-    /// One vector of length k, for projected Gauss-Seidel.
-    pub fn one(&mut self, k: usize) -> &mut [f64] {
-        &mut self.buf[..k]
     }
 }
 

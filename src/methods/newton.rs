@@ -30,8 +30,8 @@
 //! multipliers. Otherwise the iterate takes a few projected Gauss-Seidel sweeps (a
 //! first-order descent step for Tresca) and Newton restarts from there, so it
 //! cannot cycle. When neither has lowered |F| by STALL_DROP for STALL_WINDOW
-//! iterations the solve gives up (the caller reports NotConverged) instead of
-//! burning the iteration limit on a problem without a solution.
+//! iterations the solve gives up (stalled) instead of burning the iteration limit
+//! on a problem without a solution.
 //!
 //! Warm-up: every solve starts with up to PRESWEEPS projected Gauss-Seidel sweeps
 //! (cheap against a Newton step), so that the first active set Newton sees is
@@ -41,9 +41,9 @@
 //! multipliers (see WARM_C), not by the natural map, so that a history step starts
 //! from the active set of the previous increment.
 
+use super::DualProblem;
+use super::driver::{Flow, Gradient, OuterStep};
 use super::pgs;
-use super::{DualProblem, Outcome};
-use crate::options::Options;
 use faer::Mat;
 use faer::prelude::Solve;
 
@@ -353,87 +353,110 @@ fn residual_norm(problem: &DualProblem<'_>, lam: &[f64], w: &[f64]) -> f64 {
     r2.sqrt()
 }
 
-/// Runs the globalised semismooth Newton method from `lam`.
-pub(super) fn solve(
-    problem: &DualProblem<'_>,
-    lam: &mut [f64],
-    opts: &Options,
-    target: f64,
-) -> Outcome {
-    let dual = problem.dual;
-    let (m, c) = (dual.m, dual.c);
-    let mut out = Outcome::default();
-    let mut w = vec![0.0; c];
-    let mut p = vec![0.0; m];
-    let mut v = vec![0.0; c];
-    let mut step = vec![0.0; c];
-    let mut f = vec![0.0; c];
-    let mut ae0 = vec![0.0; c];
-    let mut trial = vec![0.0; c];
-    let mut wt = vec![0.0; c];
-    let warm = lam.iter().any(|&x| x != 0.0);
-    problem.gradient(lam, &mut w);
-    // First-order warm-up (module docs): PRESWEEPS sweeps, fewer when err meets
-    // the target first.
-    let mut swept = 0;
-    while swept < PRESWEEPS && problem.error(lam, &w, &mut p, &mut v) > target {
-        let n = PRESWEEP_CHUNK.min(PRESWEEPS - swept);
-        out.inner += pgs::sweeps(problem, lam, &mut w, n);
-        swept += n;
-    }
-    if swept > 0 {
-        // w was updated column by column: recompute it against drift.
-        problem.gradient(lam, &mut w);
-    }
-    let mut res = residual_norm(problem, lam, &w);
-    let (mut best, mut best_at) = (res, 0);
-    let mut best_iterate = pgs::BestIterate::new(c);
-    loop {
-        out.dual_err = problem.error(lam, &w, &mut p, &mut v);
-        best_iterate.offer(lam, out.dual_err);
-        if problem.should_stop(&mut out, lam, &p, &v, target, opts) {
-            best_iterate.restore_at_limit(lam, &mut out, target);
-            return out;
+/// The globalised semismooth Newton method.
+pub(super) struct Newton {
+    warm: bool,
+    step: Vec<f64>,
+    f: Vec<f64>,
+    ae0: Vec<f64>,
+    trial: Vec<f64>,
+    wt: Vec<f64>,
+    /// |F| at the current iterate, and the lowest |F| with the iteration it was met.
+    res: f64,
+    best: f64,
+    best_at: usize,
+}
+
+impl Newton {
+    pub fn new(problem: &DualProblem<'_>) -> Self {
+        let c = problem.dual.c;
+        Newton {
+            warm: false,
+            step: vec![0.0; c],
+            f: vec![0.0; c],
+            ae0: vec![0.0; c],
+            trial: vec![0.0; c],
+            wt: vec![0.0; c],
+            res: 0.0,
+            best: 0.0,
+            best_at: 0,
         }
-        if res < (1.0 - STALL_DROP) * best {
-            (best, best_at) = (res, out.outer);
-        } else if out.outer >= best_at + STALL_WINDOW {
+    }
+}
+
+impl OuterStep for Newton {
+    /// First-order warm-up (module docs): PRESWEEPS sweeps, fewer when err meets
+    /// the target first.
+    fn start(
+        &mut self,
+        problem: &DualProblem<'_>,
+        lam: &mut [f64],
+        w: &mut [f64],
+        inner: &mut usize,
+        target: f64,
+    ) -> Flow {
+        let (m, c) = (problem.dual.m, problem.dual.c);
+        self.warm = lam.iter().any(|&x| x != 0.0);
+        // The error's scratch: `f` and `ae0` are overwritten by every step.
+        let (p, v) = (&mut self.f[..m], &mut self.ae0[..c]);
+        let mut swept = 0;
+        while swept < PRESWEEPS && problem.error(lam, w, p, v) > target {
+            let n = PRESWEEP_CHUNK.min(PRESWEEPS - swept);
+            *inner += pgs::sweeps(problem, lam, w, n);
+            swept += n;
+        }
+        if swept > 0 {
+            // w was updated column by column: recompute it against drift.
+            problem.gradient(lam, w);
+        }
+        self.res = residual_norm(problem, lam, w);
+        (self.best, self.best_at) = (self.res, 0);
+        Flow::Go(Gradient::Exact)
+    }
+
+    fn step(
+        &mut self,
+        problem: &DualProblem<'_>,
+        lam: &mut [f64],
+        w: &mut [f64],
+        inner: &mut usize,
+        k: usize,
+    ) -> Flow {
+        let c = problem.dual.c;
+        if self.res < (1.0 - STALL_DROP) * self.best {
+            (self.best, self.best_at) = (self.res, k);
+        } else if k >= self.best_at + STALL_WINDOW {
             // Neither Newton nor Gauss-Seidel makes progress: no solution to find
             // (an infeasible problem), or none this method can reach.
-            best_iterate.restore_at_limit(lam, &mut out, target);
-            return out;
+            return Flow::Stalled;
         }
-        out.outer += 1;
         // A warm start's first step takes its active set from the multipliers
         // (see WARM_C); every later step from the natural map.
-        let cscale = if warm && out.outer == 1 { WARM_C } else { 1.0 };
-        if newton_step(problem, lam, &w, &mut step, &mut f, &mut ae0, cscale) {
+        let cscale = if self.warm && k == 0 { WARM_C } else { 1.0 };
+        let (step, trial, wt) = (&mut self.step, &mut self.trial, &mut self.wt);
+        if newton_step(problem, lam, w, step, &mut self.f, &mut self.ae0, cscale) {
             // Backtracking: the full step, then halves of it.
             let mut t = 1.0;
-            let mut accepted = false;
             for _ in 0..BACKTRACKS {
                 for j in 0..c {
                     trial[j] = lam[j] + t * step[j];
                 }
-                problem.gradient(&trial, &mut wt);
-                let r = residual_norm(problem, &trial, &wt);
-                if r <= (1.0 - ARMIJO * t) * res {
-                    lam.copy_from_slice(&trial);
-                    w.copy_from_slice(&wt);
-                    res = r;
-                    accepted = true;
-                    break;
+                problem.gradient(trial, wt);
+                let r = residual_norm(problem, trial, wt);
+                if r <= (1.0 - ARMIJO * t) * self.res {
+                    lam.copy_from_slice(trial);
+                    w.copy_from_slice(wt);
+                    self.res = r;
+                    return Flow::Go(Gradient::Exact);
                 }
                 t *= 0.5;
             }
-            if accepted {
-                continue;
-            }
         }
         // Fallback: a first-order step.
-        out.inner += pgs::sweeps(problem, lam, &mut w, FALLBACK_SWEEPS);
-        problem.gradient(lam, &mut w);
-        res = residual_norm(problem, lam, &w);
+        *inner += pgs::sweeps(problem, lam, w, FALLBACK_SWEEPS);
+        problem.gradient(lam, w);
+        self.res = residual_norm(problem, lam, w);
+        Flow::Go(Gradient::Exact)
     }
 }
 

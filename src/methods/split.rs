@@ -25,10 +25,10 @@
 //! the block variant, whose steps ignore that response, relaxes the whole iterate.
 //! At the iteration limit the iterate with the lowest error is returned.
 
-use super::mprgp::Scratch;
-use super::pgs::{Aitken, BestIterate, SubQp};
-use super::{DualProblem, Outcome};
-use crate::options::Options;
+use super::DualProblem;
+use super::driver::{Flow, Gradient, OuterStep};
+use super::pgs::Aitken;
+use super::subproblem::{SubQp, SubSolver};
 use faer::linalg::matmul::matmul;
 use faer::prelude::Solve;
 use faer::{Accum, Mat, Par, Side};
@@ -108,161 +108,220 @@ fn schur(problem: &DualProblem<'_>, active: &[bool]) -> Option<Schur> {
     })
 }
 
-/// Runs the splitting from `lam`; `use_schur` selects Pop's Schur variant.
-pub(super) fn solve(
-    problem: &DualProblem<'_>,
-    lam: &mut [f64],
-    opts: &Options,
-    target: f64,
-    use_schur: bool,
-    mprgp: bool,
-) -> Outcome {
-    let dual = problem.dual;
-    let (m, d, c) = (dual.m, dual.d, dual.c);
-    let ct = c - m;
-    let inner_tol = 0.1 * target;
-    let mut out = Outcome::default();
-    let mut w = vec![0.0; c];
-    let mut p = vec![0.0; m];
-    let mut v = vec![0.0; c];
-    // Sub-problem work space, and MPRGP's estimates of |A_NN| (fixed) and of the
-    // tangential matrix's norm (reset when that matrix changes).
-    let mut scratch = Scratch::new(m.max(ct));
-    let mut norm_n = None;
-    let mut norm_t = None;
-    let mut norm_t_of_schur = false;
-    let mut qn = vec![0.0; m];
-    let mut qt = vec![0.0; ct];
-    let normal_step =
-        |lam: &mut [f64], qn: &mut [f64], scratch: &mut Scratch, norm: &mut Option<f64>| {
-            // q_N = b_N - A12 lambda_T
-            qn.copy_from_slice(&problem.b[..m]);
-            for j in 0..ct {
-                let lt = lam[m + j];
-                if lt != 0.0 {
-                    let col = &dual.col(m + j)[..m];
-                    qn.iter_mut().zip(col).for_each(|(q, a)| *q -= a * lt);
+/// Which tangential matrix the splitting uses.
+#[derive(Copy, Clone, Debug, PartialEq, Eq)]
+pub(super) enum Variant {
+    /// Pop's: the Schur complement S of the current contact set.
+    Schur,
+    /// Plain block Gauss-Seidel: A22.
+    Block,
+}
+
+/// The splitting with sub-problem solver `S`.
+pub(super) struct Split<S> {
+    variant: Variant,
+    solver: S,
+    max_inner: usize,
+    inner_tol: f64,
+    /// MPRGP's estimates of |A_NN| (fixed) and of the tangential matrix's norm
+    /// (reset when that matrix changes).
+    norm_n: Option<f64>,
+    norm_t: Option<f64>,
+    norm_t_of_schur: bool,
+    qn: Vec<f64>,
+    qt: Vec<f64>,
+    p: Vec<f64>,
+    cache: Option<Schur>,
+    active: Vec<bool>,
+    coulomb: bool,
+    relax: Aitken,
+    /// The bound of the last tangential step (Schur variant) or the last iterate
+    /// (block variant), Coulomb only.
+    prev: Vec<f64>,
+}
+
+impl<S: SubSolver> Split<S> {
+    pub fn new(problem: &DualProblem<'_>, variant: Variant, solver: S, max_inner: usize) -> Self {
+        let dual = problem.dual;
+        let (m, c) = (dual.m, dual.c);
+        // Coulomb: the Schur variant relaxes the bound p, the block variant the
+        // whole iterate (module documentation).
+        let coulomb = matches!(problem.law, super::Law::Coulomb(_));
+        let relaxed = match (coulomb, variant) {
+            (false, _) => 0,
+            (true, Variant::Schur) => m,
+            (true, Variant::Block) => c,
+        };
+        Split {
+            variant,
+            solver,
+            max_inner,
+            inner_tol: 0.0,
+            norm_n: None,
+            norm_t: None,
+            norm_t_of_schur: false,
+            qn: vec![0.0; m],
+            qt: vec![0.0; c - m],
+            p: vec![0.0; m],
+            cache: None,
+            active: vec![true; m],
+            coulomb,
+            relax: Aitken::new(relaxed),
+            prev: vec![0.0; relaxed],
+        }
+    }
+
+    /// The normal step: lambda_N := argmin over y >= 0 of
+    /// 1/2 y^T A11 y - y^T (b_N - A12 lambda_T).
+    fn normal_step(
+        &mut self,
+        problem: &DualProblem<'_>,
+        lam: &mut [f64],
+        inner: &mut usize,
+    ) -> Flow {
+        let dual = problem.dual;
+        let (m, c) = (dual.m, dual.c);
+        self.qn.copy_from_slice(&problem.b[..m]);
+        for j in 0..c - m {
+            let lt = lam[m + j];
+            if lt != 0.0 {
+                let col = &dual.col(m + j)[..m];
+                self.qn.iter_mut().zip(col).for_each(|(q, a)| *q -= a * lt);
+            }
+        }
+        let sub = SubQp {
+            h: &dual.a,
+            ld: c,
+            k: m,
+            q: &self.qn,
+            block: 1,
+            radii: None,
+            op: None,
+        };
+        let run = self.solver.solve(
+            &sub,
+            &mut lam[..m],
+            self.inner_tol,
+            self.max_inner,
+            &mut self.norm_n,
+        );
+        Flow::after(run, inner, Gradient::Stale)
+    }
+
+    /// The tangential step with the bound in `self.p`.
+    fn tangential_step(
+        &mut self,
+        problem: &DualProblem<'_>,
+        lam: &mut [f64],
+        inner: &mut usize,
+    ) -> Flow {
+        let dual = problem.dual;
+        let (m, d, c) = (dual.m, dual.d, dual.c);
+        let ct = c - m;
+        let schur_variant = self.variant == Variant::Schur;
+        if schur_variant && self.cache.as_ref().is_none_or(|s| s.active != self.active) {
+            self.cache = schur(problem, &self.active);
+            self.norm_t = None;
+        }
+        // The tangential matrix is the cached Schur complement or A22.
+        let of_schur = schur_variant && self.cache.is_some();
+        if of_schur != self.norm_t_of_schur {
+            self.norm_t = None;
+            self.norm_t_of_schur = of_schur;
+        }
+        let sub = match &self.cache {
+            Some(sc) if schur_variant => SubQp {
+                h: &sc.s,
+                ld: ct,
+                k: ct,
+                q: &sc.q,
+                block: d - 1,
+                radii: Some(&self.p),
+                op: None,
+            },
+            _ => {
+                // q_T = b_T - A21 lambda_N
+                self.qt.copy_from_slice(&problem.b[m..]);
+                for (i, &ln) in lam[..m].iter().enumerate() {
+                    if ln != 0.0 {
+                        let col = &dual.col(i)[m..];
+                        self.qt.iter_mut().zip(col).for_each(|(q, a)| *q -= a * ln);
+                    }
+                }
+                SubQp {
+                    h: &dual.a[m + m * c..],
+                    ld: c,
+                    k: ct,
+                    q: &self.qt,
+                    block: d - 1,
+                    radii: Some(&self.p),
+                    op: None,
                 }
             }
-            let sub = SubQp {
-                h: &dual.a,
-                ld: c,
-                k: m,
-                q: qn,
-                block: 1,
-                radii: None,
-            };
-            sub.solve_with(
-                mprgp,
-                &mut lam[..m],
-                scratch,
-                norm,
-                inner_tol,
-                opts.max_inner,
-            )
         };
-    // Start: lambda_N of the frictionless problem unless warm-started.
-    if lam.iter().all(|&x| x == 0.0)
-        && out.add_inner(normal_step(lam, &mut qn, &mut scratch, &mut norm_n))
-    {
-        return out;
+        let run = self.solver.solve(
+            &sub,
+            &mut lam[m..],
+            self.inner_tol,
+            self.max_inner,
+            &mut self.norm_t,
+        );
+        Flow::after(run, inner, Gradient::Stale)
     }
-    let mut cache: Option<Schur> = None;
-    let mut active = vec![true; m];
-    // Coulomb: the Schur variant relaxes the bound p, the block variant the whole
-    // iterate (module documentation).
-    let coulomb = matches!(problem.law, super::Law::Coulomb(_));
-    let relaxed = match (coulomb, use_schur) {
-        (false, _) => 0,
-        (true, true) => m,
-        (true, false) => c,
-    };
-    let mut relax = Aitken::new(relaxed);
-    // The bound of the last tangential step (Schur variant) or the last iterate.
-    let mut prev = vec![0.0; relaxed];
-    if coulomb && use_schur {
-        problem.law.bounds(&lam[..m], &mut prev);
-    }
-    let mut best = BestIterate::new(c);
-    loop {
-        problem.gradient(lam, &mut w);
-        out.dual_err = problem.error(lam, &w, &mut p, &mut v);
-        best.offer(lam, out.dual_err);
-        if problem.should_stop(&mut out, lam, &p, &v, target, opts) {
-            best.restore_at_limit(lam, &mut out, target);
-            return out;
+}
+
+impl<S: SubSolver> OuterStep for Split<S> {
+    /// Start: lambda_N of the frictionless problem unless warm-started.
+    fn start(
+        &mut self,
+        problem: &DualProblem<'_>,
+        lam: &mut [f64],
+        _w: &mut [f64],
+        inner: &mut usize,
+        target: f64,
+    ) -> Flow {
+        self.inner_tol = 0.1 * target;
+        let m = problem.dual.m;
+        let mut flow = Flow::Go(Gradient::Exact);
+        if lam.iter().all(|&x| x == 0.0) {
+            flow = self.normal_step(problem, lam, inner);
         }
+        if self.coulomb && self.variant == Variant::Schur {
+            problem.law.bounds(&lam[..m], &mut self.prev);
+        }
+        flow
+    }
+
+    fn step(
+        &mut self,
+        problem: &DualProblem<'_>,
+        lam: &mut [f64],
+        _w: &mut [f64],
+        inner: &mut usize,
+        k: usize,
+    ) -> Flow {
+        let (m, c) = (problem.dual.m, problem.dual.c);
         // Tangential step. Coulomb: the bound p = mu lambda_N of the last normal
         // step, relaxed in the Schur variant: p_k = p_k-1 + omega (mu lambda_N - p_k-1).
-        problem.law.bounds(&lam[..m], &mut p);
-        if coulomb {
-            if use_schur {
-                relax.relax_bound(&mut prev, &mut p, out.outer == 0);
-            } else {
-                prev.copy_from_slice(lam);
+        problem.law.bounds(&lam[..m], &mut self.p);
+        if self.coulomb {
+            match self.variant {
+                Variant::Schur => self.relax.relax_bound(&mut self.prev, &mut self.p, k == 0),
+                Variant::Block => self.prev.copy_from_slice(lam),
             }
         }
-        if ct > 0 {
-            if use_schur && cache.as_ref().is_none_or(|s| s.active != active) {
-                cache = schur(problem, &active);
-                norm_t = None;
-            }
-            // The tangential matrix is the cached Schur complement or A22.
-            let of_schur = use_schur && cache.is_some();
-            if of_schur != norm_t_of_schur {
-                norm_t = None;
-                norm_t_of_schur = of_schur;
-            }
-            let sub = match (&cache, use_schur) {
-                (Some(sc), true) => SubQp {
-                    h: &sc.s,
-                    ld: ct,
-                    k: ct,
-                    q: &sc.q,
-                    block: d - 1,
-                    radii: Some(&p),
-                },
-                _ => {
-                    // q_T = b_T - A21 lambda_N
-                    qt.copy_from_slice(&problem.b[m..]);
-                    for (i, &ln) in lam[..m].iter().enumerate() {
-                        if ln != 0.0 {
-                            let col = &dual.col(i)[m..];
-                            qt.iter_mut().zip(col).for_each(|(q, a)| *q -= a * ln);
-                        }
-                    }
-                    SubQp {
-                        h: &dual.a[m + m * c..],
-                        ld: c,
-                        k: ct,
-                        q: &qt,
-                        block: d - 1,
-                        radii: Some(&p),
-                    }
-                }
-            };
-            let run = sub.solve_with(
-                mprgp,
-                &mut lam[m..],
-                &mut scratch,
-                &mut norm_t,
-                inner_tol,
-                opts.max_inner,
-            );
-            if out.add_inner(run) {
-                return out;
-            }
+        if c > m && self.tangential_step(problem, lam, inner) == Flow::Infeasible {
+            return Flow::Infeasible;
         }
-        // Normal step.
-        if out.add_inner(normal_step(lam, &mut qn, &mut scratch, &mut norm_n)) {
-            return out;
+        if self.normal_step(problem, lam, inner) == Flow::Infeasible {
+            return Flow::Infeasible;
         }
-        if coulomb && !use_schur {
-            relax.relax(&prev, lam);
+        if self.coulomb && self.variant == Variant::Block {
+            self.relax.relax(&self.prev, lam);
         }
-        for (a, &ln) in active.iter_mut().zip(&lam[..m]) {
+        for (a, &ln) in self.active.iter_mut().zip(&lam[..m]) {
             *a = ln > 0.0;
         }
-        out.outer += 1;
+        Flow::Go(Gradient::Stale)
     }
 }

@@ -1,0 +1,318 @@
+//! The outer loop every method shares: the gradient w = A lambda - b, the error of
+//! each iterate, the best iterate, the monitor and the four stop tests (tolerance,
+//! iteration limit, stagnation, wall clock). A method is an [`OuterStep`]: one
+//! outer iteration from the current iterate, and the work before the first one.
+
+use super::mprgp::Unbounded;
+use super::{DualProblem, Progress};
+use crate::options::Options;
+use crate::report::contact_states;
+use std::time::Instant;
+
+/// Why a method run ended.
+#[derive(Copy, Clone, Debug, Default, PartialEq, Eq)]
+pub enum End {
+    /// The dual error met the target.
+    #[default]
+    Converged,
+    /// `Options::max_outer` outer iterations were done.
+    Limit,
+    /// The stagnation test of [`Stagnation`] fired, or the method found that it
+    /// makes no progress (Newton's test on |F|).
+    Stalled,
+    /// The wall-clock budget `Options::max_seconds` ran out.
+    TimeLimit,
+    /// The monitor asked to stop.
+    Stopped,
+    /// The method proved that no u satisfies N u <= g (an MPRGP sub-problem is
+    /// unbounded below).
+    Infeasible,
+}
+
+/// What a method run reports back.
+#[derive(Copy, Clone, Debug, Default)]
+pub struct Outcome {
+    /// Outer iterations done.
+    pub outer: usize,
+    /// Inner iterations (sweeps, MPRGP iterations) done in total.
+    pub inner: usize,
+    /// The error measured on the dual gradient at the returned iterate.
+    pub dual_err: f64,
+    /// Why the run ended.
+    pub end: End,
+}
+
+/// What a step leaves in w.
+#[derive(Copy, Clone, Debug, PartialEq, Eq)]
+pub(super) enum Gradient {
+    /// w must be recomputed.
+    Stale,
+    /// w = A lambda - b, computed from lambda.
+    Exact,
+    /// w was kept by rank-one updates: current up to the rounding they gather, so
+    /// it is recomputed before a convergence is accepted.
+    Updated,
+}
+
+/// How a step (or the start) ended.
+#[derive(Copy, Clone, Debug, PartialEq, Eq)]
+pub(super) enum Flow {
+    /// Go on; w as said.
+    Go(Gradient),
+    /// No u satisfies N u <= g (see [`End::Infeasible`]).
+    Infeasible,
+    /// The method's own progress test says it cannot get further.
+    Stalled,
+}
+
+impl Flow {
+    /// The flow after a sub-problem solve: inner iterations added to `inner`.
+    pub fn after(run: Result<usize, Unbounded>, inner: &mut usize, then: Gradient) -> Flow {
+        match run {
+            Ok(its) => {
+                *inner += its;
+                Flow::Go(then)
+            }
+            Err(u) => {
+                *inner += u.iterations;
+                Flow::Infeasible
+            }
+        }
+    }
+}
+
+/// One method: the work before the first outer iteration and one outer iteration.
+pub(super) trait OuterStep {
+    /// Work before the first iteration (a warm-up, a first sub-problem), from
+    /// `lam` with w = A lam - b. The default does nothing.
+    fn start(
+        &mut self,
+        _problem: &DualProblem<'_>,
+        _lam: &mut [f64],
+        _w: &mut [f64],
+        _inner: &mut usize,
+        _target: f64,
+    ) -> Flow {
+        Flow::Go(Gradient::Exact)
+    }
+
+    /// Outer iteration number `k` (0 for the first) from `lam`, with
+    /// w = A lam - b exact on entry. Adds its inner iterations to `inner`.
+    fn step(
+        &mut self,
+        problem: &DualProblem<'_>,
+        lam: &mut [f64],
+        w: &mut [f64],
+        inner: &mut usize,
+        k: usize,
+    ) -> Flow;
+}
+
+/// The stagnation test: after outer iteration k >= `window`, the run has stalled
+/// when the lowest err of iterations 0..=k is above `factor` times the lowest err
+/// of iterations 0..=k-window (the best err did not drop by the factor over the
+/// last `window` iterations). `window` = 0 turns it off.
+pub(super) struct Stagnation {
+    factor: f64,
+    /// best err after iterations k-window ..= k, a ring of window + 1 values.
+    ring: Vec<f64>,
+}
+
+impl Stagnation {
+    pub fn new(window: usize, factor: f64) -> Self {
+        Stagnation {
+            factor,
+            ring: vec![f64::INFINITY; if window == 0 { 0 } else { window + 1 }],
+        }
+    }
+
+    /// Records `best` (the lowest err so far) after iteration `k`; true when the
+    /// run has stalled.
+    pub fn stalled(&mut self, k: usize, best: f64) -> bool {
+        let len = self.ring.len();
+        if len == 0 {
+            return false;
+        }
+        self.ring[k % len] = best;
+        // The slot k + 1 mod len holds the best after iteration k - window.
+        k + 1 >= len && best > self.factor * self.ring[(k + 1) % len]
+    }
+}
+
+/// The iterate with the lowest error seen so far: what a run returns when it ends
+/// without converging (unless the monitor stopped it: then the last iterate).
+pub(super) struct BestIterate {
+    lam: Vec<f64>,
+    err: f64,
+}
+
+impl BestIterate {
+    pub fn new(c: usize) -> Self {
+        BestIterate {
+            lam: vec![0.0; c],
+            err: f64::INFINITY,
+        }
+    }
+
+    /// Keeps a copy of `lam` when `err` is the lowest so far.
+    pub fn offer(&mut self, lam: &[f64], err: f64) {
+        if err < self.err {
+            self.err = err;
+            self.lam.copy_from_slice(lam);
+        }
+    }
+
+    /// The lowest error offered.
+    pub fn err(&self) -> f64 {
+        self.err
+    }
+
+    /// Puts the best iterate into `lam` and its error into `out` when it is better
+    /// than the current one.
+    pub fn restore(&self, lam: &mut [f64], out: &mut Outcome) {
+        if self.err < out.dual_err {
+            lam.copy_from_slice(&self.lam);
+            out.dual_err = self.err;
+        }
+    }
+}
+
+/// Runs `method` from `lam` until the dual error is at most `target`, or another
+/// stop test fires (see [`End`]).
+pub(super) fn drive(
+    problem: &DualProblem<'_>,
+    lam: &mut [f64],
+    opts: &Options,
+    target: f64,
+    method: &mut dyn OuterStep,
+) -> Outcome {
+    let (m, c) = (problem.dual.m, problem.dual.c);
+    let mut out = Outcome::default();
+    let mut w = vec![0.0; c];
+    let mut p = vec![0.0; m];
+    let mut v = vec![0.0; c];
+    let mut best = BestIterate::new(c);
+    let mut stagnation = Stagnation::new(opts.stall_window, opts.stall_factor);
+    problem.gradient(lam, &mut w);
+    let mut gradient = match method.start(problem, lam, &mut w, &mut out.inner, target) {
+        Flow::Go(g) => g,
+        Flow::Infeasible => {
+            out.dual_err = f64::INFINITY;
+            out.end = End::Infeasible;
+            return out;
+        }
+        Flow::Stalled => Gradient::Stale,
+    };
+    loop {
+        if gradient == Gradient::Stale {
+            problem.gradient(lam, &mut w);
+        }
+        let mut err = problem.error(lam, &w, &mut p, &mut v);
+        if err <= target && gradient == Gradient::Updated {
+            // Confirm on an exact gradient: rank-one updates drift by rounding.
+            problem.gradient(lam, &mut w);
+            err = problem.error(lam, &w, &mut p, &mut v);
+        }
+        out.dual_err = err;
+        best.offer(lam, err);
+        if out.outer > 0 && !problem.progress(out.outer, err, lam, &p, &v) {
+            out.end = End::Stopped;
+            return out;
+        }
+        let end = if err <= target {
+            return out;
+        } else if out.outer >= opts.max_outer {
+            Some(End::Limit)
+        } else if stagnation.stalled(out.outer, best.err()) {
+            Some(End::Stalled)
+        } else if problem.deadline.is_some_and(|d| Instant::now() >= d) {
+            Some(End::TimeLimit)
+        } else {
+            None
+        };
+        if let Some(end) = end {
+            out.end = end;
+            best.restore(lam, &mut out);
+            return out;
+        }
+        let flow = method.step(problem, lam, &mut w, &mut out.inner, out.outer);
+        out.outer += 1;
+        match flow {
+            Flow::Go(g) => gradient = g,
+            Flow::Infeasible => {
+                out.end = End::Infeasible;
+                return out;
+            }
+            Flow::Stalled => {
+                problem.gradient(lam, &mut w);
+                out.dual_err = problem.error(lam, &w, &mut p, &mut v);
+                best.offer(lam, out.dual_err);
+                out.end = End::Stalled;
+                best.restore(lam, &mut out);
+                return out;
+            }
+        }
+    }
+}
+
+impl DualProblem<'_> {
+    /// Reports outer iteration `k` to the monitor; false when it asks to stop.
+    fn progress(&self, k: usize, err: f64, lam: &[f64], p: &[f64], v: &[f64]) -> bool {
+        let Some(cell) = &self.monitor else {
+            return true;
+        };
+        let (n_open, n_stick, n_slip) = contact_states(lam, v, &self.dual.rho, p, self.dual.d);
+        let progress = Progress {
+            iteration: k,
+            err,
+            n_open,
+            n_stick,
+            n_slip,
+            elapsed_seconds: 0.0,
+        };
+        (cell.borrow_mut())(&progress)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn stagnation_fires_only_when_the_best_err_stops_dropping() {
+        // A steady rate of 0.99 per iteration drops by 0.99^10 = 0.904 over a
+        // window of 10: not stalled with factor 0.95, stalled with factor 0.9.
+        let mut s = Stagnation::new(10, 0.95);
+        assert!((0..200).all(|k| !s.stalled(k, 0.99f64.powi(k as i32))));
+        let mut s = Stagnation::new(10, 0.9);
+        let fired: Vec<bool> = (0..=10)
+            .map(|k| s.stalled(k, 0.99f64.powi(k as i32)))
+            .collect();
+        assert_eq!(fired.iter().position(|&f| f), Some(10));
+        // A flat best err: stalled exactly after the window.
+        let mut s = Stagnation::new(5, 0.9);
+        let fired: Vec<bool> = (0..8).map(|k| s.stalled(k, 1.0)).collect();
+        assert_eq!(fired, [false, false, false, false, false, true, true, true]);
+        // Off.
+        let mut s = Stagnation::new(0, 0.9);
+        assert!((0..100).all(|k| !s.stalled(k, 1.0)));
+    }
+
+    #[test]
+    fn the_best_iterate_comes_back_when_better() {
+        let mut best = BestIterate::new(2);
+        best.offer(&[1.0, 2.0], 0.1);
+        best.offer(&[3.0, 4.0], 0.5);
+        let mut lam = [5.0, 6.0];
+        let mut out = Outcome {
+            dual_err: 0.05,
+            ..Outcome::default()
+        };
+        best.restore(&mut lam, &mut out);
+        assert_eq!(lam, [5.0, 6.0]);
+        out.dual_err = 0.3;
+        best.restore(&mut lam, &mut out);
+        assert_eq!(lam, [1.0, 2.0]);
+        assert_eq!(out.dual_err, 0.1);
+    }
+}

@@ -1,0 +1,86 @@
+//! MPRGP / MPGP on the whole dual, with the Coulomb fixed point p = mu lambda_N
+//! outside: each outer iteration solves the Tresca problem of the current bound
+//! (one outer iteration for Tresca). The Coulomb bound is relaxed as in the
+//! splittings (`pgs::Aitken`; the plain fixed point while it does not oscillate).
+
+use super::driver::{Flow, Gradient, OuterStep};
+use super::mprgp::ConvexQp;
+use super::pgs::Aitken;
+use super::subproblem::Mprgp;
+use super::{DualProblem, Law};
+
+pub(super) struct WholeMprgp {
+    solver: Mprgp,
+    /// The cached estimate of |A| (A is the same matrix for every outer iteration).
+    norm: Option<f64>,
+    coulomb: bool,
+    relax: Aitken,
+    /// The bound of the last outer iteration (Coulomb).
+    prev: Vec<f64>,
+    radii: Vec<f64>,
+    target: f64,
+    max_inner: usize,
+}
+
+impl WholeMprgp {
+    pub fn new(problem: &DualProblem<'_>, max_inner: usize) -> Self {
+        let (m, c) = (problem.dual.m, problem.dual.c);
+        let coulomb = matches!(problem.law, Law::Coulomb(_));
+        let relaxed = if coulomb { m } else { 0 };
+        WholeMprgp {
+            solver: Mprgp::new(c),
+            norm: None,
+            coulomb,
+            relax: Aitken::new(relaxed),
+            prev: vec![0.0; relaxed],
+            radii: vec![0.0; m],
+            target: 0.0,
+            max_inner,
+        }
+    }
+}
+
+impl OuterStep for WholeMprgp {
+    fn start(
+        &mut self,
+        _problem: &DualProblem<'_>,
+        _lam: &mut [f64],
+        _w: &mut [f64],
+        _inner: &mut usize,
+        target: f64,
+    ) -> Flow {
+        self.target = target;
+        Flow::Go(Gradient::Exact)
+    }
+
+    fn step(
+        &mut self,
+        problem: &DualProblem<'_>,
+        lam: &mut [f64],
+        _w: &mut [f64],
+        inner: &mut usize,
+        k: usize,
+    ) -> Flow {
+        let dual = problem.dual;
+        let (m, c) = (dual.m, dual.c);
+        problem.law.bounds(&lam[..m], &mut self.radii);
+        if self.coulomb {
+            self.relax
+                .relax_bound(&mut self.prev, &mut self.radii, k == 0);
+        }
+        let qp = ConvexQp {
+            h: &dual.a,
+            ld: c,
+            op: dual.is_matrix_free().then_some(dual),
+            k: c,
+            q: problem.b,
+            n_nonneg: m,
+            block: dual.d - 1,
+            radii: &self.radii,
+        };
+        let run =
+            self.solver
+                .solve_convex(&qp, lam, 0.1 * self.target, self.max_inner, &mut self.norm);
+        Flow::after(run, inner, Gradient::Stale)
+    }
+}
