@@ -12,10 +12,20 @@
  * mu and lambda_N have m values), d = 2 or 3 (T is (d-1) m x n and lambda_T has
  * (d-1) m values, contact by contact).
  *
- * Every function returning DsStatus catches internal panics, leaves its outputs and
- * the handle untouched on error and sets a thread-local message readable with
- * ds_last_error_message(). Arrays are borrowed for the duration of a call only; the
- * library never frees caller memory. Arrays of length 0 may be NULL.
+ * Every function returning DsStatus catches internal panics and, on any status but
+ * DS_STATUS_OK, sets a thread-local message readable with ds_last_error_message().
+ * What ds_solve / ds_step write, per status:
+ *   DS_STATUS_OK                  u, lambda_n, lambda_t and the report;
+ *   DS_STATUS_STALLED, _TIME_LIMIT the iterate with the lowest err and the report;
+ *   DS_STATUS_STOPPED             the last iterate and the report;
+ *   DS_STATUS_NOT_CONVERGED       the report only;
+ *   any other status              nothing.
+ * Every other function writes its outputs on DS_STATUS_OK only. No status leaves a
+ * handle unusable: on an error status it is unchanged, the history of ds_step
+ * advances only on DS_STATUS_OK, and the form of the condensed dual that a solve's
+ * options asked for (DsOptions.dual_form) is kept for later solves whatever that
+ * solve's status. Arrays are borrowed for the duration of a call only; the library
+ * never frees caller memory. Arrays of length 0 may be NULL.
  */
 
 #ifndef DUALSPLIT_H
@@ -256,11 +266,6 @@ typedef enum DsFriction {
 typedef struct DsProblem DsProblem;
 
 /*
- How the products with the condensed dual operator A = B K^-1 B^T are formed.
- */
-typedef struct DualForm DualForm;
-
-/*
  Options of ds_solve / ds_step. Fill with ds_options_init(&opts, sizeof opts)
  (or the ds_options_default macro, which does the same), then change fields.
  Passing NULL instead of a DsOptions uses the defaults.
@@ -392,12 +397,21 @@ typedef struct DsMatrix {
 
 /*
  What a solve reports besides u and the multipliers. Written by ds_solve / ds_step
- on DS_STATUS_OK and on DS_STATUS_NOT_CONVERGED (then it describes the iterate
- the method ended with, its lowest-err one, which is not returned).
+ on DS_STATUS_OK, DS_STATUS_STALLED, DS_STATUS_TIME_LIMIT, DS_STATUS_STOPPED
+ (then it describes the iterate written to u and the multipliers) and on
+ DS_STATUS_NOT_CONVERGED (then it describes the lowest-err iterate, which is not
+ written).
+
+ Versions: fields are only ever appended. The library writes the fields of the
+ version whose DsOptions the caller passed (DsOptions.struct_size identifies the
+ header a program was built with; with opts = NULL, the fields of version 0.1),
+ so a program's DsReport is never written past its end. Versions 0.1 to 0.3 have
+ the same 88-byte report.
  */
 typedef struct DsReport {
   /*
-   A DsStatus value: DS_STATUS_OK or DS_STATUS_NOT_CONVERGED.
+   A DsStatus value: DS_STATUS_OK, DS_STATUS_NOT_CONVERGED, DS_STATUS_STOPPED,
+   DS_STATUS_STALLED or DS_STATUS_TIME_LIMIT (the status ds_solve returned).
    */
   int32_t status;
   /*
@@ -461,7 +475,7 @@ typedef struct DsProgress {
    */
   int64_t iteration;
   /*
-   The current err (design.md section 5), measured on the dual gradient;
+   The current err (docs/design.md section 5), measured on the dual gradient;
    dimensionless.
    */
   double err;
@@ -613,7 +627,8 @@ enum DsStatus ds_problem_set_contacts(struct DsProblem *problem,
  of g, bound and lambda_n), *d = contact dimension (lambda_t has (d-1) m values).
 
  Returns DS_STATUS_OK or DS_STATUS_NULL_POINTER (any argument NULL); outputs are
- written only on success.
+ written only on success, in the order n_dofs, n_contacts, d (two of them may be
+ the same address: the later value stays).
 
  # Safety
  `problem` must be NULL or a live handle; the outputs NULL or writable.
@@ -770,11 +785,24 @@ enum DsStatus ds_problem_dump(const struct DsProblem *problem,
  */
 const char *ds_status_string(int32_t status);
 
+/*
+ The library's version, "MAJOR.MINOR.PATCH" (the Cargo package version; the
+ header's DS_VERSION_MAJOR, _MINOR and _PATCH give the version a program was
+ compiled against). A static NUL-terminated string, never NULL, not to be freed.
+ */
+const char *ds_version(void);
+
 #ifdef __cplusplus
 }  // extern "C"
 #endif  // __cplusplus
 
 #endif  /* DUALSPLIT_H */
+
+/* The version of dualsplit this header belongs to (ds_version() gives the one a
+ * program runs against; tests/header.rs checks these against Cargo.toml). */
+#define DS_VERSION_MAJOR 0
+#define DS_VERSION_MINOR 3
+#define DS_VERSION_PATCH 0
 
 #ifndef DS_NO_OPTIONS_DEFAULT_MACRO
 /* ds_options_default(opts): fills *opts (a DsOptions of this header's size) with

@@ -1,4 +1,4 @@
-//! The condensed dual problem of design.md section 2: with B = [N; T],
+//! The condensed dual problem of docs/design.md section 2: with B = [N; T],
 //! A = B K^-1 B^T (dense, c x c with c = d m) and, per increment,
 //! b = B K^-1 f - [g; 0]. Unknown ordering: lambda_N (m), then lambda_T ((d-1) m,
 //! contact by contact).
@@ -62,6 +62,33 @@ pub fn contact_dofs(b: &Csc) -> Vec<usize> {
 }
 
 /// Stacks N (m x n) and T ((d-1) m x n) into B = [N; T].
+/// Checks that N (m x n) and T ((d-1) m x n) fit a K of `ndof` rows, before any
+/// code indexes one by the other's sizes.
+///
+/// Errors: `BadSize`.
+pub(crate) fn check_shapes(ndof: usize, d: usize, n: &Csc, t: &Csc) -> Result<()> {
+    if n.ncols != ndof || t.ncols != ndof {
+        return fail(
+            ErrorKind::BadSize,
+            format!(
+                "N has {} columns and T has {}, but K has {ndof} rows",
+                n.ncols, t.ncols
+            ),
+        );
+    }
+    if t.nrows != (d - 1) * n.nrows {
+        return fail(
+            ErrorKind::BadSize,
+            format!(
+                "T has {} rows, expected (d-1) * rows(N) = {}",
+                t.nrows,
+                (d - 1) * n.nrows
+            ),
+        );
+    }
+    Ok(())
+}
+
 pub fn stack_rows(n: &Csc, t: &Csc) -> Csc {
     let ncols = n.ncols;
     let mut col_ptr = Vec::with_capacity(ncols + 1);
@@ -99,6 +126,7 @@ impl Dual {
     /// Errors: `BadSize` if the shapes of N and T do not match d and K,
     /// `OutOfMemory` if A (or L_CC) does not fit.
     pub fn build(factor: &Factor, n: &Csc, t: &Csc, d: usize, form: DualForm) -> Result<Dual> {
+        check_shapes(factor.n(), d, n, t)?;
         let trailing = Self::trailing_available(factor, n, t);
         let c = d * n.nrows;
         let free = match form {
@@ -141,27 +169,8 @@ impl Dual {
         how: Condensation,
     ) -> Result<Dual> {
         let start = Instant::now();
-        let ndof = factor.n();
         let m = n.nrows;
-        if n.ncols != ndof || t.ncols != ndof {
-            return fail(
-                ErrorKind::BadSize,
-                format!(
-                    "N has {} columns and T has {}, but K has {ndof} rows",
-                    n.ncols, t.ncols
-                ),
-            );
-        }
-        if t.nrows != (d - 1) * m {
-            return fail(
-                ErrorKind::BadSize,
-                format!(
-                    "T has {} rows, expected (d-1) * rows(N) = {}",
-                    t.nrows,
-                    (d - 1) * m
-                ),
-            );
-        }
+        check_shapes(factor.n(), d, n, t)?;
         let b = stack_rows(n, t);
         let c = b.nrows;
         if how == Condensation::MatrixFree {

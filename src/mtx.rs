@@ -1,6 +1,6 @@
 //! Matrix Market matrices, plain-text vectors and problem folders.
 //!
-//! A *problem folder* holds one increment problem (design.md section 1) so that it
+//! A *problem folder* holds one increment problem (docs/design.md section 1) so that it
 //! can be taken out of a simulation, replayed alone (`dualsplit solve DIR`), sent
 //! in a bug report and tried with other methods:
 //!
@@ -69,7 +69,7 @@
 //! header line, before the size line), so a dense size is never allocated.
 
 use crate::error::{Error, ErrorKind, Result};
-use crate::problem::Friction;
+use crate::friction::Friction;
 use crate::sparse::{Csc, Format, Indices, MatrixView, Storage};
 use std::fmt::Write as _;
 use std::fs;

@@ -3,7 +3,7 @@
 /// The iterative method run on the condensed dual problem.
 #[derive(Copy, Clone, Debug, PartialEq, Eq)]
 pub enum Method {
-    /// Pop's dual splitting, Schur complement variant (design.md section 3): the
+    /// Pop's dual splitting, Schur complement variant (docs/design.md section 3): the
     /// tangential step on S = A22 - A21 A11^-1 A12 over the current contact set,
     /// then the normal step on A11; both sub-problems by projected Gauss-Seidel.
     Split,
@@ -107,7 +107,7 @@ pub const DENSE_MAX: usize = 8_000;
 pub struct Options {
     /// Method (default `Split`).
     pub method: Method,
-    /// Stop when err (design.md section 5) is at most `tol` (default 1e-10).
+    /// Stop when err (docs/design.md section 5) is at most `tol` (default 1e-10).
     pub tol: f64,
     /// Maximum number of outer iterations: sweeps for `Pgs`, normal/tangential
     /// alternations for `Split` and `BlockGs` (default 10_000).

@@ -2,25 +2,16 @@
 //! dual, and the history of a quasistatic simulation. This is the safe Rust API that
 //! the C boundary wraps.
 
-use crate::dual::{Condensation, Dual, contact_dofs, stack_rows};
+use crate::dual::{Condensation, Dual, check_shapes, contact_dofs, stack_rows};
 use crate::error::{ErrorKind, Result, fail};
 use crate::factor::Factor;
-use crate::methods::{self, DualProblem, End, Law, Monitor, Progress};
+use crate::friction::Friction;
+use crate::methods::{self, DualProblem, End, Monitor, Progress};
 use crate::options::{DualForm, Options};
 use crate::report::Report;
 use crate::report::{SolveStatus, contact_states, natural_map_error};
 use crate::sparse::{Csc, MatrixView};
 use std::time::{Duration, Instant};
-
-/// Friction law of one increment.
-#[derive(Copy, Clone, Debug)]
-pub enum Friction<'a> {
-    /// Given slip bound p_i >= 0 per contact (force units), length m.
-    Tresca(&'a [f64]),
-    /// Coulomb coefficient mu_i >= 0 per contact (dimensionless), length m:
-    /// the bound is p_i = mu_i lambda_N,i, found by fixed point.
-    Coulomb(&'a [f64]),
-}
 
 /// The result of one solve.
 #[derive(Clone, Debug)]
@@ -113,15 +104,7 @@ impl ContactProblem {
                 format!("K is {} x {}, not square", k.nrows, k.ncols),
             );
         }
-        if n.ncols != k.nrows || t.ncols != k.nrows {
-            return fail(
-                ErrorKind::BadSize,
-                format!(
-                    "N has {} columns and T has {}, but K has {} rows",
-                    n.ncols, t.ncols, k.nrows
-                ),
-            );
-        }
+        check_shapes(k.nrows, d, &n, &t)?;
         // Contact DOFs last, so that the factor's trailing block condenses K onto them.
         let factor = Factor::with_last(&k, &contact_dofs(&stack_rows(&n, &t)))?;
         let dual = Dual::build(&factor, &n, &t, d, DualForm::Auto)?;
@@ -171,6 +154,7 @@ impl ContactProblem {
     pub fn set_contacts(&mut self, n: &MatrixView<'_>, t: &MatrixView<'_>) -> Result<()> {
         let n = Csc::from_view(n, "N")?;
         let t = Csc::from_view(t, "T")?;
+        check_shapes(self.n_dofs(), self.d, &n, &t)?;
         let dual = Dual::build(&self.factor, &n, &t, self.d, DualForm::Auto)?;
         if dual.c != self.dual.c {
             self.lam_hist = vec![0.0; dual.c];
@@ -277,7 +261,7 @@ impl ContactProblem {
         Ok(())
     }
 
-    /// Solves one increment exactly as given (design.md section 1): f (n), g (m),
+    /// Solves one increment exactly as given (docs/design.md section 1): f (n), g (m),
     /// and the friction bound. Does not touch the history.
     ///
     /// Errors: `BadSize`, `NotFinite`, `NegativeFriction`, `BadArgument` (options).
@@ -354,10 +338,7 @@ impl ContactProblem {
         check_vec("g", g, m)?;
         self.check_friction(friction)?;
         Self::check_options(opts)?;
-        let law = match friction {
-            Friction::Tresca(p) => Law::Tresca(p),
-            Friction::Coulomb(mu) => Law::Coulomb(mu),
-        };
+        let law = friction;
         // b = B K^-1 f - [g; 0], with the forward half y_f = L^-1 P f kept for the
         // recovery of u.
         let mut y_f = vec![0.0; ndof];
@@ -479,7 +460,7 @@ impl ContactProblem {
         })
     }
 
-    /// One step of a quasistatic history (design.md section 1): with the held u_k,
+    /// One step of a quasistatic history (docs/design.md section 1): with the held u_k,
     /// solves the increment with f := f_total - K u_k, g := g0 - N u_k, friction on
     /// the tangential increment, warm-started from the last multipliers; returns
     /// u_k+1 = u_k + du and the total multipliers. The history advances only when

@@ -1,4 +1,4 @@
-//! The report of a solve: the error measure of design.md section 5, the equilibrium
+//! The report of a solve: the error measure of docs/design.md section 5, the equilibrium
 //! residual, the contact states, iteration counts and timings.
 
 use crate::options::Method;
@@ -46,7 +46,7 @@ pub struct Report {
     pub status: SolveStatus,
     /// The method that ran.
     pub method: Method,
-    /// |r| / max(|lambda|, |b+| / trace(A)), design.md section 5 with the scale of
+    /// |r| / max(|lambda|, |b+| / trace(A)), docs/design.md section 5 with the scale of
     /// [`natural_map_error`] (dimensionless). Infinite when the contact constraints
     /// admit no displacement (no u with N u <= g): a penetrating contact without
     /// rows in N and T, or, for SplitMprgp and Mprgp, a dual unbounded below (a
@@ -77,7 +77,7 @@ pub struct Report {
     pub solve_seconds: f64,
 }
 
-/// The natural-map error of design.md section 5 for the dual unknowns
+/// The natural-map error of docs/design.md section 5 for the dual unknowns
 /// `lam` = [lambda_N; lambda_T] (length d m):
 ///
 /// r_N,i = lambda_N,i - max(0, lambda_N,i + rho_i v_N,i),
@@ -90,7 +90,8 @@ pub struct Report {
 /// b and the positive part of its normal part, max(0, (N K^-1 f - g)_i), and
 /// trace(A) = sum_i d / rho_i.
 ///
-/// Two deviations from design.md, which writes the scale as max(|lambda|, |rho . b|):
+/// Two deviations from the founding design notes, which wrote the scale as
+/// max(|lambda|, |rho . b|) (docs/design.md section 5 records both):
 ///
 /// - The positive part of b_N: with the raw normal part, the gaps of far-open
 ///   contacts (b_N,i = -g_i large) would set the scale and hide wrong forces on the
@@ -159,7 +160,7 @@ pub fn natural_map_error(
         for s in 0..k {
             y[s] = lam[t0 + s] + rho[i] * v[t0 + s];
         }
-        crate::methods::project_disk(&mut y[..k], p[i]);
+        crate::friction::project_disk(&mut y[..k], p[i]);
         for s in 0..k {
             let lt = lam[t0 + s];
             r2 += (lt - y[s]).powi(2);

@@ -1,6 +1,6 @@
 //! Small contact problems with answers derived by hand, run with every method.
 //!
-//! Conventions (design.md section 1): K u = f - N^T lambda_N - T^T lambda_T,
+//! Conventions (docs/design.md section 1): K u = f - N^T lambda_N - T^T lambda_T,
 //! N u <= g, lambda_N >= 0, |lambda_T,i| <= p_i, stick => (T u)_i = 0, slip =>
 //! (T u)_i = alpha lambda_T,i with alpha >= 0.
 //!
@@ -750,7 +750,7 @@ fn coupled_pair_3d_tresca() {
 }
 
 // ---------------------------------------------------------------------------------
-// History mode: ContactProblem::step with the total load (design.md section 1):
+// History mode: ContactProblem::step with the total load (docs/design.md section 1):
 // at step k the increment problem has f := f_total - K u_k, g := g0 - N u_k and
 // friction acts on T du; the returned u is u_k + du and the multipliers are totals.
 // ---------------------------------------------------------------------------------

@@ -326,7 +326,7 @@ impl Reference {
         }
     }
 
-    /// (err of design.md section 5, equilibrium residual) of (u, lambda_n, lambda_t).
+    /// (err of docs/design.md section 5, equilibrium residual) of (u, lambda_n, lambda_t).
     fn check(&self, pf: &ProblemFolder, u: &[f64], ln: &[f64], lt: &[f64]) -> (f64, f64) {
         let (d, m, n) = (pf.d, pf.n_contacts(), pf.n_dofs());
         let (mut r2, mut l2, mut rb2) = (0.0, 0.0, 0.0);

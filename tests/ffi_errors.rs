@@ -664,7 +664,71 @@ fn bad_size() {
     }
     assert!(out.is_null());
     assert_usable(h);
+    // T narrower than N and K (3 columns): checked before any code indexes T by
+    // N's columns (it used to panic in stack_rows: DS_STATUS_PANIC).
+    let t3 = Owned::sparse(2, 3, &[1.0, 0.0, 0.0, 0.0, 0.0, 1.0]);
+    // SAFETY: valid matrices.
+    unsafe {
+        expect_error(
+            ds_problem_set_contacts(h, &n.ds(), &t3.ds()),
+            DsStatus::BadSize,
+            &["T"],
+        );
+        expect_error(
+            ds_problem_set_contacts(h, &n3.ds(), &t3.ds()),
+            DsStatus::BadSize,
+            &["N"],
+        );
+        expect_error(
+            ds_problem_new(2, &k.ds(), &n.ds(), &t3.ds(), &mut out),
+            DsStatus::BadSize,
+            &["T"],
+        );
+    }
+    assert!(out.is_null());
+    assert_usable(h);
     free(h);
+}
+
+/// The same shape mismatches through the safe Rust API: errors, not panics.
+#[test]
+fn bad_shapes_in_rust() {
+    use dualsplit::sparse::{Format, MatrixView, Storage};
+    fn view(o: &Owned) -> MatrixView<'_> {
+        MatrixView {
+            format: Format::Csc,
+            storage: Storage::Full,
+            base: 0,
+            nrows: o.nrows as usize,
+            ncols: o.ncols as usize,
+            p: dualsplit::sparse::Indices::I64(&o.p),
+            i: dualsplit::sparse::Indices::I64(&o.i),
+            x: &o.x,
+        }
+    }
+    let (k, n, t) = (k_good(), n_good(), t_good());
+    let mut pb = dualsplit::ContactProblem::new(2, &view(&k), &view(&n), &view(&t)).unwrap();
+    let n3 = Owned::sparse(2, 3, &[0.0, -1.0, 0.0, 0.0, 0.0, -1.0]);
+    let t3 = Owned::sparse(2, 3, &[1.0, 0.0, 0.0, 0.0, 0.0, 1.0]);
+    let t1 = Owned::sparse(1, 4, &[1.0, 0.0, 0.0, 0.0]);
+    for (nn, tt) in [(&n3, &t), (&n, &t3), (&n, &t1), (&n3, &t3)] {
+        let e = pb.set_contacts(&view(nn), &view(tt)).unwrap_err();
+        assert_eq!(e.kind, dualsplit::ErrorKind::BadSize, "{}", e.message);
+        let e = dualsplit::ContactProblem::new(2, &view(&k), &view(nn), &view(tt))
+            .err()
+            .expect("a shape error");
+        assert_eq!(e.kind, dualsplit::ErrorKind::BadSize, "{}", e.message);
+    }
+    // Still usable.
+    let sol = pb
+        .solve(
+            &F,
+            &G,
+            dualsplit::Friction::Tresca(&P),
+            &dualsplit::Options::default(),
+        )
+        .unwrap();
+    assert_eq!(sol.report.status, dualsplit::SolveStatus::Converged);
 }
 
 #[test]

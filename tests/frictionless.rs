@@ -1,5 +1,5 @@
 //! Frictionless increments (Tresca p = 0 or Coulomb mu = 0 at every contact) are the
-//! pure Signorini problem in the m normal unknowns (design.md section 2): split,
+//! pure Signorini problem in the m normal unknowns (docs/design.md section 2): split,
 //! block-gs, split-mprgp and mprgp solve it on A_NN alone. Every method must give
 //! lambda_T = 0 exactly, pass the independent KKT check, and agree with Newton and
 //! PGS, which run on the whole dual; MPRGP also matrix-free.

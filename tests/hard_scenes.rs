@@ -521,7 +521,7 @@ fn units_si_steel_vs_n_mm_2d_and_scaled_k() {
             1e-3,
         );
     }
-    // K and f times 1e6 (design.md section 5): u unchanged, forces x 1e6, same err.
+    // K and f times 1e6 (docs/design.md section 5): u unchanged, forces x 1e6, same err.
     let mut big = Data::of(&si);
     big.k.values.iter_mut().for_each(|v| *v *= 1e6);
     big.f.iter_mut().for_each(|v| *v *= 1e6);

@@ -10,7 +10,7 @@
 //! inequalities t_i -+ T_i u >= 0 (multipliers z+, z-, lambda_T,i = z+ - z-); in 3D
 //! the cone (t_i, T_i u) in SOC(3) (multipliers (z0, z1), lambda_T,i = -z1). The
 //! stationarity of the Lagrangian, K u - f + N^T z_N + T^T lambda_T = 0 and
-//! z+ + z- = p_i (|z1| <= z0 = p_i), is the equilibrium of design.md section 1.
+//! z+ + z- = p_i (|z1| <= z0 = p_i), is the equilibrium of docs/design.md section 1.
 
 use crate::row::Row;
 use crate::scene::Scene;
@@ -146,7 +146,7 @@ pub fn solve(sc: &Scene, tol: f64, time_limit: f64) -> Answer {
     }
 }
 
-/// Our error measure (design.md section 5) of a Clarabel answer, two ways:
+/// Our error measure (docs/design.md section 5) of a Clarabel answer, two ways:
 /// with u recovered from its multipliers, u = K^-1 (f - B^T lambda) (as the library
 /// measures its own answers), and with Clarabel's own primal u. Returns
 /// (err_recovered, err_primal, equilibrium residual of its own u).

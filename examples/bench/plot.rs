@@ -155,7 +155,7 @@ fn work_precision(rows: &[Row], scene: &str, path: &Path) -> Res {
                 .build_cartesian_2d((xlo..1.0f64).log_scale(), (ylo..yhi).log_scale())?;
             chart
                 .configure_mesh()
-                .x_desc("err (design.md section 5)")
+                .x_desc("err (docs/design.md section 5)")
                 .y_desc("time [s]")
                 .x_label_formatter(&sci)
                 .y_label_formatter(&sci)

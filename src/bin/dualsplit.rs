@@ -44,7 +44,7 @@ OPTIONS:
 {METHODS}
     --tol X           stop when err <= X (default {TOL}); err is the relative
                       natural-map residual of the contact conditions, measured on the
-                      recovered u (design.md section 5)
+                      recovered u (docs/design.md section 5)
     --max-iter N      maximum number of outer iterations (default {MAX_ITER}): sweeps for
                       pgs, normal/tangential alternations for split and block-gs,
                       Newton steps for newton

@@ -11,7 +11,9 @@
 //! Rules shared by every entry point:
 //! - panics are caught and reported as [`DsStatus::Panic`]; none crosses the boundary;
 //! - on an error status the outputs are untouched, the handle is unchanged and
-//!   [`ds_last_error_message`] describes the failure;
+//!   [`ds_last_error_message`] describes the failure; the statuses of an
+//!   unconverged solve (NOT_CONVERGED, STOPPED, STALLED, TIME_LIMIT) write what the
+//!   header's opening comment lists, and keep the dual form the options asked for;
 //! - array pointers may be NULL when the array has length 0;
 //! - caller memory is only borrowed for the duration of the call.
 
@@ -24,6 +26,7 @@ mod problem;
 mod report;
 mod status;
 mod types;
+mod version;
 
 pub use last_error::ds_last_error_message;
 pub use matrix::DsMatrix;
@@ -36,4 +39,5 @@ pub use problem::{
 };
 pub use report::DsReport;
 pub use status::{DsStatus, ds_status_string};
-pub use types::{DsFormat, DsFriction, DsIndexType, DsMethod, DsStorage};
+pub use types::{DsDualForm, DsFormat, DsFriction, DsIndexType, DsMethod, DsStorage};
+pub use version::ds_version;

@@ -12,7 +12,7 @@ use std::ffi::{CString, c_char, c_void};
 pub struct DsProgress {
     /// Outer iterations done so far in this solve (1 after the first).
     pub iteration: i64,
-    /// The current err (design.md section 5), measured on the dual gradient;
+    /// The current err (docs/design.md section 5), measured on the dual gradient;
     /// dimensionless.
     pub err: f64,
     /// Open contacts at the current iterate.

@@ -1,6 +1,6 @@
 //! The opaque problem handle and the `extern "C"` entry points that use it.
 //!
-//! Sign conventions (design.md section 1): K u = f - N^T lambda_N - T^T lambda_T;
+//! Sign conventions (docs/design.md section 1): K u = f - N^T lambda_N - T^T lambda_T;
 //! N u <= g; lambda_N >= 0 is the compressive normal force; the friction force on
 //! the body, -T^T lambda_T, opposes the slip T u.
 
@@ -12,7 +12,8 @@ use super::report::DsReport;
 use super::status::DsStatus;
 use super::types::{CEnum, DsFriction};
 use crate::error::{Error, ErrorKind, Result};
-use crate::problem::{ContactProblem, Friction, Solution};
+use crate::friction::Friction;
+use crate::problem::{ContactProblem, Solution};
 use crate::report::SolveStatus;
 use std::panic::{AssertUnwindSafe, catch_unwind};
 
@@ -167,7 +168,8 @@ pub unsafe extern "C" fn ds_problem_set_contacts(
 /// of g, bound and lambda_n), *d = contact dimension (lambda_t has (d-1) m values).
 ///
 /// Returns DS_STATUS_OK or DS_STATUS_NULL_POINTER (any argument NULL); outputs are
-/// written only on success.
+/// written only on success, in the order n_dofs, n_contacts, d (two of them may be
+/// the same address: the later value stays).
 ///
 /// # Safety
 /// `problem` must be NULL or a live handle; the outputs NULL or writable.
@@ -179,15 +181,13 @@ pub unsafe extern "C" fn ds_problem_sizes(
     d: *mut i32,
 ) -> DsStatus {
     entry("ds_problem_sizes", || {
-        // SAFETY: pointer validity is this function's contract; NULL is rejected.
-        let (problem, n_dofs, n_contacts, d) = unsafe {
-            (
-                ref_in(problem, "problem")?,
-                ref_mut(n_dofs, "n_dofs")?,
-                ref_mut(n_contacts, "n_contacts")?,
-                ref_mut(d, "d")?,
-            )
-        };
+        // SAFETY: the handle is NULL or live (contract); NULL is rejected.
+        let problem = unsafe { ref_in(problem, "problem")? };
+        // The outputs are written through raw pointers, never as references: a
+        // caller may pass the same address twice.
+        let n_dofs = OutArray::new(n_dofs, 1, "n_dofs")?;
+        let n_contacts = OutArray::new(n_contacts, 1, "n_contacts")?;
+        let d = OutArray::new(d, 1, "d")?;
         let p = &problem.inner;
         let too_big = |_| Error::new(ErrorKind::BadSize, "size does not fit in int64_t");
         let (nd, nc) = (
@@ -195,9 +195,13 @@ pub unsafe extern "C" fn ds_problem_sizes(
             i64::try_from(p.n_contacts()).map_err(too_big)?,
         );
         let dim = i32::try_from(p.dim()).map_err(too_big)?;
-        *n_dofs = nd;
-        *n_contacts = nc;
-        *d = dim;
+        // SAFETY: each output is non-NULL, aligned and writable (checked above and
+        // the contract); the writes are sequential, so equal addresses are fine.
+        unsafe {
+            n_dofs.write(&[nd])?;
+            n_contacts.write(&[nc])?;
+            d.write(&[dim])?;
+        }
         Ok(())
     })
 }

@@ -5,12 +5,21 @@ use super::types::DsMethod;
 use crate::report::{Report, SolveStatus};
 
 /// What a solve reports besides u and the multipliers. Written by ds_solve / ds_step
-/// on DS_STATUS_OK and on DS_STATUS_NOT_CONVERGED (then it describes the iterate
-/// the method ended with, its lowest-err one, which is not returned).
+/// on DS_STATUS_OK, DS_STATUS_STALLED, DS_STATUS_TIME_LIMIT, DS_STATUS_STOPPED
+/// (then it describes the iterate written to u and the multipliers) and on
+/// DS_STATUS_NOT_CONVERGED (then it describes the lowest-err iterate, which is not
+/// written).
+///
+/// Versions: fields are only ever appended. The library writes the fields of the
+/// version whose DsOptions the caller passed (DsOptions.struct_size identifies the
+/// header a program was built with; with opts = NULL, the fields of version 0.1),
+/// so a program's DsReport is never written past its end. Versions 0.1 to 0.3 have
+/// the same 88-byte report.
 #[repr(C)]
 #[derive(Copy, Clone, Debug, PartialEq)]
 pub struct DsReport {
-    /// A DsStatus value: DS_STATUS_OK or DS_STATUS_NOT_CONVERGED.
+    /// A DsStatus value: DS_STATUS_OK, DS_STATUS_NOT_CONVERGED, DS_STATUS_STOPPED,
+    /// DS_STATUS_STALLED or DS_STATUS_TIME_LIMIT (the status ds_solve returned).
     pub status: i32,
     /// The DsMethod that ran.
     pub method: i32,

@@ -23,9 +23,10 @@ mod subproblem;
 mod whole;
 
 pub use driver::{End, Outcome};
-pub use projection::{project_disk, solve_disk_qp};
+pub use projection::solve_disk_qp;
 
 use crate::dual::Dual;
+use crate::friction::Friction;
 use crate::options::{Method, Options};
 use crate::report::natural_map_error;
 use driver::OuterStep;
@@ -35,48 +36,12 @@ use std::cell::RefCell;
 use std::time::Instant;
 use subproblem::{GaussSeidel, Mprgp};
 
-/// The friction bound of one solve, per contact.
-#[derive(Copy, Clone, Debug)]
-pub enum Law<'a> {
-    /// Fixed slip bound p_i.
-    Tresca(&'a [f64]),
-    /// p_i = mu_i lambda_N,i.
-    Coulomb(&'a [f64]),
-}
-
-impl Law<'_> {
-    /// The slip bound of contact i given its normal multiplier.
-    #[inline]
-    pub fn bound(&self, i: usize, lambda_n: f64) -> f64 {
-        match self {
-            Law::Tresca(p) => p[i],
-            Law::Coulomb(mu) => mu[i] * lambda_n.max(0.0),
-        }
-    }
-
-    /// True when every bound is zero whatever lambda_N (Tresca p = 0, Coulomb
-    /// mu = 0): a frictionless increment, lambda_T = 0.
-    pub fn frictionless(&self) -> bool {
-        match self {
-            Law::Tresca(p) => p.iter().all(|&v| v == 0.0),
-            Law::Coulomb(mu) => mu.iter().all(|&v| v == 0.0),
-        }
-    }
-
-    /// Writes every bound into `p` (length m) for the normal multipliers `lambda_n`.
-    pub fn bounds(&self, lambda_n: &[f64], p: &mut [f64]) {
-        for (i, pi) in p.iter_mut().enumerate() {
-            *pi = self.bound(i, lambda_n[i]);
-        }
-    }
-}
-
 /// What the monitor sees after every outer iteration.
 #[derive(Copy, Clone, Debug, PartialEq)]
 pub struct Progress {
     /// Outer iterations done so far in this solve (1 after the first).
     pub iteration: usize,
-    /// The current err (design.md section 5), measured on the dual gradient.
+    /// The current err (docs/design.md section 5), measured on the dual gradient.
     pub err: f64,
     /// Open contacts at the current iterate.
     pub n_open: usize,
@@ -98,7 +63,7 @@ pub struct DualProblem<'a> {
     /// The linear term b = B K^-1 f - [g; 0], length d m.
     pub b: &'a [f64],
     /// Friction bound.
-    pub law: Law<'a>,
+    pub law: Friction<'a>,
     /// Called after every outer iteration with the iteration number relative to
     /// this run; None for no monitoring.
     pub monitor: Option<RefCell<Monitor<'a>>>,
@@ -115,7 +80,7 @@ impl DualProblem<'_> {
         }
     }
 
-    /// The error of design.md section 5 at `lam`, given w = A lam - b; `p` and `v`
+    /// The error of docs/design.md section 5 at `lam`, given w = A lam - b; `p` and `v`
     /// are scratch of length m and d m.
     pub fn error(&self, lam: &[f64], w: &[f64], p: &mut [f64], v: &mut [f64]) -> f64 {
         let m = self.dual.m;
@@ -129,7 +94,7 @@ impl DualProblem<'_> {
 
 /// The method `opts.method` as an outer step for `problem`. A frictionless
 /// increment (every slip bound zero) is the pure Signorini problem in the m normal
-/// unknowns for the splittings and whole-dual MPRGP (design.md section 2); PGS's
+/// unknowns for the splittings and whole-dual MPRGP (docs/design.md section 2); PGS's
 /// tangential steps cost O(1) per contact with a zero bound, and Newton drops the
 /// unknowns at zero bounds from its linear systems, so those two run as they are.
 fn outer_step(problem: &DualProblem<'_>, opts: &Options) -> Box<dyn OuterStep> {

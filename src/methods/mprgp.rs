@@ -116,7 +116,7 @@ impl ConvexQp<'_> {
         }
         for b in 0..self.n_balls() {
             let r = self.ball(b);
-            super::project_disk(&mut x[r], self.radii[b]);
+            crate::friction::project_disk(&mut x[r], self.radii[b]);
         }
     }
 
@@ -145,7 +145,7 @@ impl ConvexQp<'_> {
                 for (s, j) in r.clone().enumerate() {
                     y[s] = x[j] - alpha * g[j];
                 }
-                super::project_disk(&mut y[..self.block], self.radii[b]);
+                crate::friction::project_disk(&mut y[..self.block], self.radii[b]);
                 for (s, j) in r.enumerate() {
                     phi[j] = 0.0;
                     beta[j] = (x[j] - y[s]) / alpha;
@@ -221,7 +221,7 @@ impl ConvexQp<'_> {
             for (s, j) in rg.clone().enumerate() {
                 y[s] = x[j] - rho * g[j];
             }
-            super::project_disk(&mut y[..self.block], self.radii[b]);
+            crate::friction::project_disk(&mut y[..self.block], self.radii[b]);
             for (s, j) in rg.enumerate() {
                 r2 += (x[j] - y[s]).powi(2);
                 x2 += x[j] * x[j];

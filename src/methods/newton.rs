@@ -1,5 +1,5 @@
 //! Semismooth Newton (primal-dual active set) on the condensed dual, for the
-//! natural map of design.md section 5:
+//! natural map of docs/design.md section 5:
 //!
 //! ```text
 //! F(lambda) = lambda - P(lambda - rho (A lambda - b)),
@@ -44,6 +44,7 @@
 use super::DualProblem;
 use super::driver::{Flow, Gradient, OuterStep};
 use super::pgs;
+use crate::friction::Friction;
 use faer::Mat;
 use faer::prelude::Solve;
 
@@ -132,8 +133,8 @@ fn linearise(
     let dual = problem.dual;
     let (m, d) = (dual.m, dual.d);
     let coulomb_mu = match problem.law {
-        super::Law::Coulomb(mu) => Some(mu),
-        super::Law::Tresca(_) => None,
+        Friction::Coulomb(mu) => Some(mu),
+        Friction::Tresca(_) => None,
     };
     e0.iter_mut().for_each(|v| *v = 0.0);
     let mut red = Vec::with_capacity(dual.c);
@@ -147,7 +148,7 @@ fn linearise(
             e0[i] = -f[i];
             let mut y = [0.0; 2];
             y[..d - 1].copy_from_slice(&lam[jt..jt + d - 1]);
-            super::project_disk(&mut y[..d - 1], r);
+            crate::friction::project_disk(&mut y[..d - 1], r);
             for s in 0..d - 1 {
                 f[jt + s] = lam[jt + s] - y[s];
                 e0[jt + s] = -f[jt + s];
@@ -345,7 +346,7 @@ fn residual_norm(problem: &DualProblem<'_>, lam: &[f64], w: &[f64]) -> f64 {
         for s in 0..d - 1 {
             y[s] = lam[jt + s] - rho * w[jt + s];
         }
-        super::project_disk(&mut y[..d - 1], problem.law.bound(i, lam[i]));
+        crate::friction::project_disk(&mut y[..d - 1], problem.law.bound(i, lam[i]));
         for s in 0..d - 1 {
             r2 += (lam[jt + s] - y[s]).powi(2);
         }

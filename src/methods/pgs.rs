@@ -28,7 +28,7 @@ pub(super) struct Pgs {
 impl Pgs {
     pub fn new(problem: &DualProblem<'_>) -> Self {
         let c = problem.dual.c;
-        let coulomb = matches!(problem.law, super::Law::Coulomb(_));
+        let coulomb = problem.law.is_coulomb();
         Pgs {
             coulomb,
             relax: Aitken::new(if coulomb { c } else { 0 }),

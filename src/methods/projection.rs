@@ -1,15 +1,7 @@
 //! Projections onto the friction sets and the exact solution of the small local
 //! problems met by the Gauss-Seidel sweeps.
 
-/// Projects y (1 or 2 entries) onto {|x| <= r} (interval in 2D, disk in 3D).
-#[inline]
-pub fn project_disk(y: &mut [f64], r: f64) {
-    let norm = y.iter().map(|v| v * v).sum::<f64>().sqrt();
-    if norm > r {
-        let s = if norm > 0.0 { r / norm } else { 0.0 };
-        y.iter_mut().for_each(|v| *v *= s);
-    }
-}
+pub(super) use crate::friction::project_disk;
 
 /// Minimises 1/2 x^T H x - c^T x over the disk |x| <= r for a symmetric positive
 /// semidefinite 2 x 2 matrix H = [h00 h01; h01 h11]. Exact up to rounding: the
@@ -122,21 +114,5 @@ mod tests {
         assert!((x[0]).abs() < 1e-14 && (x[1] - 2.0).abs() < 1e-12);
         let x = solve_disk_qp(0.0, 0.0, 0.0, [3.0, 4.0], 1.0);
         assert!((x[0] - 0.6).abs() < 1e-12 && (x[1] - 0.8).abs() < 1e-12);
-    }
-
-    #[test]
-    fn projection_onto_interval_and_disk() {
-        let mut y = [3.0];
-        project_disk(&mut y, 2.0);
-        assert_eq!(y, [2.0]);
-        let mut y = [-3.0];
-        project_disk(&mut y, 2.0);
-        assert_eq!(y, [-2.0]);
-        let mut y = [3.0, 4.0];
-        project_disk(&mut y, 1.0);
-        assert!((y[0] - 0.6).abs() < 1e-15 && (y[1] - 0.8).abs() < 1e-15);
-        let mut y = [0.1, 0.1];
-        project_disk(&mut y, 1.0);
-        assert_eq!(y, [0.1, 0.1]);
     }
 }

@@ -1,6 +1,6 @@
 //! The pure Signorini problem of a frictionless increment (every slip bound zero:
 //! lambda_T = 0): min 1/2 y^T A_NN y - y^T b_N over y >= 0 in the m normal
-//! unknowns alone (design.md section 2: the cost follows the physics switched on),
+//! unknowns alone (docs/design.md section 2: the cost follows the physics switched on),
 //! on the leading m x m block of A (dense) or on products with it (matrix-free,
 //! MPRGP only). One outer iteration is one sub-problem solve to a tenth of the
 //! target; the stopping test is the whole problem's err.

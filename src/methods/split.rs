@@ -1,4 +1,4 @@
-//! N. Pop's dual splitting (design.md section 3) and the plain block Gauss-Seidel
+//! N. Pop's dual splitting (docs/design.md section 3) and the plain block Gauss-Seidel
 //! variant: the tangential and the normal multipliers are solved in alternation,
 //! each sub-problem by projected Gauss-Seidel.
 //!
@@ -12,7 +12,7 @@
 //! numerically singular (redundant contacts), the Schur variant takes the block
 //! step for that iteration.
 //!
-//! Coulomb (design.md section 3: the fixed point p = mu lambda_N folded into the
+//! Coulomb (docs/design.md section 3: the fixed point p = mu lambda_N folded into the
 //! outer loop). For one slipping contact the outer map is
 //! lambda_N <- (b_N - s mu A_NT lambda_N) / A_NN: it contracts only while
 //! mu |A_NT| < A_NN, and with strong normal-tangential coupling (an inclined
@@ -146,7 +146,7 @@ impl<S: SubSolver> Split<S> {
         let (m, c) = (dual.m, dual.c);
         // Coulomb: the Schur variant relaxes the bound p, the block variant the
         // whole iterate (module documentation).
-        let coulomb = matches!(problem.law, super::Law::Coulomb(_));
+        let coulomb = problem.law.is_coulomb();
         let relaxed = match (coulomb, variant) {
             (false, _) => 0,
             (true, Variant::Schur) => m,

@@ -3,11 +3,11 @@
 //! (one outer iteration for Tresca). The Coulomb bound is relaxed as in the
 //! splittings (`pgs::Aitken`; the plain fixed point while it does not oscillate).
 
+use super::DualProblem;
 use super::driver::{Flow, Gradient, OuterStep};
 use super::mprgp::ConvexQp;
 use super::pgs::Aitken;
 use super::subproblem::Mprgp;
-use super::{DualProblem, Law};
 
 pub(super) struct WholeMprgp {
     solver: Mprgp,
@@ -25,7 +25,7 @@ pub(super) struct WholeMprgp {
 impl WholeMprgp {
     pub fn new(problem: &DualProblem<'_>, max_inner: usize) -> Self {
         let (m, c) = (problem.dual.m, problem.dual.c);
-        let coulomb = matches!(problem.law, Law::Coulomb(_));
+        let coulomb = problem.law.is_coulomb();
         let relaxed = if coulomb { m } else { 0 };
         WholeMprgp {
             solver: Mprgp::new(c),

@@ -1,7 +1,7 @@
 //! Shared helpers of the integration tests `closed_form`, `patch_test` and
 //! `methods_agree`:
 //!
-//! - an optimality (KKT) checker of design.md section 1 that works on K, N, T, f, g
+//! - an optimality (KKT) checker of docs/design.md section 1 that works on K, N, T, f, g
 //!   and the returned u and multipliers only, independently of the solver's report;
 //! - small dense/sparse helpers and norms;
 //! - finite element builders: a plane-strain Q4 block and a trilinear H8 block on a
@@ -85,7 +85,7 @@ pub fn assert_converged(what: &str, sol: &Solution) {
 // The KKT checker
 // ---------------------------------------------------------------------------------
 
-/// The violations of the conditions of design.md section 1, each made
+/// The violations of the conditions of docs/design.md section 1, each made
 /// dimensionless: forces by `lam_scale` = max(|lambda|_inf, |f|_inf), lengths by
 /// `u_scale` = max(|u|_inf, |g|_inf).
 #[derive(Clone, Debug, Default)]
