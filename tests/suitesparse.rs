@@ -174,16 +174,21 @@ fn suitesparse_example_builds_and_runs() {
     assert!(stdout.contains("stype 1"), "{stdout}");
     assert!(stdout.contains("T: cs_di triplet"), "{stdout}");
 
-    // The history is the demo's first ten steps: the contact forces must match the C
-    // demo's (tests/c_demo.rs) press/shear rows, e.g. the normal resultant of step 5.
-    let row5: Vec<&str> = stdout
-        .lines()
-        .find(|l| l.trim_start().starts_with("5 press"))
-        .expect("the row of step 5")
-        .split_whitespace()
-        .collect();
-    let sum_n: f64 = row5[7].parse().unwrap();
-    assert!(sum_n > 0.0);
+    // The history is the C demo's first ten steps on the same mesh: the normal and
+    // tangential resultants of every step must match block2d.c's (assembled the
+    // plain way, without SuiteSparse).
+    let ours = resultants(&stdout);
+    let demo = resultants(&c_demo_output(&["--nx", "16", "--ny", "8"]));
+    assert_eq!(ours.len(), 10, "{stdout}");
+    let peak = demo.values().fold(0.0f64, |a, &(n, _)| a.max(n.abs()));
+    assert!(peak > 0.0);
+    for (step, (n, t)) in &ours {
+        let (dn, dt) = demo[step];
+        assert!(
+            (n - dn).abs() <= 1e-8 * peak && (t - dt).abs() <= 1e-8 * peak,
+            "step {step}: SuiteSparse example ({n:e}, {t:e}), C demo ({dn:e}, {dt:e})"
+        );
+    }
     check_reference(&stdout, 17.0, "16 x 8");
 }
 
@@ -213,4 +218,41 @@ fn frictionless_u_matches_cholmod_reference() {
             t.elapsed().as_secs_f64()
         );
     }
+}
+
+/// step -> (sum lambda_N, sum lambda_T) from the per-step table of block2d.c or
+/// suitesparse_block2d.c (the same columns: step, phase, ..., then the two sums as
+/// the 8th and 9th numbers).
+fn resultants(stdout: &str) -> HashMap<usize, (f64, f64)> {
+    stdout
+        .lines()
+        .filter_map(|l| {
+            let tok: Vec<&str> = l.split_whitespace().collect();
+            let step = tok.first()?.parse::<usize>().ok()?;
+            if tok.len() < 9 || tok[1].parse::<f64>().is_ok() {
+                return None;
+            }
+            Some((step, (tok[7].parse().ok()?, tok[8].parse().ok()?)))
+        })
+        .collect()
+}
+
+/// Builds c_examples/block2d.c (the plain C demo) and runs it with `args`.
+fn c_demo_output(args: &[&str]) -> String {
+    let dir = out_dir("suitesparse_c_demo");
+    let exe = dir.join("block2d");
+    run_ok(
+        c_compiler()
+            .arg("-std=c99")
+            .arg("-O2")
+            .arg("-I")
+            .arg(manifest_dir().join("include"))
+            .arg(manifest_dir().join("c_examples/block2d.c"))
+            .arg(static_lib())
+            .args(SYSTEM_LIBS)
+            .arg("-o")
+            .arg(&exe),
+        "compiling block2d.c",
+    );
+    stdout_of(&run_ok(Command::new(&exe).args(args), "block2d"))
 }

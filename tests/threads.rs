@@ -120,7 +120,8 @@ fn last_message() -> String {
 /// One job: create a handle for `sc`, solve with `method` (Tresca and Coulomb),
 /// provoke an error (checking the message of this thread), run a 3-step history,
 /// refactor, solve again; free. Returns every output and report number as bits.
-fn job(sc: &Scene, method: DsMethod, barrier: Option<&Barrier>) -> Bits {
+/// `tag` makes this job's bad input, and so its error message, its own.
+fn job(sc: &Scene, method: DsMethod, tag: usize, barrier: Option<&Barrier>) -> Bits {
     let (k, n, t) = (Owned::of(&sc.k), Owned::of(&sc.n), Owned::of(&sc.t));
     let d = sc.d as i32;
     let m = sc.m();
@@ -193,8 +194,12 @@ fn job(sc: &Scene, method: DsMethod, barrier: Option<&Barrier>) -> Bits {
         };
     call(ds_solve, DsFriction::Tresca, &p, &sc.f, &mut out);
     call(ds_solve, DsFriction::Coulomb, &mu, &sc.f, &mut out);
-    // An error on this thread: its message names this thread's culprit.
-    let neg = vec![-1.0; m];
+    // An error on this thread, with a bad input of its own: its message must name
+    // exactly this thread's culprit (a shared message would name another's).
+    let mut neg = p.clone();
+    let bad_at = tag % m;
+    let bad = -(1.0 + tag as f64);
+    neg[bad_at] = bad;
     let mut junk = vec![0.0; sc.k.nrows.max(nt).max(m)];
     // SAFETY: arrays long enough.
     let s = unsafe {
@@ -213,7 +218,11 @@ fn job(sc: &Scene, method: DsMethod, barrier: Option<&Barrier>) -> Bits {
     };
     assert_eq!(s, DsStatus::NegativeFriction);
     let msg = last_message();
-    assert!(msg.contains('p'), "this thread's message: {msg}");
+    let culprit = format!("p[{bad_at}] = {bad} is negative");
+    assert!(
+        msg.contains(&culprit),
+        "this thread's message: {msg}, expected {culprit}"
+    );
     // A history of three steps with growing load.
     // SAFETY: h is live.
     assert_eq!(unsafe { ds_history_reset(h) }, DsStatus::Ok);
@@ -242,17 +251,19 @@ fn concurrent_handles_are_bit_identical_to_sequential() {
     // Sequential reference.
     let sequential: Vec<Bits> = jobs
         .iter()
-        .map(|&(s, m)| job(&scenes[s], m, None))
+        .enumerate()
+        .map(|(q, &(s, m))| job(&scenes[s], m, q, None))
         .collect();
     // Concurrent, twice, all jobs released together.
     for round in 0..2 {
         let barrier = Arc::new(Barrier::new(jobs.len()));
         let handles: Vec<_> = jobs
             .iter()
-            .map(|&(s, m)| {
+            .enumerate()
+            .map(|(q, &(s, m))| {
                 let scenes = Arc::clone(&scenes);
                 let barrier = Arc::clone(&barrier);
-                std::thread::spawn(move || job(&scenes[s], m, Some(&barrier)))
+                std::thread::spawn(move || job(&scenes[s], m, q, Some(&barrier)))
             })
             .collect();
         for (q, h) in handles.into_iter().enumerate() {
@@ -285,7 +296,7 @@ fn last_error_is_per_thread() {
     let b = std::thread::spawn(move || {
         b2.wait();
         let sc = &scenes()[0];
-        let bits = job(sc, DsMethod::Split, None);
+        let bits = job(sc, DsMethod::Split, 0, None);
         let msg = last_message();
         b2.wait();
         (bits, msg)

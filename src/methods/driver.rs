@@ -40,6 +40,9 @@ pub struct Outcome {
     pub dual_err: f64,
     /// Why the run ended.
     pub end: End,
+    /// The dual unknowns the method iterated on (m for a frictionless increment
+    /// solved as the pure Signorini problem, d m otherwise).
+    pub unknowns: usize,
 }
 
 /// What a step leaves in w.

@@ -92,40 +92,46 @@ impl DualProblem<'_> {
     }
 }
 
-/// The method `opts.method` as an outer step for `problem`. A frictionless
+/// The method `opts.method` as an outer step for `problem`, and the number of dual
+/// unknowns it iterates on. A frictionless
 /// increment (every slip bound zero) is the pure Signorini problem in the m normal
 /// unknowns for the splittings and whole-dual MPRGP (docs/design.md section 2); PGS's
 /// tangential steps cost O(1) per contact with a zero bound, and Newton drops the
 /// unknowns at zero bounds from its linear systems, so those two run as they are.
-fn outer_step(problem: &DualProblem<'_>, opts: &Options) -> Box<dyn OuterStep> {
+fn outer_step(problem: &DualProblem<'_>, opts: &Options) -> (Box<dyn OuterStep>, usize) {
     let (method, max_inner) = (opts.method, opts.max_inner);
     let (m, c) = (problem.dual.m, problem.dual.c);
     if problem.law.frictionless() {
         match method {
             Method::Split | Method::BlockGs => {
-                return Box::new(signorini::Signorini::new(GaussSeidel::new(m), max_inner));
+                let step = signorini::Signorini::new(GaussSeidel::new(m), max_inner);
+                return (Box::new(step), m);
             }
             Method::SplitMprgp | Method::Mprgp => {
-                return Box::new(signorini::Signorini::new(Mprgp::new(m), max_inner));
+                let step = signorini::Signorini::new(Mprgp::new(m), max_inner);
+                return (Box::new(step), m);
             }
             Method::Pgs | Method::Newton => {}
         }
     }
     let k = m.max(c - m);
-    match method {
+    let step: Box<dyn OuterStep> = match method {
         Method::Pgs => Box::new(pgs::Pgs::new(problem)),
         Method::Split => Box::new(Split::new(problem, Schur, GaussSeidel::new(k), max_inner)),
         Method::BlockGs => Box::new(Split::new(problem, Block, GaussSeidel::new(k), max_inner)),
         Method::SplitMprgp => Box::new(Split::new(problem, Schur, Mprgp::new(k), max_inner)),
         Method::Mprgp => Box::new(whole::WholeMprgp::new(problem, max_inner)),
         Method::Newton => Box::new(newton::Newton::new(problem)),
-    }
+    };
+    (step, c)
 }
 
 /// Runs `opts.method` from the starting point in `lam` (length d m; a warm start or
 /// zeros) until the dual error is at most `target` or another stop test fires
 /// (see [`End`]).
 pub fn run(problem: &DualProblem<'_>, lam: &mut [f64], opts: &Options, target: f64) -> Outcome {
-    let mut method = outer_step(problem, opts);
-    driver::drive(problem, lam, opts, target, method.as_mut())
+    let (mut method, unknowns) = outer_step(problem, opts);
+    let mut out = driver::drive(problem, lam, opts, target, method.as_mut());
+    out.unknowns = unknowns;
+    out
 }
