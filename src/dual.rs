@@ -34,8 +34,9 @@ pub struct Dual {
     /// Per contact: rho_i = d / trace of the contact's d x d diagonal block of A
     /// (0 when that block vanishes). Units: force / length.
     pub rho: Vec<f64>,
-    /// B = [N; T], c x n.
-    pub b: Csc,
+    /// The matrix B = [N; T] (the contact rows, stacked), c x n. (The dual's
+    /// linear term, the vector b, lives in `methods::DualProblem::b`.)
+    pub rows: Csc,
     /// Seconds spent forming A.
     pub condense_seconds: f64,
     /// How A was formed.
@@ -184,7 +185,7 @@ impl Dual {
                 a: Vec::new(),
                 free: Some(free),
                 rho,
-                b,
+                rows: b,
                 condense_seconds: start.elapsed().as_secs_f64(),
                 condensation: how,
             });
@@ -210,7 +211,7 @@ impl Dual {
             a,
             free: None,
             rho,
-            b,
+            rows: b,
             condense_seconds: start.elapsed().as_secs_f64(),
             condensation: how,
         })

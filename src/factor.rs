@@ -26,10 +26,8 @@ pub const PIVOT_TOL: f64 = 1e-14;
 /// The numeric factorisation runs on faer's global parallelism (rayon, all cores
 /// unless RAYON_NUM_THREADS says otherwise) when its flops per entry of L, about
 /// the mean front size, exceed this; sequentially below, where the work is in
-/// small supernodes and threads only add overhead. Measured on 2 cores (numeric
-/// seconds, sequential -> 2 threads, median of 3): 2D 1e6 DOFs, plain AMD (289
-/// flops per entry) 2.41 -> 2.70, the same with 4,002 contact DOFs last (790) 5.32
-/// -> 4.29; 3D 4.3e4 DOFs (1,600) 3.0 -> 1.9, contacts last (2,300) 6.7 -> 3.9.
+/// small supernodes and threads only add overhead (measurements: BENCHMARKS.md,
+/// "Tuning measurements").
 const PARALLEL_FLOPS_PER_ENTRY: f64 = 500.0;
 
 /// The numeric part of a factorisation, as handed back by [`Factor::refactor`].

@@ -15,14 +15,8 @@
 //! (the d DOFs of a finite element node) are one vertex, so the graph has about
 //! 1/d^2 of K's entries, and a clique among the contact nodes is affordable.
 //!
-//! Measured on the 2D benchmark block with 1e6 DOFs and 4,002 contact DOFs last
-//! (supernodal nnz(L), flops of the factorisation, time of the ordering): AMD on
-//! the DOF graph with a band of 1,024: 1.57e8, 1.45e11, 5.1 s; on the compressed
-//! graph with a clique: 1.49e8, 1.18e11, 0.75 s (a geometric nested dissection of
-//! the grid with the contact face last: 1.41e8, 0.89e11; without anything fixed,
-//! AMD: 1.09e8, 0.31e11, 0.72 s, was 1.15 s on the DOF graph). 3D block, 4.3e4
-//! DOFs, 2,883 fixed: 1.73e11 -> 1.71e11 flops, 0.55 -> 0.11 s. A BFS nested
-//! dissection was worse.
+//! The measurements behind these choices are in BENCHMARKS.md ("Tuning
+//! measurements").
 
 use crate::sparse::Csc;
 use faer::dyn_stack::{MemBuffer, MemStack};

@@ -346,7 +346,7 @@ impl ContactProblem {
         let mut u0 = vec![0.0; ndof];
         self.factor.backward(&mut y_f.clone(), &mut u0);
         let mut b = vec![0.0; c];
-        self.dual.b.mul_vec(&u0, &mut b);
+        self.dual.rows.mul_vec(&u0, &mut b);
         for i in 0..m {
             b[i] -= g[i];
         }
@@ -392,9 +392,9 @@ impl ContactProblem {
             base.set(outer);
             end = o.end;
             // u = K^-1 (f - B^T lambda), and the error measured on it.
-            self.dual.b.mul_t_vec(lam, &mut bt_lam);
+            self.dual.rows.mul_t_vec(lam, &mut bt_lam);
             self.recover_u(f, &y_f, &bt_lam, &mut u);
-            self.dual.b.mul_vec(&u, &mut v);
+            self.dual.rows.mul_vec(&u, &mut v);
             for i in 0..m {
                 v[i] -= g[i];
             }

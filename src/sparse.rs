@@ -144,18 +144,38 @@ impl Triplets {
     }
 }
 
-/// A zero-filled vector of length `n`, or `OutOfMemory` instead of an abort when a
-/// caller-supplied dimension is absurd.
-fn zeroed(n: usize) -> Result<Vec<usize>> {
+/// A vector of `n` copies of `value`, or `OutOfMemory` instead of an abort: every
+/// array whose size comes from caller data is allocated through here (or
+/// [`try_copy`]), since `catch_unwind` does not catch an allocation failure.
+/// `what` names the entries in the message ("indices", "values").
+fn filled<T: Clone>(n: usize, value: T, what: &str) -> Result<Vec<T>> {
     let mut v = Vec::new();
     if v.try_reserve_exact(n).is_err() {
         return fail(
             ErrorKind::OutOfMemory,
-            format!("cannot allocate an array of {n} indices"),
+            format!("cannot allocate an array of {n} {what}"),
         );
     }
-    v.resize(n, 0);
+    v.resize(n, value);
     Ok(v)
+}
+
+/// A zero-filled index vector of length `n` (see [`filled`]).
+fn zeroed(n: usize) -> Result<Vec<usize>> {
+    filled(n, 0usize, "indices")
+}
+
+/// A copy of `v`, or `OutOfMemory` (see [`filled`]).
+fn try_copy<T: Copy>(v: &[T]) -> Result<Vec<T>> {
+    let mut out = Vec::new();
+    if out.try_reserve_exact(v.len()).is_err() {
+        return fail(
+            ErrorKind::OutOfMemory,
+            format!("cannot allocate a copy of {} entries", v.len()),
+        );
+    }
+    out.extend_from_slice(v);
+    Ok(out)
 }
 
 /// An array position in the caller's notation: `p[3]` (base 0, C) or `p(4)`
@@ -378,9 +398,9 @@ fn assemble(nrows: usize, ncols: usize, t: &Triplets) -> Result<Csc> {
     for r in 0..nrows {
         row_ptr[r + 1] += row_ptr[r];
     }
-    let mut next = row_ptr.clone();
-    let mut by_row_col = vec![0usize; nnz];
-    let mut by_row_val = vec![0.0f64; nnz];
+    let mut next = try_copy(&row_ptr)?;
+    let mut by_row_col = zeroed(nnz)?;
+    let mut by_row_val = filled(nnz, 0.0f64, "values")?;
     for k in 0..nnz {
         let r = t.rows[k];
         let d = next[r];
@@ -398,9 +418,9 @@ fn assemble(nrows: usize, ncols: usize, t: &Triplets) -> Result<Csc> {
     for c in 0..ncols {
         col_ptr[c + 1] += col_ptr[c];
     }
-    let mut next = col_ptr.clone();
-    let mut row_idx = vec![0usize; nnz];
-    let mut values = vec![0.0f64; nnz];
+    let mut next = try_copy(&col_ptr)?;
+    let mut row_idx = zeroed(nnz)?;
+    let mut values = filled(nnz, 0.0f64, "values")?;
     for r in 0..nrows {
         for k in row_ptr[r]..row_ptr[r + 1] {
             let c = by_row_col[k];
@@ -464,7 +484,7 @@ fn check_sums_finite(a: &Csc, what: &str, base: usize) -> Result<()> {
 fn check_symmetric(a: &Csc, what: &str, base: usize) -> Result<()> {
     let max_abs = a.values.iter().fold(0.0f64, |m, v| m.max(v.abs()));
     let tol = SYMMETRY_TOL * max_abs;
-    let at = a.transpose();
+    let at = a.try_transpose()?;
     // Worst pair (r, c) with r < c: values A(r, c) and A(c, r) and |difference|.
     let mut worst: Option<(usize, usize, f64, f64, f64)> = None;
     for j in 0..a.ncols {
@@ -664,19 +684,29 @@ impl Csc {
     }
 
     /// The transpose, in the same internal form.
+    ///
+    /// Panics if it cannot be allocated; [`Csc::try_transpose`] returns
+    /// `OutOfMemory` instead.
     pub fn transpose(&self) -> Csc {
-        let mut count = vec![0usize; self.nrows + 1];
+        self.try_transpose().expect("memory for the transpose")
+    }
+
+    /// The transpose, in the same internal form.
+    ///
+    /// Errors: `OutOfMemory`.
+    pub fn try_transpose(&self) -> Result<Csc> {
+        let mut count = zeroed(self.nrows.saturating_add(1))?;
         for &r in &self.row_idx {
             count[r + 1] += 1;
         }
         for r in 0..self.nrows {
             count[r + 1] += count[r];
         }
-        let col_ptr = count.clone();
+        let col_ptr = try_copy(&count)?;
         let mut next = count;
         let nnz = self.nnz();
-        let mut row_idx = vec![0usize; nnz];
-        let mut values = vec![0.0; nnz];
+        let mut row_idx = zeroed(nnz)?;
+        let mut values = filled(nnz, 0.0, "values")?;
         for j in 0..self.ncols {
             for k in self.col_ptr[j]..self.col_ptr[j + 1] {
                 let r = self.row_idx[k];
@@ -685,13 +715,13 @@ impl Csc {
                 next[r] += 1;
             }
         }
-        Csc {
+        Ok(Csc {
             nrows: self.ncols,
             ncols: self.nrows,
             col_ptr,
             row_idx,
             values,
-        }
+        })
     }
 }
 

@@ -15,6 +15,12 @@
 //! every contact looked like slipping, and Newton wandered in an all-slip active
 //! set (the centre contact flipping the sign of its friction force at every step)
 //! before it found the sticking zone again.
+//!
+//! These tests run Newton as users do, with its Gauss-Seidel warm-up, which can hide
+//! what the warm start itself buys; the unit test
+//! `methods::newton::tests::the_warm_start_sorts_by_the_multipliers_and_saves_newton_steps`
+//! measures that alone (no warm-up, the same starting iterate, sorted by the
+//! multipliers or by the natural map: 2 against 4 Newton steps).
 
 mod common;
 
@@ -79,11 +85,6 @@ fn warm_against_cold(
             SolveStatus::Converged,
             "{what} ({name}): {:?}",
             sol.report
-        );
-        assert!(
-            sol.report.err <= 1e-10,
-            "{what} ({name}): err {:.2e}",
-            sol.report.err
         );
         kkt(
             sc.d,

@@ -113,7 +113,6 @@ fn patch_test(name: &str, mesh: Mesh) {
                     .solve(&sc.f, &sc.g, friction, &o)
                     .expect("solve accepts the data");
                 assert_converged(&what, &sol);
-                assert!(sol.report.err <= tol, "{what}: err {:.3e}", sol.report.err);
                 let l_scale = norm_inf(&lambda_exact);
                 assert_close(
                     &format!("{what}: lambda_N"),

@@ -158,7 +158,7 @@ pub fn errors(sc: &Scene, ans: &Answer) -> (f64, f64, f64) {
     let pb = dualsplit::ContactProblem::from_csc(d, sc.k.clone(), sc.n.clone(), sc.t.clone())
         .expect("valid scene");
     let dual = pb.dual();
-    let bmat = &dual.b;
+    let bmat = &dual.rows;
     let fac = Factor::new(&sc.k).expect("K is SPD");
     let c = d * m;
     // b = B K^-1 f - [g; 0]

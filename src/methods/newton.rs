@@ -56,17 +56,13 @@ const FALLBACK_SWEEPS: usize = 5;
 /// closed contact then looks like slipping) or after a load change, Newton's first
 /// active sets are far from the answer and it spends many steps (one dense LU
 /// each) and fallbacks getting near; sweeps cost O(c^2) each against O(k^3) for a
-/// step. Measured on the benchmark's 2D blocks (2d-1400x175, c = 2,802; Newton
-/// iterations, cold / warm step after +5 % load, with BACKTRACKS): Coulomb 9 / 14
-/// -> 4 / 5, Tresca 19 / 5 -> 3 / 1; on 2d-800x100 Coulomb 8 / 8 -> 3 / 2, Tresca
-/// 16 / 4 -> 1 / 1.
+/// step (measurements: BENCHMARKS.md, "Tuning measurements").
 const PRESWEEPS: usize = 40;
 const PRESWEEP_CHUNK: usize = 10;
 
 /// Step lengths tried along a Newton direction before the Gauss-Seidel fallback:
-/// 1, 1/2, ..., 2^-(BACKTRACKS-1) (each costs one product with A). Without them the
-/// warm-up above left Newton stuck on the slender beam of tests/hard_scenes.rs
-/// (every full step rejected, 400 iterations); with them it converges in 18.
+/// 1, 1/2, ..., 2^-(BACKTRACKS-1) (each costs one product with A); without them
+/// Newton can reject every full step (the slender beam of tests/hard_scenes.rs).
 const BACKTRACKS: usize = 4;
 
 /// Sufficient decrease for keeping a Newton step: |F(lam + d)| <= (1 - ARMIJO) |F(lam)|.
@@ -357,6 +353,12 @@ fn residual_norm(problem: &DualProblem<'_>, lam: &[f64], w: &[f64]) -> f64 {
 /// The globalised semismooth Newton method.
 pub(super) struct Newton {
     warm: bool,
+    /// Gauss-Seidel sweeps before the first step (PRESWEEPS; 0 in the tests of
+    /// the warm start itself).
+    presweeps: usize,
+    /// Whether a warm start's first step sorts by the multipliers (WARM_C); off
+    /// only in the tests that measure what that sorting buys.
+    warm_sort: bool,
     step: Vec<f64>,
     f: Vec<f64>,
     ae0: Vec<f64>,
@@ -373,6 +375,8 @@ impl Newton {
         let c = problem.dual.c;
         Newton {
             warm: false,
+            presweeps: PRESWEEPS,
+            warm_sort: true,
             step: vec![0.0; c],
             f: vec![0.0; c],
             ae0: vec![0.0; c],
@@ -401,8 +405,8 @@ impl OuterStep for Newton {
         // The error's scratch: `f` and `ae0` are overwritten by every step.
         let (p, v) = (&mut self.f[..m], &mut self.ae0[..c]);
         let mut swept = 0;
-        while swept < PRESWEEPS && problem.error(lam, w, p, v) > target {
-            let n = PRESWEEP_CHUNK.min(PRESWEEPS - swept);
+        while swept < self.presweeps && problem.error(lam, w, p, v) > target {
+            let n = PRESWEEP_CHUNK.min(self.presweeps - swept);
             *inner += pgs::sweeps(problem, lam, w, n);
             swept += n;
         }
@@ -433,7 +437,11 @@ impl OuterStep for Newton {
         }
         // A warm start's first step takes its active set from the multipliers
         // (see WARM_C); every later step from the natural map.
-        let cscale = if self.warm && k == 0 { WARM_C } else { 1.0 };
+        let cscale = if self.warm && self.warm_sort && k == 0 {
+            WARM_C
+        } else {
+            1.0
+        };
         let (step, trial, wt) = (&mut self.step, &mut self.trial, &mut self.wt);
         if newton_step(problem, lam, w, step, &mut self.f, &mut self.ae0, cscale) {
             // Backtracking: the full step, then halves of it.
@@ -464,6 +472,118 @@ impl OuterStep for Newton {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::friction::Friction;
+    use crate::options::{Method, Options};
+    use crate::problem::ContactProblem;
+    use crate::sparse::Csc;
+
+    /// A 2D strip of `nodes` contact nodes (u_x, u_y each), tied to a rigid top
+    /// by vertical and shear springs and to each other by bars: pressed down by
+    /// `press` and sheared by `shear` through the top; contact i: N = -e_y, T = e_x,
+    /// gap 1e-3 (i - c)^2 / c^2 around the centre c.
+    fn strip(nodes: usize) -> (ContactProblem, Vec<f64>) {
+        let n = 2 * nodes;
+        let mut k = Vec::new();
+        for i in 0..nodes {
+            let (x, y) = (2 * i, 2 * i + 1);
+            k.push((x, x, 0.02));
+            k.push((y, y, 1.0));
+            if i + 1 < nodes {
+                for (a, b, s) in [(x, x + 2, 2.0), (y, y + 2, 0.5)] {
+                    k.push((a, a, s));
+                    k.push((b, b, s));
+                    k.push((a, b, -s));
+                    k.push((b, a, -s));
+                }
+            }
+        }
+        let nmat: Vec<_> = (0..nodes).map(|i| (i, 2 * i + 1, -1.0)).collect();
+        let tmat: Vec<_> = (0..nodes).map(|i| (i, 2 * i, 1.0)).collect();
+        let c = (nodes - 1) as f64 / 2.0;
+        let g: Vec<f64> = (0..nodes)
+            .map(|i| 1e-3 * (i as f64 - c).powi(2) / (c * c))
+            .collect();
+        let pb = ContactProblem::from_csc(
+            2,
+            Csc::from_triplets(n, n, &k),
+            Csc::from_triplets(nodes, n, &nmat),
+            Csc::from_triplets(nodes, n, &tmat),
+        )
+        .unwrap();
+        (pb, g)
+    }
+
+    /// b = B K^-1 f - [g; 0] of the strip under the top's load.
+    fn rhs(pb: &ContactProblem, g: &[f64], press: f64, shear: f64) -> Vec<f64> {
+        let nodes = g.len();
+        let mut u0: Vec<f64> = (0..2 * nodes)
+            .map(|j| if j % 2 == 0 { 0.3 * shear } else { -press })
+            .collect();
+        pb.factor().solve_vec(&mut u0);
+        let mut b = vec![0.0; 2 * nodes];
+        pb.dual().rows.mul_vec(&u0, &mut b);
+        for (bi, gi) in b.iter_mut().zip(g) {
+            *bi -= gi;
+        }
+        b
+    }
+
+    /// Newton without its Gauss-Seidel warm-up from `lam`: the outer iterations.
+    fn newton_steps(
+        pb: &ContactProblem,
+        b: &[f64],
+        mu: &[f64],
+        lam: &mut [f64],
+        warm_sort: bool,
+    ) -> usize {
+        let problem = DualProblem {
+            dual: pb.dual(),
+            b,
+            law: Friction::Coulomb(mu),
+            monitor: None,
+            deadline: None,
+        };
+        let mut newton = Newton::new(&problem);
+        newton.presweeps = 0;
+        newton.warm_sort = warm_sort;
+        let opts = Options {
+            method: Method::Newton,
+            ..Options::default()
+        };
+        let out = super::super::driver::drive(&problem, lam, &opts, 1e-12, &mut newton);
+        assert_eq!(out.end, super::super::End::Converged, "{out:?}");
+        out.outer
+    }
+
+    #[test]
+    fn the_warm_start_sorts_by_the_multipliers_and_saves_newton_steps() {
+        // A history step: the converged multipliers of one load, then the load
+        // raised by 5 %. From the same starting iterate, the first step sorted by
+        // the multipliers (the warm start) needs fewer Newton steps than the first
+        // step sorted by the natural map at that iterate, where the load change
+        // with the forces frozen makes the contacts look like slipping.
+        let (pb, g) = strip(41);
+        let mu = vec![0.3; 41];
+        let (press, shear) = (4e-3, 3e-3);
+        let b1 = rhs(&pb, &g, press, shear);
+        let mut lam1 = vec![0.0; 82];
+        newton_steps(&pb, &b1, &mu, &mut lam1, true);
+        // Mostly sticking, two contacts slipping (at mu = 0.3, shear 3e-3).
+        let slipping = (0..41)
+            .filter(|&i| lam1[41 + i].abs() >= (1.0 - 1e-9) * 0.3 * lam1[i])
+            .count();
+        assert!((1..41).contains(&slipping), "{slipping} slipping");
+        let b2 = rhs(&pb, &g, 1.05 * press, 1.05 * shear);
+        let (mut warm, mut cold) = (lam1.clone(), lam1.clone());
+        let with_sort = newton_steps(&pb, &b2, &mu, &mut warm, true);
+        let without = newton_steps(&pb, &b2, &mu, &mut cold, false);
+        println!(
+            "warm step: {with_sort} Newton steps sorted by the multipliers, {without} by the \
+             natural map"
+        );
+        assert!(with_sort < without, "{with_sort} vs {without}");
+        assert!(with_sort <= 2, "{with_sort}");
+    }
 
     fn mat(rows: &[&[f64]]) -> Mat<f64> {
         Mat::from_fn(rows.len(), rows[0].len(), |i, j| rows[i][j])
