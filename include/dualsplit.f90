@@ -121,7 +121,7 @@ module dualsplit
       integer(c_int32_t) :: dual_form     !< a DS_DUAL_FORM_* value (default DS_DUAL_FORM_AUTO)
       real(c_double)     :: max_seconds   !< wall-clock budget of a solve in seconds, 0 = none (default 0)
       integer(c_int64_t) :: stall_window  !< stagnation test window in outer iterations, 0 = off (default 100)
-      real(c_double)     :: stall_factor  !< the best err must drop by this factor per window (default 0.9)
+      real(c_double)     :: stall_factor  !< progress: the best err drops by this factor per window (default 0.9)
    end type DsOptions
 
    !> sizeof(DsOptions) in C: what ds_options_init is told (tests/fortran.rs checks

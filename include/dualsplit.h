@@ -110,8 +110,9 @@ typedef enum DsStatus {
   DS_STATUS_STOPPED = 13,
   /*
    The method stopped making progress: its lowest err did not drop by the
-   factor DsOptions.stall_factor over DsOptions.stall_window outer iterations
-   (Newton also when its natural residual stops falling). ds_solve / ds_step
+   factor DsOptions.stall_factor over DsOptions.stall_window outer iterations,
+   and at that pace tol would not be reached within max_outer (Newton also
+   when its natural residual stops falling). ds_solve / ds_step
    write the iterate with the lowest err to u, lambda_n, lambda_t and the
    report; the history does not advance. A problem without a solution (no u
    with N u <= g) ends this way under the Gauss-Seidel methods.
@@ -321,15 +322,17 @@ typedef struct DsOptions {
   double max_seconds;
   /*
    Window of the stagnation test in outer iterations, >= 0, 0 to turn it off
-   (default 100). The solve returns DS_STATUS_STALLED with the iterate with the
-   lowest err when, after stall_window or more outer iterations, the lowest err
-   met is above stall_factor times the lowest err met up to stall_window
-   iterations earlier. Added in version 0.3.
+   (default 100). After stall_window or more outer iterations, let r be the
+   lowest err met divided by the lowest err met up to stall_window iterations
+   earlier; the solve returns DS_STATUS_STALLED with the iterate with the
+   lowest err when r > stall_factor and, at the pace r per window, tol would
+   not be reached within max_outer (always when r = 1). Added in version 0.3.
    */
   int64_t stall_window;
   /*
    The factor by which the lowest err must drop over stall_window outer
-   iterations, in (0, 1] (default 0.9: by 10 %). Added in version 0.3.
+   iterations to count as progress whatever max_outer, in (0, 1] (default 0.9:
+   by 10 %). Added in version 0.3.
    */
   double stall_factor;
 } DsOptions;

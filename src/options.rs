@@ -125,29 +125,29 @@ pub struct Options {
     /// (factorisation, condensation) is not counted.
     pub max_seconds: f64,
     /// The stagnation test's window in outer iterations, 0 to turn it off
-    /// (default [`STALL_WINDOW`]): the solve ends with `SolveStatus::Stalled` and
-    /// the iterate with the lowest err when, after `stall_window` or more outer
-    /// iterations, the lowest err met is above `stall_factor` times the lowest err
-    /// met up to `stall_window` iterations earlier.
+    /// (default [`STALL_WINDOW`]). After `stall_window` or more outer iterations,
+    /// let r be the lowest err met divided by the lowest err met up to
+    /// `stall_window` iterations earlier. The solve ends with
+    /// `SolveStatus::Stalled` and the iterate with the lowest err when r is above
+    /// `stall_factor` and, at the pace r per window, `tol` would not be reached
+    /// within `max_outer` iterations (always when r = 1: no progress at all).
     pub stall_window: usize,
     /// The factor by which the lowest err must drop over `stall_window` outer
-    /// iterations, in (0, 1] (default [`STALL_FACTOR`]; 1 stops only when the best
-    /// err did not improve at all).
+    /// iterations to count as progress whatever the iteration limit, in (0, 1]
+    /// (default [`STALL_FACTOR`]; 1 stops only a run whose best err did not improve at
+    /// all over the window).
     pub stall_factor: f64,
 }
 
 /// Default window of the stagnation test, in outer iterations.
 pub const STALL_WINDOW: usize = 100;
 
-/// Default factor of the stagnation test. With the defaults (100, 0.9) a method
-/// must lower its best err by at least 10 % every 100 outer iterations. A method
-/// that keeps to a slower pace lowers err by less than 0.9^100 = 2.7e-5 within the
-/// default `max_outer` of 10,000 iterations: the test ends early only solves that
-/// the iteration limit would have ended unconverged anyway, unless their pace
-/// picks up after a plateau longer than the window. Plateaus of 50 iterations were
-/// seen while Aitken's factor settles on a strongly coupled Coulomb fixed point
-/// (tests/hard_scenes.rs, the inclined column: PGS, the splittings, MPRGP), hence
-/// 100.
+/// Default factor of the stagnation test: with the defaults (100, 0.9) a method
+/// that lowers its best err by 10 % or more every 100 outer iterations always
+/// goes on; a slower one goes on while its pace still reaches `tol` within
+/// `max_outer`. Plateaus of 50 iterations were seen while Aitken's factor settles
+/// on a strongly coupled Coulomb fixed point (tests/hard_scenes.rs, the inclined
+/// column), hence a window of 100.
 pub const STALL_FACTOR: f64 = 0.9;
 
 impl Default for Options {

@@ -15,9 +15,9 @@ pub enum SolveStatus {
     NotConverged,
     /// The monitor callback asked to stop; the iterate is the last one.
     Stopped,
-    /// The method stopped making progress (`Options::stall_window`,
-    /// `Options::stall_factor`; Newton also when its natural residual |F| stops
-    /// falling): the iterate with the lowest err. On a problem without a solution
+    /// The method stopped making progress (the stagnation test of
+    /// `Options::stall_window` and `Options::stall_factor`; Newton also when its
+    /// natural residual |F| stops falling): the iterate with the lowest err. On a problem without a solution
     /// (no u with N u <= g) the Gauss-Seidel methods end this way.
     Stalled,
     /// The wall-clock budget `Options::max_seconds` ran out: the iterate with the

@@ -568,8 +568,8 @@ fn fclib_problems() {
 /// independent reference) or Stalled with the best iterate it met. Release
 /// (`cargo test --release --test fclib`): every method, default options (about
 /// 3 minutes: mprgp 45 s, block-gs 22 s, split 11 s). A debug build runs PGS with
-/// the defaults and Split with 5 inner sweeps per sub-problem (unoptimised, the
-/// others take minutes); the stagnation test is the same.
+/// the defaults and Split with 5 inner sweeps per sub-problem and a stagnation
+/// window of 20 (unoptimised, the others take minutes).
 #[test]
 fn spheres_in_a_box_ends_with_an_honest_status() {
     let dir = fclib_dir().join("spheres-in-a-box-98-i10000-256-10");
@@ -596,6 +596,11 @@ fn spheres_in_a_box_ends_with_an_honest_status() {
             method,
             tol: TOL,
             max_inner: if release { 1000 } else { 5 },
+            stall_window: if release || method == Method::Pgs {
+                100
+            } else {
+                20
+            },
             ..Options::default()
         };
         let mut best = f64::INFINITY;

@@ -150,8 +150,9 @@ fn through_c_the_new_statuses_write_the_best_iterate() {
     let cases = [
         // (max_seconds, stall_window, stall_factor, max_outer): the status
         (1e-9, 100, 0.9, 10_000, DsStatus::TimeLimit),
-        // A factor no slow method meets: 99.9 % per 5 sweeps.
-        (0.0, 5, 1e-3, 10_000, DsStatus::Stalled),
+        // A factor no slow method meets (99.9 % per 5 sweeps), and a limit of 200
+        // sweeps that the pace of PGS here cannot meet (it needs 2,386).
+        (0.0, 5, 1e-3, 200, DsStatus::Stalled),
         (0.0, 100, 0.9, 3, DsStatus::NotConverged),
     ];
     for (max_seconds, stall_window, stall_factor, max_outer, want) in cases {

@@ -49,13 +49,15 @@ pub struct DsOptions {
     /// the factorisation and condensation are not counted. Added in version 0.3.
     pub max_seconds: f64,
     /// Window of the stagnation test in outer iterations, >= 0, 0 to turn it off
-    /// (default 100). The solve returns DS_STATUS_STALLED with the iterate with the
-    /// lowest err when, after stall_window or more outer iterations, the lowest err
-    /// met is above stall_factor times the lowest err met up to stall_window
-    /// iterations earlier. Added in version 0.3.
+    /// (default 100). After stall_window or more outer iterations, let r be the
+    /// lowest err met divided by the lowest err met up to stall_window iterations
+    /// earlier; the solve returns DS_STATUS_STALLED with the iterate with the
+    /// lowest err when r > stall_factor and, at the pace r per window, tol would
+    /// not be reached within max_outer (always when r = 1). Added in version 0.3.
     pub stall_window: i64,
     /// The factor by which the lowest err must drop over stall_window outer
-    /// iterations, in (0, 1] (default 0.9: by 10 %). Added in version 0.3.
+    /// iterations to count as progress whatever max_outer, in (0, 1] (default 0.9:
+    /// by 10 %). Added in version 0.3.
     pub stall_factor: f64,
 }
 

@@ -48,8 +48,9 @@ pub enum DsStatus {
     /// to u, lambda_n, lambda_t and the report; the history does not advance.
     Stopped = 13,
     /// The method stopped making progress: its lowest err did not drop by the
-    /// factor DsOptions.stall_factor over DsOptions.stall_window outer iterations
-    /// (Newton also when its natural residual stops falling). ds_solve / ds_step
+    /// factor DsOptions.stall_factor over DsOptions.stall_window outer iterations,
+    /// and at that pace tol would not be reached within max_outer (Newton also
+    /// when its natural residual stops falling). ds_solve / ds_step
     /// write the iterate with the lowest err to u, lambda_n, lambda_t and the
     /// report; the history does not advance. A problem without a solution (no u
     /// with N u <= g) ends this way under the Gauss-Seidel methods.

@@ -111,10 +111,15 @@ pub(super) trait OuterStep {
     ) -> Flow;
 }
 
-/// The stagnation test: after outer iteration k >= `window`, the run has stalled
-/// when the lowest err of iterations 0..=k is above `factor` times the lowest err
-/// of iterations 0..=k-window (the best err did not drop by the factor over the
-/// last `window` iterations). `window` = 0 turns it off.
+/// The stagnation test. After outer iteration k >= `window`, let r be the ratio of
+/// the lowest err of iterations 0..=k to the lowest err of iterations
+/// 0..=k-window (the pace of the last window). The run has stalled when r is
+/// above `factor` (the best err did not drop by the factor over the window) and,
+/// at that pace, the target would not be reached within the iteration limit
+/// (always so when r = 1: no progress at all). The second condition keeps a slow
+/// but steady run that will meet the target in time (a warm start a few orders
+/// of magnitude from the tolerance, say) from being cut short. `window` = 0 turns
+/// the test off.
 pub(super) struct Stagnation {
     factor: f64,
     /// best err after iterations k-window ..= k, a ring of window + 1 values.
@@ -130,15 +135,30 @@ impl Stagnation {
     }
 
     /// Records `best` (the lowest err so far) after iteration `k`; true when the
-    /// run has stalled.
-    pub fn stalled(&mut self, k: usize, best: f64) -> bool {
+    /// run has stalled short of `target` with `limit` outer iterations allowed.
+    pub fn stalled(&mut self, k: usize, best: f64, target: f64, limit: usize) -> bool {
         let len = self.ring.len();
         if len == 0 {
             return false;
         }
         self.ring[k % len] = best;
         // The slot k + 1 mod len holds the best after iteration k - window.
-        k + 1 >= len && best > self.factor * self.ring[(k + 1) % len]
+        if k + 1 < len {
+            return false;
+        }
+        let before = self.ring[(k + 1) % len];
+        if best == before {
+            // No progress at all (also an err that stayed infinite).
+            return true;
+        }
+        // best < before here (a running minimum): enough progress, or at the target.
+        if best <= self.factor * before || best <= target || best.is_nan() {
+            return false;
+        }
+        let pace = best / before;
+        // Iterations still needed at this pace: window ln(target / best) / ln(pace).
+        let needed = (len - 1) as f64 * (target / best).ln() / pace.ln();
+        k as f64 + needed > limit as f64
     }
 }
 
@@ -226,7 +246,7 @@ pub(super) fn drive(
             return out;
         } else if out.outer >= opts.max_outer {
             Some(End::Limit)
-        } else if stagnation.stalled(out.outer, best.err()) {
+        } else if stagnation.stalled(out.outer, best.err(), target, opts.max_outer) {
             Some(End::Stalled)
         } else if problem.deadline.is_some_and(|d| Instant::now() >= d) {
             Some(End::TimeLimit)
@@ -283,22 +303,30 @@ mod tests {
 
     #[test]
     fn stagnation_fires_only_when_the_best_err_stops_dropping() {
-        // A steady rate of 0.99 per iteration drops by 0.99^10 = 0.904 over a
-        // window of 10: not stalled with factor 0.95, stalled with factor 0.9.
+        let (target, limit) = (1e-10, 10_000);
+        // A steady pace of 0.99 per iteration drops by 0.99^10 = 0.904 over a
+        // window of 10: enough with factor 0.95.
         let mut s = Stagnation::new(10, 0.95);
-        assert!((0..200).all(|k| !s.stalled(k, 0.99f64.powi(k as i32))));
+        assert!((0..200).all(|k| !s.stalled(k, 0.99f64.powi(k as i32), target, limit)));
+        // With factor 0.9 that pace is too slow, yet it meets 1e-10 from 1 in about
+        // 2,300 iterations, within the limit: not stalled.
+        let mut s = Stagnation::new(10, 0.9);
+        assert!((0..200).all(|k| !s.stalled(k, 0.99f64.powi(k as i32), target, limit)));
+        // ... but with a limit of 1,000 it would not: stalled after the window.
         let mut s = Stagnation::new(10, 0.9);
         let fired: Vec<bool> = (0..=10)
-            .map(|k| s.stalled(k, 0.99f64.powi(k as i32)))
+            .map(|k| s.stalled(k, 0.99f64.powi(k as i32), target, 1_000))
             .collect();
         assert_eq!(fired.iter().position(|&f| f), Some(10));
-        // A flat best err: stalled exactly after the window.
+        // A flat best err: stalled exactly after the window, whatever the limit.
         let mut s = Stagnation::new(5, 0.9);
-        let fired: Vec<bool> = (0..8).map(|k| s.stalled(k, 1.0)).collect();
+        let fired: Vec<bool> = (0..8)
+            .map(|k| s.stalled(k, 1.0, target, usize::MAX))
+            .collect();
         assert_eq!(fired, [false, false, false, false, false, true, true, true]);
         // Off.
         let mut s = Stagnation::new(0, 0.9);
-        assert!((0..100).all(|k| !s.stalled(k, 1.0)));
+        assert!((0..100).all(|k| !s.stalled(k, 1.0, target, limit)));
     }
 
     #[test]
