@@ -121,32 +121,41 @@ pub(super) trait OuterStep {
 /// of magnitude from the tolerance, say) from being cut short. `window` = 0 turns
 /// the test off.
 pub(super) struct Stagnation {
+    window: usize,
     factor: f64,
-    /// best err after iterations k-window ..= k, a ring of window + 1 values.
-    ring: Vec<f64>,
+    /// (iteration, best err from that iteration on) at each drop of the best err
+    /// within the window, and the last one before it: memory grows with the
+    /// drops met, never with the window the caller asks for.
+    drops: std::collections::VecDeque<(usize, f64)>,
 }
 
 impl Stagnation {
     pub fn new(window: usize, factor: f64) -> Self {
         Stagnation {
+            window,
             factor,
-            ring: vec![f64::INFINITY; if window == 0 { 0 } else { window + 1 }],
+            drops: std::collections::VecDeque::new(),
         }
     }
 
     /// Records `best` (the lowest err so far) after iteration `k`; true when the
     /// run has stalled short of `target` with `limit` outer iterations allowed.
     pub fn stalled(&mut self, k: usize, best: f64, target: f64, limit: usize) -> bool {
-        let len = self.ring.len();
-        if len == 0 {
+        if self.window == 0 {
             return false;
         }
-        self.ring[k % len] = best;
-        // The slot k + 1 mod len holds the best after iteration k - window.
-        if k + 1 < len {
+        if self.drops.back().is_none_or(|&(_, b)| best < b) {
+            self.drops.push_back((k, best));
+        }
+        if k < self.window {
             return false;
         }
-        let before = self.ring[(k + 1) % len];
+        // The best err after iteration k - window: the last drop at or before it.
+        let then = k - self.window;
+        while self.drops.len() >= 2 && self.drops[1].0 <= then {
+            self.drops.pop_front();
+        }
+        let before = self.drops[0].1;
         if best == before {
             // No progress at all (also an err that stayed infinite).
             return true;
@@ -157,7 +166,7 @@ impl Stagnation {
         }
         let pace = best / before;
         // Iterations still needed at this pace: window ln(target / best) / ln(pace).
-        let needed = (len - 1) as f64 * (target / best).ln() / pace.ln();
+        let needed = self.window as f64 * (target / best).ln() / pace.ln();
         k as f64 + needed > limit as f64
     }
 }
