@@ -399,6 +399,54 @@ typedef struct DsMatrix {
 } DsMatrix;
 
 /*
+ What the monitor callback receives after every outer iteration.
+ */
+typedef struct DsProgress {
+  /*
+   Outer iterations done so far in this solve (1 after the first).
+   */
+  int64_t iteration;
+  /*
+   The current err (docs/design.md section 5), measured on the dual gradient;
+   dimensionless.
+   */
+  double err;
+  /*
+   Open contacts at the current iterate.
+   */
+  int64_t n_open;
+  /*
+   Sticking contacts at the current iterate.
+   */
+  int64_t n_stick;
+  /*
+   Slipping contacts at the current iterate.
+   */
+  int64_t n_slip;
+  /*
+   Seconds since the solve started.
+   */
+  double elapsed_seconds;
+} DsProgress;
+
+/*
+ A monitor callback: called after every outer iteration of ds_solve / ds_step
+ with the progress and the user pointer given to ds_problem_set_monitor. Return 0
+ to go on, any other value to stop: the solve then returns DS_STATUS_STOPPED with
+ the last iterate. The callback must not call back into the same handle, and must
+ not longjmp out (or throw a C++ exception through) the library: that skips Rust
+ frames and is undefined behaviour.
+ */
+typedef int32_t (*DsMonitorFn)(const struct DsProgress *progress, void *user_data);
+
+/*
+ A log sink: receives each message (a NUL-terminated line without newline, valid
+ only during the call), its level (1 = one summary per solve, 2 = one line per
+ outer iteration) and the user pointer given to ds_problem_set_log.
+ */
+typedef void (*DsLogFn)(int32_t level, const char *message, void *user_data);
+
+/*
  What a solve reports besides u and the multipliers. Written by ds_solve / ds_step
  on DS_STATUS_OK, DS_STATUS_STALLED, DS_STATUS_TIME_LIMIT, DS_STATUS_STOPPED
  (then it describes the iterate written to u and the multipliers) and on
@@ -468,54 +516,6 @@ typedef struct DsReport {
    */
   double solve_seconds;
 } DsReport;
-
-/*
- What the monitor callback receives after every outer iteration.
- */
-typedef struct DsProgress {
-  /*
-   Outer iterations done so far in this solve (1 after the first).
-   */
-  int64_t iteration;
-  /*
-   The current err (docs/design.md section 5), measured on the dual gradient;
-   dimensionless.
-   */
-  double err;
-  /*
-   Open contacts at the current iterate.
-   */
-  int64_t n_open;
-  /*
-   Sticking contacts at the current iterate.
-   */
-  int64_t n_stick;
-  /*
-   Slipping contacts at the current iterate.
-   */
-  int64_t n_slip;
-  /*
-   Seconds since the solve started.
-   */
-  double elapsed_seconds;
-} DsProgress;
-
-/*
- A monitor callback: called after every outer iteration of ds_solve / ds_step
- with the progress and the user pointer given to ds_problem_set_monitor. Return 0
- to go on, any other value to stop: the solve then returns DS_STATUS_STOPPED with
- the last iterate. The callback must not call back into the same handle, and must
- not longjmp out (or throw a C++ exception through) the library: that skips Rust
- frames and is undefined behaviour.
- */
-typedef int32_t (*DsMonitorFn)(const struct DsProgress *progress, void *user_data);
-
-/*
- A log sink: receives each message (a NUL-terminated line without newline, valid
- only during the call), its level (1 = one summary per solve, 2 = one line per
- outer iteration) and the user pointer given to ds_problem_set_log.
- */
-typedef void (*DsLogFn)(int32_t level, const char *message, void *user_data);
 
 #ifdef __cplusplus
 extern "C" {
@@ -642,73 +642,6 @@ enum DsStatus ds_problem_sizes(const struct DsProblem *problem,
                                int32_t *d);
 
 /*
- Solves one increment exactly as given (the history of ds_step is neither used nor
- changed): K u = f - N^T lambda_N - T^T lambda_T with N u <= g, lambda_N >= 0,
- complementarity, and the friction law on the slip T u.
-
- - problem: the handle.
- - opts: options, or NULL for the defaults.
- - friction: a DsFriction value; selects what `bound` holds.
- - f: load vector, n values (force units).
- - g: gaps, m values (length units; g_i < 0 is an initial penetration).
- - bound: m values: Tresca slip bounds p_i >= 0 (force units) or Coulomb
-   coefficients mu_i >= 0.
- - u: out, displacement, n values.
- - lambda_n: out, normal contact forces, m values, >= 0 (compressive).
- - lambda_t: out, tangential contact forces, (d-1) m values, contact by contact;
-   the friction force on the body is -T^T lambda_T.
- - report: out, may be NULL.
-
- Arrays of length 0 may be NULL. Returns DS_STATUS_OK (u, lambda_n, lambda_t and
- report written); DS_STATUS_NOT_CONVERGED (only the report written);
- DS_STATUS_STOPPED (the last iterate and the report written), DS_STATUS_STALLED
- and DS_STATUS_TIME_LIMIT (the iterate with the lowest err and the report
- written);
- DS_STATUS_NULL_POINTER, DS_STATUS_BAD_ARGUMENT (friction, options),
- DS_STATUS_NOT_FINITE, DS_STATUS_NEGATIVE_FRICTION, DS_STATUS_OUT_OF_MEMORY
- (nothing written). The handle stays usable in every case.
-
- # Safety
- `problem` must be NULL or a live handle; `opts` NULL or a DsOptions; each array
- NULL or valid for its length (n, m or (d-1) m values); `report` NULL or writable.
- */
-enum DsStatus ds_solve(struct DsProblem *problem,
-                       const struct DsOptions *opts,
-                       int32_t friction,
-                       const double *f,
-                       const double *g,
-                       const double *bound,
-                       double *u,
-                       double *lambda_n,
-                       double *lambda_t,
-                       struct DsReport *report);
-
-/*
- One step of a quasistatic history. The caller passes the TOTAL load f_total
- (n values) and the INITIAL gaps g0 (m values) of the step; with the held
- displacement u_k the library solves the increment with f = f_total - K u_k and
- g = g0 - N u_k, friction acting on the tangential increment T du, warm-started
- from the last multipliers, and returns the total displacement u_k+1 = u_k + du in
- u and the total contact forces in lambda_n and lambda_t. The history advances
- only on DS_STATUS_OK.
-
- Arguments, outputs and statuses as ds_solve.
-
- # Safety
- As ds_solve.
- */
-enum DsStatus ds_step(struct DsProblem *problem,
-                      const struct DsOptions *opts,
-                      int32_t friction,
-                      const double *f_total,
-                      const double *g0,
-                      const double *bound,
-                      double *u,
-                      double *lambda_n,
-                      double *lambda_t,
-                      struct DsReport *report);
-
-/*
  Forgets the history of ds_step: u_0 = 0 and no warm start.
 
  Returns DS_STATUS_OK or DS_STATUS_NULL_POINTER.
@@ -780,6 +713,73 @@ enum DsStatus ds_problem_dump(const struct DsProblem *problem,
                               const double *f,
                               const double *g,
                               const double *bound);
+
+/*
+ Solves one increment exactly as given (the history of ds_step is neither used nor
+ changed): K u = f - N^T lambda_N - T^T lambda_T with N u <= g, lambda_N >= 0,
+ complementarity, and the friction law on the slip T u.
+
+ - problem: the handle.
+ - opts: options, or NULL for the defaults.
+ - friction: a DsFriction value; selects what `bound` holds.
+ - f: load vector, n values (force units).
+ - g: gaps, m values (length units; g_i < 0 is an initial penetration).
+ - bound: m values: Tresca slip bounds p_i >= 0 (force units) or Coulomb
+   coefficients mu_i >= 0.
+ - u: out, displacement, n values.
+ - lambda_n: out, normal contact forces, m values, >= 0 (compressive).
+ - lambda_t: out, tangential contact forces, (d-1) m values, contact by contact;
+   the friction force on the body is -T^T lambda_T.
+ - report: out, may be NULL.
+
+ Arrays of length 0 may be NULL. Returns DS_STATUS_OK (u, lambda_n, lambda_t and
+ report written); DS_STATUS_NOT_CONVERGED (only the report written);
+ DS_STATUS_STOPPED (the last iterate and the report written), DS_STATUS_STALLED
+ and DS_STATUS_TIME_LIMIT (the iterate with the lowest err and the report
+ written);
+ DS_STATUS_NULL_POINTER, DS_STATUS_BAD_ARGUMENT (friction, options),
+ DS_STATUS_NOT_FINITE, DS_STATUS_NEGATIVE_FRICTION, DS_STATUS_OUT_OF_MEMORY
+ (nothing written). The handle stays usable in every case.
+
+ # Safety
+ `problem` must be NULL or a live handle; `opts` NULL or a DsOptions; each array
+ NULL or valid for its length (n, m or (d-1) m values); `report` NULL or writable.
+ */
+enum DsStatus ds_solve(struct DsProblem *problem,
+                       const struct DsOptions *opts,
+                       int32_t friction,
+                       const double *f,
+                       const double *g,
+                       const double *bound,
+                       double *u,
+                       double *lambda_n,
+                       double *lambda_t,
+                       struct DsReport *report);
+
+/*
+ One step of a quasistatic history. The caller passes the TOTAL load f_total
+ (n values) and the INITIAL gaps g0 (m values) of the step; with the held
+ displacement u_k the library solves the increment with f = f_total - K u_k and
+ g = g0 - N u_k, friction acting on the tangential increment T du, warm-started
+ from the last multipliers, and returns the total displacement u_k+1 = u_k + du in
+ u and the total contact forces in lambda_n and lambda_t. The history advances
+ only on DS_STATUS_OK.
+
+ Arguments, outputs and statuses as ds_solve.
+
+ # Safety
+ As ds_solve.
+ */
+enum DsStatus ds_step(struct DsProblem *problem,
+                      const struct DsOptions *opts,
+                      int32_t friction,
+                      const double *f_total,
+                      const double *g0,
+                      const double *bound,
+                      double *u,
+                      double *lambda_n,
+                      double *lambda_t,
+                      struct DsReport *report);
 
 /*
  A static, NUL-terminated description of a status value (e.g. "K is not

@@ -24,6 +24,7 @@ mod monitor;
 mod options;
 mod problem;
 mod report;
+mod solve;
 mod status;
 mod types;
 mod version;
@@ -35,9 +36,10 @@ pub use options::{DsOptions, ds_options_default, ds_options_init};
 pub use problem::{
     DsProblem, ds_history_reset, ds_problem_dump, ds_problem_free, ds_problem_new,
     ds_problem_refactor, ds_problem_set_contacts, ds_problem_set_log, ds_problem_set_monitor,
-    ds_problem_sizes, ds_solve, ds_step,
+    ds_problem_sizes,
 };
 pub use report::DsReport;
+pub use solve::{ds_solve, ds_step};
 pub use status::{DsStatus, ds_status_string};
 pub use types::{DsDualForm, DsFormat, DsFriction, DsIndexType, DsMethod, DsStorage};
 pub use version::ds_version;

@@ -1,0 +1,221 @@
+//! Matrix Market matrices, plain-text vectors and problem folders.
+//!
+//! A *problem folder* holds one increment problem (docs/design.md section 1) so that it
+//! can be taken out of a simulation, replayed alone (`dualsplit solve DIR`), sent
+//! in a bug report and tried with other methods:
+//!
+//! | file | content |
+//! |---|---|
+//! | `K.mtx` | K, n x n, symmetric (both triangles, or a `symmetric` header) |
+//! | `N.mtx` | N, m x n |
+//! | `T.mtx` | T, (d-1) m x n, contact by contact |
+//! | `f.txt` | f, n numbers |
+//! | `g.txt` | g, m numbers |
+//! | `mu.txt` *or* `p.txt` | Coulomb coefficients or Tresca bounds, m numbers |
+//!
+//! Exactly one of `mu.txt` and `p.txt` must be present. Any other file in the
+//! folder is ignored. d is inferred from rows(T) = (d-1) rows(N); with no contacts
+//! (m = 0) it cannot be, and d = 2 is taken (the solution, u = K^-1 f, does not
+//! depend on d then). Sizes that do not fit together are [`ErrorKind::BadSize`].
+//!
+//! # Matrix Market
+//!
+//! Read: `%%MatrixMarket matrix coordinate real general` or `... symmetric`
+//! (`integer` instead of `real` is accepted too; keywords are case-insensitive).
+//! Comment lines (starting with `%`) and blank lines may appear anywhere after the
+//! header line. Indices are 1-based. Duplicate entries are summed. A `symmetric`
+//! file stores one triangle (the lower one, as the format says, or the upper one,
+//! but not a mix) and is mirrored. Every malformed file is rejected with
+//! [`ErrorKind::Io`] and a message that names the file and the line: a bad header,
+//! a bad size line, an entry count that does not match the size line, an index out
+//! of range, a token that is not a number, a NaN or an infinity.
+//!
+//! Written: `coordinate real general`, 1-based, every stored entry (explicit zeros
+//! included) column by column, values in Rust's shortest round-trip exponent form
+//! (`{:e}`, e.g. `-6.5119912894458026e-4`), which reads back bit for bit.
+//!
+//! # Vectors
+//!
+//! One number per line, in the same number format. Blank lines and lines starting
+//! with `%` or `#` are skipped on reading.
+//!
+//! # Sizes and memory
+//!
+//! The readers never allocate from a size a file declares beyond what the file
+//! itself, or the folder around it, justifies, and every allocation they make
+//! themselves is fallible, so a tiny file declaring huge sizes is an error, at
+//! once, not an abort or gigabytes of memory:
+//!
+//! - The entries of a matrix are stored as they are read, in room reserved for at
+//!   most the declared count *and* at most what the text can hold (an entry line
+//!   takes 6 bytes or more). An absurd entry count is then an `Io` error, with the
+//!   line, for the missing entries.
+//! - Assembling the compressed columns takes memory in O(rows + columns), which
+//!   no entry count bounds (N of a large model has few entries and many columns).
+//!   A matrix read on its own ([`parse_matrix`], [`read_matrix`]) may declare at
+//!   most `max(`[`MAX_UNCONFIRMED_DIM`]` = 2^22, length of the file in bytes)` rows
+//!   and columns; more is [`ErrorKind::BadSize`], before any allocation. In a
+//!   problem folder ([`read_problem`]) the vectors confirm the sizes instead: the
+//!   headers of K.mtx, N.mtx and T.mtx are read first and checked against each
+//!   other and against the lengths of f.txt, g.txt and mu.txt / p.txt (which
+//!   their own bytes justify), so sizes that do not fit are `BadSize`, with the
+//!   files and the declared sizes named, before any entry is read.
+//! - A vector has no declared length: it grows as its values are read.
+//! - An allocation that fails all the same (sizes that are consistent, on a
+//!   machine without the memory) is [`ErrorKind::OutOfMemory`], with the file and
+//!   the declared sizes in the message.
+//!
+//! The `array` (dense) Matrix Market format is not read (an `Io` error on the
+//! header line, before the size line), so a dense size is never allocated.
+
+mod folder;
+mod matrix;
+mod text;
+
+pub use folder::{read_problem, write_problem};
+pub use matrix::{
+    MAX_UNCONFIRMED_DIM, format_matrix, format_vector, parse_matrix, parse_vector, read_matrix,
+    read_vector, write_matrix, write_vector,
+};
+
+use crate::friction::Friction;
+use crate::sparse::Csc;
+#[cfg(test)]
+use text::*;
+
+/// The friction data of a problem folder, owned.
+#[derive(Clone, Debug, PartialEq)]
+pub enum FrictionData {
+    /// `p.txt`: Tresca slip bounds, one per contact.
+    Tresca(Vec<f64>),
+    /// `mu.txt`: Coulomb coefficients, one per contact.
+    Coulomb(Vec<f64>),
+}
+
+impl FrictionData {
+    /// Borrows the data as the solver's [`Friction`].
+    pub fn as_friction(&self) -> Friction<'_> {
+        match self {
+            FrictionData::Tresca(p) => Friction::Tresca(p),
+            FrictionData::Coulomb(mu) => Friction::Coulomb(mu),
+        }
+    }
+
+    /// "tresca" or "coulomb".
+    pub fn law_name(&self) -> &'static str {
+        match self {
+            FrictionData::Tresca(_) => "tresca",
+            FrictionData::Coulomb(_) => "coulomb",
+        }
+    }
+
+    /// The per-contact values (p or mu).
+    pub fn values(&self) -> &[f64] {
+        match self {
+            FrictionData::Tresca(v) | FrictionData::Coulomb(v) => v,
+        }
+    }
+}
+
+/// One problem read from a folder by [`read_problem`].
+#[derive(Clone, Debug, PartialEq)]
+pub struct ProblemFolder {
+    /// Contact dimension, 2 or 3 (2 when there are no contacts).
+    pub d: usize,
+    /// K, n x n, both triangles (checked symmetric, or mirrored from a
+    /// `symmetric` file).
+    pub k: Csc,
+    /// N, m x n.
+    pub n: Csc,
+    /// T, (d-1) m x n.
+    pub t: Csc,
+    /// f, length n.
+    pub f: Vec<f64>,
+    /// g, length m.
+    pub g: Vec<f64>,
+    /// mu (Coulomb) or p (Tresca), length m.
+    pub friction: FrictionData,
+}
+
+impl ProblemFolder {
+    /// Number of DOFs n.
+    pub fn n_dofs(&self) -> usize {
+        self.k.nrows
+    }
+
+    /// Number of contacts m.
+    pub fn n_contacts(&self) -> usize {
+        self.n.nrows
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::matrix::*;
+    use super::*;
+    use crate::error::ErrorKind;
+    use std::path::Path;
+
+    /// An allocation that cannot succeed (more than isize::MAX bytes, refused
+    /// without touching memory) is `OutOfMemory`, naming the file.
+    #[test]
+    fn mtx_failed_allocations_are_out_of_memory() {
+        let path = Path::new("dir/X.mtx");
+        let mut v: Vec<u64> = Vec::new();
+        let e = try_room(&mut v, usize::MAX / 4, path, "room for the test").unwrap_err();
+        assert_eq!(e.kind, ErrorKind::OutOfMemory);
+        assert!(
+            e.message.starts_with(&format!(
+                "{}: cannot allocate room for the test",
+                path.display()
+            )),
+            "{}",
+            e.message
+        );
+        // Growing one by one is fallible too, and keeps amortised doubling.
+        let mut v: Vec<u64> = Vec::new();
+        for k in 0..100 {
+            try_push(&mut v, k, path, "values").unwrap();
+        }
+        assert_eq!(v, (0..100).collect::<Vec<_>>());
+    }
+
+    /// The entries' room is capped by the text: an absurd count reserves nothing
+    /// of its size, and the header alone allocates nothing of the declared sizes.
+    #[test]
+    fn mtx_header_and_unconfirmed_limit() {
+        let path = Path::new("H.mtx");
+        let text = "%%MatrixMarket matrix coordinate real general\n% c\n\n7 5 3\n";
+        let h = parse_header(text, path).unwrap();
+        assert_eq!(
+            (h.nrows, h.ncols, h.nnz, h.symmetric, h.size_line),
+            (7, 5, 3, false, 4)
+        );
+        check_unconfirmed(&h, text, path).unwrap();
+        let big = Header {
+            ncols: MAX_UNCONFIRMED_DIM + 1,
+            ..h
+        };
+        let e = check_unconfirmed(&big, text, path).unwrap_err();
+        assert_eq!(e.kind, ErrorKind::BadSize);
+        assert!(e.message.starts_with("H.mtx line 4: "), "{}", e.message);
+        // A file at least as long as the dimension confirms it.
+        let long = " ".repeat(MAX_UNCONFIRMED_DIM + 1);
+        check_unconfirmed(&big, &long, path).unwrap();
+    }
+
+    #[test]
+    fn mtx_messages_clip_long_lines() {
+        assert_eq!(clip("short"), "short");
+        let long = "é".repeat(100);
+        let c = clip(&long);
+        assert_eq!(c.chars().count(), 63);
+        assert!(c.ends_with("..."));
+        let e = parse_vector(
+            &format!("1\n{} 2\n", "9".repeat(10_000)),
+            Path::new("v.txt"),
+        )
+        .unwrap_err();
+        assert!(e.message.len() < 200, "{}", e.message);
+    }
+}

@@ -1,0 +1,310 @@
+//! Sparse matrices: the borrowed input views (CSR, CSC or COO; 0- or 1-based;
+//! 32- or 64-bit indices; full or one-triangle storage) and the one internal form,
+//! `Csc`, with sorted row indices and no duplicates. All validation of caller
+//! matrices happens here.
+//!
+//! Every conversion is O(nnz + nrows + ncols): two stable counting sorts (by row,
+//! then by column) sort the entries and bring duplicates together, and one pass
+//! sums them. Explicit zeros are kept, so the internal pattern depends only on the
+//! input pattern (K's symbolic factorisation stays valid across refactorisations).
+//!
+//! Error messages give entry numbers, rows and columns in the caller's index base,
+//! and pointer positions as `p[k]` (base 0) or `p(k)` (base 1).
+
+mod assemble;
+#[cfg(test)]
+mod tests;
+mod validate;
+
+use crate::error::{ErrorKind, Result, fail};
+use assemble::{Triplets, assemble, filled, try_copy, zeroed};
+use validate::{check_base, check_sums_finite, check_symmetric, collect};
+
+/// Layout of a borrowed sparse matrix, named as in CSparse.
+#[derive(Copy, Clone, Debug, PartialEq, Eq)]
+pub enum Format {
+    /// Compressed sparse row: `p` holds nrows+1 row pointers, `i` the column indices.
+    Csr,
+    /// Compressed sparse column (CSparse `cs`, CHOLMOD packed `cholmod_sparse`):
+    /// `p` holds ncols+1 column pointers, `i` the row indices.
+    Csc,
+    /// Triplets (CSparse convention): `i` holds the row indices, `p` the column
+    /// indices, both of length nnz. Duplicates are summed.
+    Coo,
+}
+
+/// Which part of a symmetric matrix is stored (only meaningful for K).
+#[derive(Copy, Clone, Debug, PartialEq, Eq)]
+pub enum Storage {
+    /// Every entry is stored; K is checked for symmetry.
+    Full,
+    /// Only entries with row <= column are stored (CHOLMOD stype = 1);
+    /// entries below the diagonal are an error.
+    Upper,
+    /// Only entries with row >= column are stored (CHOLMOD stype = -1);
+    /// entries above the diagonal are an error.
+    Lower,
+}
+
+/// A borrowed index array of either integer width.
+#[derive(Copy, Clone, Debug)]
+pub enum Indices<'a> {
+    /// 32-bit signed indices (C `int32_t`, Fortran default INTEGER).
+    I32(&'a [i32]),
+    /// 64-bit signed indices (C `int64_t`, SuiteSparse_long).
+    I64(&'a [i64]),
+}
+
+/// A borrowed sparse matrix exactly as the caller holds it. Nothing is copied until
+/// it is converted with [`Csc::from_view`].
+#[derive(Copy, Clone, Debug)]
+pub struct MatrixView<'a> {
+    /// Layout of `p` and `i`.
+    pub format: Format,
+    /// Full or one-triangle storage.
+    pub storage: Storage,
+    /// Index base: 0 (C) or 1 (Fortran). Applies to pointers and indices alike.
+    pub base: usize,
+    /// Number of rows.
+    pub nrows: usize,
+    /// Number of columns.
+    pub ncols: usize,
+    /// Pointers (CSR/CSC) or column indices (COO).
+    pub p: Indices<'a>,
+    /// Row indices (CSC, COO) or column indices (CSR).
+    pub i: Indices<'a>,
+    /// Values, one per stored entry.
+    pub x: &'a [f64],
+}
+
+/// The internal sparse form: compressed columns, 0-based, row indices strictly
+/// increasing within each column (sorted, duplicates summed), all values finite.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Csc {
+    /// Number of rows.
+    pub nrows: usize,
+    /// Number of columns.
+    pub ncols: usize,
+    /// Column pointers, length `ncols + 1`, `col_ptr[0] == 0`, non-decreasing.
+    pub col_ptr: Vec<usize>,
+    /// Row indices, length `col_ptr[ncols]`, strictly increasing in each column.
+    pub row_idx: Vec<usize>,
+    /// Values, length `col_ptr[ncols]` (explicit zeros may be stored).
+    pub values: Vec<f64>,
+}
+
+/// Relative tolerance of the symmetry check of a fully stored K:
+/// |K_ij - K_ji| <= SYMMETRY_TOL * max_kl |K_kl| for every pair.
+pub const SYMMETRY_TOL: f64 = 1e-10;
+
+impl Indices<'_> {
+    /// Number of stored indices.
+    fn len(&self) -> usize {
+        match self {
+            Indices::I32(s) => s.len(),
+            Indices::I64(s) => s.len(),
+        }
+    }
+
+    /// The `k`-th index, widened to i64 (no range check on the value).
+    fn get(&self, k: usize) -> i64 {
+        match self {
+            Indices::I32(s) => i64::from(s[k]),
+            Indices::I64(s) => s[k],
+        }
+    }
+}
+
+impl Csc {
+    /// Converts and validates a general matrix (N or T). `what` names the matrix in
+    /// error messages ("N", "T"). `view.storage` must be `Full`.
+    ///
+    /// The result is 0-based, with row indices strictly increasing in each column:
+    /// unsorted input is sorted and duplicate entries are summed (in every format,
+    /// not only COO). Explicit zeros are kept, so the pattern depends only on the
+    /// input pattern. The cost is O(nnz + nrows + ncols).
+    ///
+    /// Error messages give entry numbers, rows and columns in the caller's index
+    /// base (entry k is `x[k]` for base 0, `x(k)` for base 1).
+    ///
+    /// Errors: `BadArgument` (base not 0 or 1, triangle storage),
+    /// `BadSize` (array lengths inconsistent with the dimensions and pointers),
+    /// `BadIndex` (index out of range, negative, pointers not starting at the base
+    /// or decreasing), `NotFinite` (NaN or infinity in `x`, or duplicates summing
+    /// to an infinity), `OutOfMemory` (absurd dimensions).
+    pub fn from_view(view: &MatrixView<'_>, what: &str) -> Result<Csc> {
+        let base = check_base(view, what)?;
+        if view.storage != Storage::Full {
+            return fail(
+                ErrorKind::BadArgument,
+                format!(
+                    "{what}: storage must be Full for a general matrix, got {:?}",
+                    view.storage
+                ),
+            );
+        }
+        let t = collect(view, what, base, 0)?;
+        let a = assemble(view.nrows, view.ncols, &t)?;
+        check_sums_finite(&a, what, base)?;
+        Ok(a)
+    }
+
+    /// Converts and validates a symmetric matrix (K), returning BOTH triangles
+    /// (the full symmetric matrix). One-triangle input is mirrored (the diagonal
+    /// once); full input is checked for symmetry with [`SYMMETRY_TOL`] (a missing
+    /// entry counts as 0) and then used as given, sorted and with duplicates summed.
+    /// Explicit zeros are kept, so the pattern depends only on the input pattern.
+    ///
+    /// Errors: those of [`Csc::from_view`] (any storage is accepted), plus
+    /// `BadSize` if not square, `BadIndex` for an entry in the wrong triangle
+    /// (whatever its value), `NotSymmetric` naming the worst pair.
+    pub fn symmetric_from_view(view: &MatrixView<'_>, what: &str) -> Result<Csc> {
+        let base = check_base(view, what)?;
+        if view.nrows != view.ncols {
+            return fail(
+                ErrorKind::BadSize,
+                format!("{what} must be square, got {} x {}", view.nrows, view.ncols),
+            );
+        }
+        let n = view.nrows;
+        // Room for the mirrored entries of a one-triangle K.
+        let extra = if view.storage == Storage::Full {
+            0
+        } else {
+            view.i.len()
+        };
+        let mut t = collect(view, what, base, extra)?;
+        match view.storage {
+            Storage::Full => {
+                let a = assemble(n, n, &t)?;
+                check_sums_finite(&a, what, base)?;
+                check_symmetric(&a, what, base)?;
+                Ok(a)
+            }
+            Storage::Upper | Storage::Lower => {
+                let upper = view.storage == Storage::Upper;
+                let stored = t.len();
+                for k in 0..stored {
+                    let (r, c) = (t.rows[k], t.cols[k]);
+                    if (upper && r > c) || (!upper && r < c) {
+                        let (tri, side) = if upper {
+                            ("upper", "below")
+                        } else {
+                            ("lower", "above")
+                        };
+                        return fail(
+                            ErrorKind::BadIndex,
+                            format!(
+                                "{what} stored as {tri} triangle has entry ({},{}) {side} the \
+                                 diagonal (entry {})",
+                                r + base,
+                                c + base,
+                                k + base
+                            ),
+                        );
+                    }
+                }
+                for k in 0..stored {
+                    let (r, c, v) = (t.rows[k], t.cols[k], t.vals[k]);
+                    if r != c {
+                        t.push(c, r, v);
+                    }
+                }
+                let a = assemble(n, n, &t)?;
+                check_sums_finite(&a, what, base)?;
+                Ok(a)
+            }
+        }
+    }
+
+    /// Builds a matrix from 0-based `(row, column, value)` triplets, in the internal
+    /// form: duplicates summed (in the given order), explicit zeros kept. Values are
+    /// not checked for finiteness. For internal use and tests.
+    ///
+    /// # Panics
+    ///
+    /// If a row index is `>= nrows` or a column index `>= ncols` (or if the
+    /// dimensions are too large to allocate).
+    pub fn from_triplets(nrows: usize, ncols: usize, triplets: &[(usize, usize, f64)]) -> Csc {
+        let mut t = Triplets::default();
+        for (k, &(r, c, v)) in triplets.iter().enumerate() {
+            assert!(
+                r < nrows && c < ncols,
+                "Csc::from_triplets: triplet {k} at ({r}, {c}) is outside {nrows} x {ncols}"
+            );
+            t.push(r, c, v);
+        }
+        assemble(nrows, ncols, &t).expect("Csc::from_triplets: out of memory")
+    }
+
+    /// Number of stored entries.
+    pub fn nnz(&self) -> usize {
+        self.col_ptr[self.ncols]
+    }
+
+    /// y := A x (x has ncols entries, y has nrows; y is overwritten).
+    ///
+    /// Panics if `x` is shorter than `ncols` or `y` shorter than `nrows`.
+    pub fn mul_vec(&self, x: &[f64], y: &mut [f64]) {
+        y.iter_mut().for_each(|v| *v = 0.0);
+        for (cols, &xj) in self.col_ptr.windows(2).zip(&x[..self.ncols]) {
+            for k in cols[0]..cols[1] {
+                y[self.row_idx[k]] += self.values[k] * xj;
+            }
+        }
+    }
+
+    /// y := A^T x (x has nrows entries, y has ncols; y is overwritten).
+    ///
+    /// Panics if `x` is shorter than `nrows` or `y` shorter than `ncols`.
+    pub fn mul_t_vec(&self, x: &[f64], y: &mut [f64]) {
+        for (cols, yj) in self.col_ptr.windows(2).zip(&mut y[..self.ncols]) {
+            let mut s = 0.0;
+            for k in cols[0]..cols[1] {
+                s += self.values[k] * x[self.row_idx[k]];
+            }
+            *yj = s;
+        }
+    }
+
+    /// The transpose, in the same internal form.
+    ///
+    /// Panics if it cannot be allocated; [`Csc::try_transpose`] returns
+    /// `OutOfMemory` instead.
+    pub fn transpose(&self) -> Csc {
+        self.try_transpose().expect("memory for the transpose")
+    }
+
+    /// The transpose, in the same internal form.
+    ///
+    /// Errors: `OutOfMemory`.
+    pub fn try_transpose(&self) -> Result<Csc> {
+        let mut count = zeroed(self.nrows.saturating_add(1))?;
+        for &r in &self.row_idx {
+            count[r + 1] += 1;
+        }
+        for r in 0..self.nrows {
+            count[r + 1] += count[r];
+        }
+        let col_ptr = try_copy(&count)?;
+        let mut next = count;
+        let nnz = self.nnz();
+        let mut row_idx = zeroed(nnz)?;
+        let mut values = filled(nnz, 0.0, "values")?;
+        for j in 0..self.ncols {
+            for k in self.col_ptr[j]..self.col_ptr[j + 1] {
+                let r = self.row_idx[k];
+                row_idx[next[r]] = j;
+                values[next[r]] = self.values[k];
+                next[r] += 1;
+            }
+        }
+        Ok(Csc {
+            nrows: self.ncols,
+            ncols: self.nrows,
+            col_ptr,
+            row_idx,
+            values,
+        })
+    }
+}
