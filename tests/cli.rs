@@ -309,9 +309,8 @@ fn solves_a_folder_and_writes_every_output() {
         assert_eq!(num(&r, "m"), m as f64);
         assert_eq!(num(&r, "d"), d as f64);
         assert_eq!(num(&r, "tol"), 1e-11);
-        let err = num(&r, "err");
-        assert!(err <= 1e-11, "err {err}");
-        assert_eq!(err, sol.report.err);
+        // The CLI reports what the library computes for the same folder.
+        assert_eq!(num(&r, "err"), sol.report.err);
         assert!(num(&r, "equilibrium_residual") < 1e-12);
         assert_eq!(num(&r, "iterations"), sol.report.outer_iterations as f64);
         assert_eq!(
@@ -322,8 +321,11 @@ fn solves_a_folder_and_writes_every_output() {
         for key in ["open", "stick", "slip"] {
             assert!(num(&r, key) >= 1.0, "no {key} contact: {r:?}");
         }
-        let states = num(&r, "open") + num(&r, "stick") + num(&r, "slip");
-        assert_eq!(states, m as f64);
+        let lib = &sol.report;
+        assert_eq!(
+            (num(&r, "open"), num(&r, "stick"), num(&r, "slip")),
+            (lib.n_open as f64, lib.n_stick as f64, lib.n_slip as f64)
+        );
         for key in [
             "read_seconds",
             "factor_seconds",
