@@ -338,7 +338,6 @@ impl ContactProblem {
         check_vec("g", g, m)?;
         self.check_friction(friction)?;
         Self::check_options(opts)?;
-        let law = friction;
         // b = B K^-1 f - [g; 0], with the forward half y_f = L^-1 P f kept for the
         // recovery of u.
         let mut y_f = vec![0.0; ndof];
@@ -365,7 +364,7 @@ impl ContactProblem {
         let problem = DualProblem {
             dual: &self.dual,
             b: &b,
-            law,
+            law: friction,
             monitor: Some(std::cell::RefCell::new(&mut relay)),
             deadline: (opts.max_seconds > 0.0)
                 .then(|| start + Duration::from_secs_f64(opts.max_seconds)),
@@ -398,7 +397,7 @@ impl ContactProblem {
             for i in 0..m {
                 v[i] -= g[i];
             }
-            law.bounds(&lam[..m], &mut p);
+            friction.bounds(&lam[..m], &mut p);
             err = natural_map_error(lam, &v, &self.dual.rho, &b, &p, self.d);
             if end == End::Infeasible {
                 // No u satisfies N u <= g: no error can be small (report.rs).

@@ -1,6 +1,7 @@
 //! N. Pop's dual splitting (docs/design.md section 3) and the plain block Gauss-Seidel
 //! variant: the tangential and the normal multipliers are solved in alternation,
-//! each sub-problem by projected Gauss-Seidel.
+//! each sub-problem by a [`SubSolver`] (projected Gauss-Seidel for `split` and
+//! `block-gs`, MPRGP for `split-mprgp`).
 //!
 //! Schur variant, one outer iteration:
 //! 1. tangential step on S = A22 - A21[:,a] A11[a,a]^-1 A12[a,:] with
