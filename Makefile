@@ -3,6 +3,7 @@
 #   make demo                      build everything (release) and run block2d
 #   make demo DEMO_ARGS="--method pgs --nx 20 --ny 10"
 #   make block2d                   only build target/c_examples/block2d
+#                                  (target/ is $CARGO_TARGET_DIR when that is set)
 #   make clean-c                   remove the C build outputs (not cargo's)
 #
 # Requires GNU make, cargo and a C99 compiler.
@@ -14,8 +15,10 @@ CPPFLAGS += -Iinclude
 CARGO   ?= cargo
 LDLIBS  = -lm -lpthread -ldl
 
-LIBDS   = target/release/libdualsplit.a
-OUTDIR  = target/c_examples
+# Cargo's output folder: CARGO_TARGET_DIR when set, as cargo itself does.
+TARGETDIR = $(or $(CARGO_TARGET_DIR),target)
+LIBDS   = $(TARGETDIR)/release/libdualsplit.a
+OUTDIR  = $(TARGETDIR)/c_examples
 BLOCK2D = $(OUTDIR)/block2d
 DEMO_ARGS ?=
 
@@ -24,7 +27,7 @@ DEMO_ARGS ?=
 all: block2d
 
 demo: block2d
-	./$(BLOCK2D) $(DEMO_ARGS)
+	$(abspath $(BLOCK2D)) $(DEMO_ARGS)
 
 block2d: $(BLOCK2D)
 
@@ -53,6 +56,8 @@ clean-c:
 #       $(LIBDIR)/libdualsplit.a
 #       $(INCLUDEDIR)/dualsplit.h and $(INCLUDEDIR)/dualsplit.f90 (Fortran module source)
 #       $(PKGCONFIGDIR)/dualsplit.pc   (pkg-config --cflags --libs dualsplit)
+#       $(CMAKEDIR)/dualsplitConfig.cmake and dualsplitConfigVersion.cmake
+#                                      (find_package(dualsplit): dualsplit::dualsplit)
 #   make install DESTDIR=/tmp/stage       staged install (packaging)
 #   make uninstall PREFIX=...
 #   make fortran-demo [DEMO_ARGS=...]     build and run c_examples/block2d.f90 (gfortran)
@@ -77,7 +82,8 @@ INSTALL      ?= install
 VERSION   := $(shell sed -n 's/^version *= *"\([^"]*\)".*/\1/p' Cargo.toml | head -n 1)
 SOVERSION := $(firstword $(subst ., ,$(VERSION)))
 SONAME    := libdualsplit.so.$(SOVERSION)
-BUILDDIR   = $(or $(CARGO_TARGET_DIR),target)/$(if $(filter dev,$(PROFILE)),debug,$(PROFILE))
+BUILDDIR   = $(TARGETDIR)/$(if $(filter dev,$(PROFILE)),debug,$(PROFILE))
+CMAKEDIR  ?= $(LIBDIR)/cmake/dualsplit
 
 ifeq ($(origin FC),default)
 FC = gfortran
@@ -105,12 +111,22 @@ install: install-lib
 	    -e 's|@INCLUDEDIR@|$(INCLUDEDIR)|g' -e 's|@VERSION@|$(VERSION)|g' \
 	    dualsplit.pc.in > $(DESTDIR)$(PKGCONFIGDIR)/dualsplit.pc
 	chmod 644 $(DESTDIR)$(PKGCONFIGDIR)/dualsplit.pc
+	$(INSTALL) -d $(DESTDIR)$(CMAKEDIR)
+	for f in dualsplitConfig dualsplitConfigVersion; do \
+	    sed -e 's|@LIBDIR@|$(LIBDIR)|g' -e 's|@INCLUDEDIR@|$(INCLUDEDIR)|g' \
+	        -e 's|@VERSION@|$(VERSION)|g' -e 's|@SOVERSION@|$(SOVERSION)|g' \
+	        cmake/$$f.cmake.in > $(DESTDIR)$(CMAKEDIR)/$$f.cmake; \
+	    chmod 644 $(DESTDIR)$(CMAKEDIR)/$$f.cmake; \
+	done
 
 uninstall:
 	rm -f $(DESTDIR)$(LIBDIR)/libdualsplit.so $(DESTDIR)$(LIBDIR)/$(SONAME) \
 	      $(DESTDIR)$(LIBDIR)/libdualsplit.so.$(VERSION) $(DESTDIR)$(LIBDIR)/libdualsplit.a \
 	      $(DESTDIR)$(INCLUDEDIR)/dualsplit.h $(DESTDIR)$(INCLUDEDIR)/dualsplit.f90 \
-	      $(DESTDIR)$(PKGCONFIGDIR)/dualsplit.pc
+	      $(DESTDIR)$(PKGCONFIGDIR)/dualsplit.pc \
+	      $(DESTDIR)$(CMAKEDIR)/dualsplitConfig.cmake \
+	      $(DESTDIR)$(CMAKEDIR)/dualsplitConfigVersion.cmake
+	-rmdir $(DESTDIR)$(CMAKEDIR) 2>/dev/null
 
 # The Fortran module is compiled with the programs (gfortran writes dualsplit.mod
 # into -J's folder).
@@ -122,14 +138,14 @@ $(FOUTDIR)/%_f: c_examples/%.f90 $(FOUTDIR)/dualsplit.o $(LIBDS)
 	$(FC) $(FFLAGS) -J$(FOUTDIR) -o $@ $< $(FOUTDIR)/dualsplit.o $(LIBDS) $(LDFLAGS) $(LDLIBS)
 
 fortran-demo: $(FOUTDIR)/block2d_f
-	./$(FOUTDIR)/block2d_f $(DEMO_ARGS)
+	$(abspath $(FOUTDIR)/block2d_f) $(DEMO_ARGS)
 
 fortran-minimal: $(FOUTDIR)/minimal_f
-	./$(FOUTDIR)/minimal_f
+	$(abspath $(FOUTDIR)/minimal_f)
 
 $(OUTDIR)/suitesparse_block2d: c_examples/suitesparse_block2d.c include/dualsplit.h $(LIBDS) | $(OUTDIR)
 	$(CC) $(CPPFLAGS) $(SUITESPARSE_CFLAGS) $(CFLAGS) -o $@ c_examples/suitesparse_block2d.c \
 	    $(LIBDS) $(SUITESPARSE_LIBS) $(LDFLAGS) $(LDLIBS)
 
 suitesparse-demo: $(OUTDIR)/suitesparse_block2d
-	./$(OUTDIR)/suitesparse_block2d $(DEMO_ARGS)
+	$(abspath $(OUTDIR)/suitesparse_block2d) $(DEMO_ARGS)

@@ -10,7 +10,15 @@
 //! - the same program linked with the installed static library;
 //! - the Fortran module source compiled from the prefix with c_examples/minimal.f90
 //!   (gfortran) and linked through pkg-config;
-//! - README's CMake snippet, when cmake is installed (CI does not install it).
+//! - lib/cmake/dualsplit/dualsplitConfig.cmake and its version file:
+//!   `find_package(dualsplit 0.3 REQUIRED)` and `dualsplit::dualsplit` build and run
+//!   a C program, and a request for another minor version is refused (0.x);
+//! - README's CMake snippet (pkg-config from CMake);
+//! - `make demo` with CARGO_TARGET_DIR set: the Makefile links the library cargo
+//!   built there and puts the demo under it.
+//!
+//! The CMake checks need cmake: without it they print "SKIPPED: ..." unless
+//! CI=true (.ci/run installs it).
 //!
 //! `make install` runs `cargo rustc --release` from inside `cargo test`. To stay
 //! clear of the build lock and of the files of the running test build, it builds in
@@ -123,6 +131,8 @@ fn make_install_then_build_with_pkg_config() {
         prefix.join("include/dualsplit.h"),
         prefix.join("include/dualsplit.f90"),
         lib.join("pkgconfig/dualsplit.pc"),
+        lib.join("cmake/dualsplit/dualsplitConfig.cmake"),
+        lib.join("cmake/dualsplit/dualsplitConfigVersion.cmake"),
     ] {
         assert!(f.is_file(), "make install did not install {}", f.display());
     }
@@ -242,8 +252,29 @@ fn make_install_then_build_with_pkg_config() {
         }
     }
 
-    // ---- README's CMake snippet (optional) -----------------------------------------------
-    cmake_snippet(&prefix, &work);
+    // ---- CMake: the installed package, and README's snippet ------------------------
+    if have_program("cmake") {
+        cmake_package(&prefix, &work);
+        cmake_snippet(&prefix, &work);
+    } else {
+        tool_missing(test, "cmake", "apt-get install cmake");
+    }
+
+    // ---- make demo with CARGO_TARGET_DIR ---------------------------------------------
+    let out = run_ok(
+        Command::new("make")
+            .arg("demo")
+            .arg("DEMO_ARGS=--nx 16 --ny 8")
+            .env("CARGO_TARGET_DIR", &build_dir)
+            .env_remove("MAKEFLAGS")
+            .env_remove("MFLAGS")
+            .current_dir(&root),
+        "make demo with CARGO_TARGET_DIR",
+    );
+    let demo = build_dir.join("c_examples/block2d");
+    assert!(demo.is_file(), "make demo did not build {}", demo.display());
+    let text = stdout_of(&out);
+    assert!(text.contains("all_converged=1"), "{text}");
 
     eprintln!(
         "make install took {install_s:.1} s (build folder {}); whole test {:.1} s",
@@ -252,13 +283,74 @@ fn make_install_then_build_with_pkg_config() {
     );
 }
 
-/// Builds the consumer with the first ```cmake block of README.md against the prefix,
-/// when cmake is installed.
-fn cmake_snippet(prefix: &Path, work: &Path) {
-    if !have_program("cmake") {
-        eprintln!("note: cmake not found; README's CMake snippet is not checked");
-        return;
+/// Builds the consumer with find_package(dualsplit) from the prefix, shared and
+/// static, and checks that the version file refuses another 0.x minor version.
+fn cmake_package(prefix: &Path, work: &Path) {
+    let dir = work.join("cmake-package");
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    std::fs::write(dir.join("main.c"), CONSUMER_C).unwrap();
+    let (major, minor) = {
+        let mut it = VERSION.split('.');
+        (it.next().unwrap(), it.next().unwrap())
+    };
+    let lists = |want: &str| {
+        format!(
+            "cmake_minimum_required(VERSION 3.13)\nproject(consumer C)\n\
+             find_package(dualsplit {want} REQUIRED)\n\
+             add_executable(app_shared main.c)\n\
+             target_link_libraries(app_shared PRIVATE dualsplit::dualsplit)\n\
+             add_executable(app_static main.c)\n\
+             target_link_libraries(app_static PRIVATE dualsplit::dualsplit_static)\n"
+        )
+    };
+    let configure = |build: &Path| {
+        Command::new("cmake")
+            .arg("-S")
+            .arg(&dir)
+            .arg("-B")
+            .arg(build)
+            .arg(format!("-DCMAKE_PREFIX_PATH={}", prefix.display()))
+            .output()
+            .unwrap()
+    };
+    // Another minor version of 0.x: refused.
+    let other = format!("{major}.{}", minor.parse::<u32>().unwrap() + 1);
+    std::fs::write(dir.join("CMakeLists.txt"), lists(&other)).unwrap();
+    let refused = configure(&dir.join("build-other"));
+    assert!(
+        !refused.status.success(),
+        "find_package(dualsplit {other}) accepted version {VERSION}"
+    );
+    // This version: found, built, run.
+    std::fs::write(
+        dir.join("CMakeLists.txt"),
+        lists(&format!("{major}.{minor}")),
+    )
+    .unwrap();
+    let build = dir.join("build");
+    let conf = configure(&build);
+    assert!(
+        conf.status.success(),
+        "find_package(dualsplit {major}.{minor}) failed:\n{}",
+        String::from_utf8_lossy(&conf.stderr)
+    );
+    run_ok(
+        Command::new("cmake").arg("--build").arg(&build),
+        "cmake --build (find_package)",
+    );
+    for exe in ["app_shared", "app_static"] {
+        let out = run_ok(
+            Command::new(build.join(exe)).env("LD_LIBRARY_PATH", prefix.join("lib")),
+            exe,
+        );
+        check_consumer_output(&stdout_of(&out), exe);
     }
+    println!("find_package(dualsplit): ok");
+}
+
+/// Builds the consumer with the first ```cmake block of README.md against the prefix.
+fn cmake_snippet(prefix: &Path, work: &Path) {
     let readme = std::fs::read_to_string(manifest_dir().join("README.md")).unwrap();
     let Some(start) = readme.find("```cmake\n") else {
         panic!("README.md has no ```cmake block");
