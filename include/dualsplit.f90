@@ -125,8 +125,8 @@ module dualsplit
    end type DsOptions
 
    !> sizeof(DsOptions) in C: what ds_options_init is told (tests/fortran.rs checks
-   !> it against c_sizeof of the type above).
-   integer(c_size_t), parameter :: DS_OPTIONS_SIZE = 64
+   !> it against the C compiler's sizeof).
+   integer(c_size_t), parameter, public :: DS_OPTIONS_SIZE = 64
 
    !> A sparse matrix borrowed from the caller (CSparse naming); see ds_matrix_csr.
    type, bind(C), public :: DsMatrix

@@ -434,6 +434,7 @@ const LAYOUT_F90: &str = r#"program layout
       off(c_loc(o), c_loc(o%max_outer)), off(c_loc(o), c_loc(o%max_inner)), &
       off(c_loc(o), c_loc(o%dual_form)), off(c_loc(o), c_loc(o%max_seconds)), &
       off(c_loc(o), c_loc(o%stall_window)), off(c_loc(o), c_loc(o%stall_factor))
+   write (*, '(a,99(1x,i0))') 'DS_OPTIONS_SIZE', DS_OPTIONS_SIZE
    write (*, '(a,99(1x,i0))') 'DsReport', c_sizeof(r), off(c_loc(r), c_loc(r%status)), &
       off(c_loc(r), c_loc(r%method)), off(c_loc(r), c_loc(r%err)), &
       off(c_loc(r), c_loc(r%equilibrium_residual)), off(c_loc(r), c_loc(r%outer_iterations)), &
@@ -467,6 +468,7 @@ int main(void)
            O(DsOptions, struct_size), O(DsOptions, method), O(DsOptions, tol),
            O(DsOptions, max_outer), O(DsOptions, max_inner), O(DsOptions, dual_form),
            O(DsOptions, max_seconds), O(DsOptions, stall_window), O(DsOptions, stall_factor));
+    printf("DS_OPTIONS_SIZE %d\n", (int)sizeof(DsOptions));
     printf("DsReport %d %d %d %d %d %d %d %d %d %d %d %d %d\n", (int)sizeof(DsReport),
            O(DsReport, status), O(DsReport, method), O(DsReport, err),
            O(DsReport, equilibrium_residual), O(DsReport, outer_iterations),
