@@ -567,7 +567,7 @@ fn fclib_problems() {
 /// max_outer = 10,000, with an honest status: Converged (checked against the
 /// independent reference) or Stalled with the best iterate it met. Release
 /// (`cargo test --release --test fclib`): every method, default options (about
-/// 3 minutes: mprgp 45 s, block-gs 22 s, split 11 s). A debug build runs PGS with
+/// 2 minutes: mprgp converges in 80 s, block-gs 22 s, split 11 s). A debug build runs PGS with
 /// the defaults and Split with 5 inner sweeps per sub-problem and a stagnation
 /// window of 20 (unoptimised, the others take minutes).
 #[test]
