@@ -94,7 +94,6 @@ pub(super) trait OuterStep {
         _lam: &mut [f64],
         _w: &mut [f64],
         _inner: &mut usize,
-        _target: f64,
     ) -> Flow {
         Flow::Go(Gradient::Exact)
     }
@@ -226,7 +225,7 @@ pub(super) fn drive(
     let mut best = BestIterate::new(c);
     let mut stagnation = Stagnation::new(opts.stall_window, opts.stall_factor);
     problem.gradient(lam, &mut w);
-    let mut gradient = match method.start(problem, lam, &mut w, &mut out.inner, target) {
+    let mut gradient = match method.start(problem, lam, &mut w, &mut out.inner) {
         Flow::Go(g) => g,
         Flow::Infeasible => {
             out.dual_err = f64::INFINITY;

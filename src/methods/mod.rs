@@ -30,6 +30,7 @@ use crate::friction::Friction;
 use crate::options::{Method, Options};
 use crate::report::natural_map_error;
 use driver::OuterStep;
+use signorini::Signorini;
 use split::Split;
 use split::Variant::{Block, Schur};
 use std::cell::RefCell;
@@ -92,36 +93,40 @@ impl DualProblem<'_> {
     }
 }
 
-/// The method `opts.method` as an outer step for `problem`, and the number of dual
-/// unknowns it iterates on. A frictionless
-/// increment (every slip bound zero) is the pure Signorini problem in the m normal
-/// unknowns for the splittings and whole-dual MPRGP (docs/design.md section 2); PGS's
-/// tangential steps cost O(1) per contact with a zero bound, and Newton drops the
-/// unknowns at zero bounds from its linear systems, so those two run as they are.
-fn outer_step(problem: &DualProblem<'_>, opts: &Options) -> (Box<dyn OuterStep>, usize) {
-    let (method, max_inner) = (opts.method, opts.max_inner);
+/// The method `opts.method` as an outer step for `problem` and the dual target
+/// `target`, and the number of dual unknowns it iterates on. Sub-problems are
+/// solved to a tenth of the target within `opts.max_inner` iterations. A
+/// frictionless increment (every slip bound zero) is the pure Signorini problem in
+/// the m normal unknowns for the splittings and whole-dual MPRGP (docs/design.md
+/// section 2); PGS's tangential steps cost O(1) per contact with a zero bound, and
+/// Newton drops the unknowns at zero bounds from its linear systems, so those two
+/// run as they are.
+fn outer_step(
+    problem: &DualProblem<'_>,
+    opts: &Options,
+    target: f64,
+) -> (Box<dyn OuterStep>, usize) {
     let (m, c) = (problem.dual.m, problem.dual.c);
+    let (tol, max) = (0.1 * target, opts.max_inner);
     if problem.law.frictionless() {
-        match method {
+        match opts.method {
             Method::Split | Method::BlockGs => {
-                let step = signorini::Signorini::new(GaussSeidel::new(m), max_inner);
-                return (Box::new(step), m);
+                return (Box::new(Signorini::new(GaussSeidel::new(m, tol, max))), m);
             }
             Method::SplitMprgp | Method::Mprgp => {
-                let step = signorini::Signorini::new(Mprgp::new(m), max_inner);
-                return (Box::new(step), m);
+                return (Box::new(Signorini::new(Mprgp::new(m, tol, max))), m);
             }
             Method::Pgs | Method::Newton => {}
         }
     }
     let k = m.max(c - m);
-    let step: Box<dyn OuterStep> = match method {
+    let step: Box<dyn OuterStep> = match opts.method {
         Method::Pgs => Box::new(pgs::Pgs::new(problem)),
-        Method::Split => Box::new(Split::new(problem, Schur, GaussSeidel::new(k), max_inner)),
-        Method::BlockGs => Box::new(Split::new(problem, Block, GaussSeidel::new(k), max_inner)),
-        Method::SplitMprgp => Box::new(Split::new(problem, Schur, Mprgp::new(k), max_inner)),
-        Method::Mprgp => Box::new(whole::WholeMprgp::new(problem, max_inner)),
-        Method::Newton => Box::new(newton::Newton::new(problem)),
+        Method::Split => Box::new(Split::new(problem, Schur, GaussSeidel::new(k, tol, max))),
+        Method::BlockGs => Box::new(Split::new(problem, Block, GaussSeidel::new(k, tol, max))),
+        Method::SplitMprgp => Box::new(Split::new(problem, Schur, Mprgp::new(k, tol, max))),
+        Method::Mprgp => Box::new(whole::WholeMprgp::new(problem, Mprgp::new(c, tol, max))),
+        Method::Newton => Box::new(newton::Newton::new(problem, target)),
     };
     (step, c)
 }
@@ -130,7 +135,7 @@ fn outer_step(problem: &DualProblem<'_>, opts: &Options) -> (Box<dyn OuterStep>,
 /// zeros) until the dual error is at most `target` or another stop test fires
 /// (see [`End`]).
 pub fn run(problem: &DualProblem<'_>, lam: &mut [f64], opts: &Options, target: f64) -> Outcome {
-    let (mut method, unknowns) = outer_step(problem, opts);
+    let (mut method, unknowns) = outer_step(problem, opts, target);
     let mut out = driver::drive(problem, lam, opts, target, method.as_mut());
     out.unknowns = unknowns;
     out

@@ -352,6 +352,8 @@ fn residual_norm(problem: &DualProblem<'_>, lam: &[f64], w: &[f64]) -> f64 {
 
 /// The globalised semismooth Newton method.
 pub(super) struct Newton {
+    /// The dual target: the warm-up sweeps stop when err meets it.
+    target: f64,
     warm: bool,
     /// Gauss-Seidel sweeps before the first step (PRESWEEPS; 0 in the tests of
     /// the warm start itself).
@@ -371,9 +373,10 @@ pub(super) struct Newton {
 }
 
 impl Newton {
-    pub fn new(problem: &DualProblem<'_>) -> Self {
+    pub fn new(problem: &DualProblem<'_>, target: f64) -> Self {
         let c = problem.dual.c;
         Newton {
+            target,
             warm: false,
             presweeps: PRESWEEPS,
             warm_sort: true,
@@ -398,14 +401,13 @@ impl OuterStep for Newton {
         lam: &mut [f64],
         w: &mut [f64],
         inner: &mut usize,
-        target: f64,
     ) -> Flow {
         let (m, c) = (problem.dual.m, problem.dual.c);
         self.warm = lam.iter().any(|&x| x != 0.0);
         // The error's scratch: `f` and `ae0` are overwritten by every step.
         let (p, v) = (&mut self.f[..m], &mut self.ae0[..c]);
         let mut swept = 0;
-        while swept < self.presweeps && problem.error(lam, w, p, v) > target {
+        while swept < self.presweeps && problem.error(lam, w, p, v) > self.target {
             let n = PRESWEEP_CHUNK.min(self.presweeps - swept);
             *inner += pgs::sweeps(problem, lam, w, n);
             swept += n;
@@ -543,7 +545,7 @@ mod tests {
             monitor: None,
             deadline: None,
         };
-        let mut newton = Newton::new(&problem);
+        let mut newton = Newton::new(&problem, 1e-12);
         newton.presweeps = 0;
         newton.warm_sort = warm_sort;
         let opts = Options {

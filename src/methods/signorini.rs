@@ -2,8 +2,8 @@
 //! lambda_T = 0): min 1/2 y^T A_NN y - y^T b_N over y >= 0 in the m normal
 //! unknowns alone (docs/design.md section 2: the cost follows the physics switched on),
 //! on the leading m x m block of A (dense) or on products with it (matrix-free,
-//! MPRGP only). One outer iteration is one sub-problem solve to a tenth of the
-//! target; the stopping test is the whole problem's err.
+//! MPRGP only). One outer iteration is one sub-problem solve (to a tenth of the
+//! target); the stopping test is the whole problem's err.
 
 use super::DualProblem;
 use super::driver::{Flow, Gradient, OuterStep};
@@ -14,18 +14,11 @@ pub(super) struct Signorini<S> {
     solver: S,
     /// The cached estimate of |A_NN| (MPRGP).
     norm: Option<f64>,
-    target: f64,
-    max_inner: usize,
 }
 
 impl<S: SubSolver> Signorini<S> {
-    pub fn new(solver: S, max_inner: usize) -> Self {
-        Signorini {
-            solver,
-            norm: None,
-            target: 0.0,
-            max_inner,
-        }
+    pub fn new(solver: S) -> Self {
+        Signorini { solver, norm: None }
     }
 }
 
@@ -36,9 +29,7 @@ impl<S: SubSolver> OuterStep for Signorini<S> {
         lam: &mut [f64],
         _w: &mut [f64],
         _inner: &mut usize,
-        target: f64,
     ) -> Flow {
-        self.target = target;
         lam[problem.dual.m..].iter_mut().for_each(|x| *x = 0.0);
         Flow::Go(Gradient::Stale)
     }
@@ -62,13 +53,7 @@ impl<S: SubSolver> OuterStep for Signorini<S> {
             radii: None,
             op: dual.is_matrix_free().then_some(dual),
         };
-        let run = self.solver.solve(
-            &qp,
-            &mut lam[..m],
-            0.1 * self.target,
-            self.max_inner,
-            &mut self.norm,
-        );
+        let run = self.solver.solve(&qp, &mut lam[..m], &mut self.norm);
         Flow::after(run, inner, Gradient::Stale)
     }
 }

@@ -121,9 +121,8 @@ pub(super) enum Variant {
 /// The splitting with sub-problem solver `S`.
 pub(super) struct Split<S> {
     variant: Variant,
+    /// The sub-problem solver, with the sub-problem stopping rule.
     solver: S,
-    max_inner: usize,
-    inner_tol: f64,
     /// MPRGP's estimates of |A_NN| (fixed) and of the tangential matrix's norm
     /// (reset when that matrix changes).
     norm_n: Option<f64>,
@@ -142,7 +141,7 @@ pub(super) struct Split<S> {
 }
 
 impl<S: SubSolver> Split<S> {
-    pub fn new(problem: &DualProblem<'_>, variant: Variant, solver: S, max_inner: usize) -> Self {
+    pub fn new(problem: &DualProblem<'_>, variant: Variant, solver: S) -> Self {
         let dual = problem.dual;
         let (m, c) = (dual.m, dual.c);
         // Coulomb: the Schur variant relaxes the bound p, the block variant the
@@ -156,8 +155,6 @@ impl<S: SubSolver> Split<S> {
         Split {
             variant,
             solver,
-            max_inner,
-            inner_tol: 0.0,
             norm_n: None,
             norm_t: None,
             norm_t_of_schur: false,
@@ -199,13 +196,7 @@ impl<S: SubSolver> Split<S> {
             radii: None,
             op: None,
         };
-        let run = self.solver.solve(
-            &sub,
-            &mut lam[..m],
-            self.inner_tol,
-            self.max_inner,
-            &mut self.norm_n,
-        );
+        let run = self.solver.solve(&sub, &mut lam[..m], &mut self.norm_n);
         Flow::after(run, inner, Gradient::Stale)
     }
 
@@ -260,13 +251,7 @@ impl<S: SubSolver> Split<S> {
                 }
             }
         };
-        let run = self.solver.solve(
-            &sub,
-            &mut lam[m..],
-            self.inner_tol,
-            self.max_inner,
-            &mut self.norm_t,
-        );
+        let run = self.solver.solve(&sub, &mut lam[m..], &mut self.norm_t);
         Flow::after(run, inner, Gradient::Stale)
     }
 }
@@ -279,9 +264,7 @@ impl<S: SubSolver> OuterStep for Split<S> {
         lam: &mut [f64],
         _w: &mut [f64],
         inner: &mut usize,
-        target: f64,
     ) -> Flow {
-        self.inner_tol = 0.1 * target;
         let m = problem.dual.m;
         let mut flow = Flow::Go(Gradient::Exact);
         if lam.iter().all(|&x| x == 0.0) {

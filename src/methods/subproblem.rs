@@ -136,19 +136,19 @@ impl<'a> SubQp<'a> {
 }
 
 /// A solver of [`SubQp`] sub-problems, holding its own work space (allocated once
-/// per method run).
+/// per method run) and its stopping rule: a relative residual of at most `tol`, or
+/// `max` iterations (a tenth of the outer target and `Options::max_inner`, set by
+/// `methods::outer_step`).
 pub(super) trait SubSolver {
     /// Solves `qp` from `x` (at most k unknowns, k the size given at creation)
-    /// until its relative natural-map residual is at most `tol` or `max`
-    /// iterations; returns the iterations, or [`Unbounded`] when the solver can
-    /// tell that the quadratic has no minimiser. `norm` caches an estimate of |H|
-    /// for the matrix of `qp`: the caller resets it to None when H changes.
+    /// until the stopping rule holds; returns the iterations, or [`Unbounded`] when
+    /// the solver can tell that the quadratic has no minimiser. `norm` caches an
+    /// estimate of |H| for the matrix of `qp`: the caller resets it to None when H
+    /// changes.
     fn solve(
         &mut self,
         qp: &SubQp<'_>,
         x: &mut [f64],
-        tol: f64,
-        max: usize,
         norm: &mut Option<f64>,
     ) -> Result<usize, Unbounded>;
 }
@@ -157,12 +157,19 @@ pub(super) trait SubSolver {
 /// unbounded sub-problem, and needs the entries of H (`qp.op` unset).
 pub(super) struct GaussSeidel {
     w: Vec<f64>,
+    tol: f64,
+    max: usize,
 }
 
 impl GaussSeidel {
-    /// Work space for sub-problems of up to `k` unknowns.
-    pub fn new(k: usize) -> Self {
-        GaussSeidel { w: vec![0.0; k] }
+    /// Work space for sub-problems of up to `k` unknowns; stops at `tol` or after
+    /// `max` sweeps.
+    pub fn new(k: usize, tol: f64, max: usize) -> Self {
+        GaussSeidel {
+            w: vec![0.0; k],
+            tol,
+            max,
+        }
     }
 }
 
@@ -171,40 +178,39 @@ impl SubSolver for GaussSeidel {
         &mut self,
         qp: &SubQp<'_>,
         x: &mut [f64],
-        tol: f64,
-        max: usize,
         _norm: &mut Option<f64>,
     ) -> Result<usize, Unbounded> {
         debug_assert!(qp.op.is_none(), "Gauss-Seidel reads entries of H");
-        Ok(qp.solve(x, &mut self.w[..qp.k], tol, max))
+        Ok(qp.solve(x, &mut self.w[..qp.k], self.tol, self.max))
     }
 }
 
 /// MPRGP / MPGP (Dostal; see `mprgp`).
 pub(super) struct Mprgp {
     scratch: Scratch,
+    tol: f64,
+    max: usize,
 }
 
 impl Mprgp {
-    /// Work space for sub-problems of up to `k` unknowns.
-    pub fn new(k: usize) -> Self {
+    /// Work space for sub-problems of up to `k` unknowns; stops at `tol` or after
+    /// `max` iterations.
+    pub fn new(k: usize, tol: f64, max: usize) -> Self {
         Mprgp {
             scratch: Scratch::new(k),
+            tol,
+            max,
         }
     }
-}
 
-impl Mprgp {
     /// Solves a quadratic with both nonnegative unknowns and disks (the whole dual).
     pub fn solve_convex(
         &mut self,
         qp: &ConvexQp<'_>,
         x: &mut [f64],
-        tol: f64,
-        max: usize,
         norm: &mut Option<f64>,
     ) -> Result<usize, Unbounded> {
-        qp.solve_in(x, tol, max, &mut self.scratch, norm)
+        qp.solve_in(x, self.tol, self.max, &mut self.scratch, norm)
     }
 }
 
@@ -213,10 +219,8 @@ impl SubSolver for Mprgp {
         &mut self,
         qp: &SubQp<'_>,
         x: &mut [f64],
-        tol: f64,
-        max: usize,
         norm: &mut Option<f64>,
     ) -> Result<usize, Unbounded> {
-        self.solve_convex(&qp.as_convex(), x, tol, max, norm)
+        self.solve_convex(&qp.as_convex(), x, norm)
     }
 }

@@ -18,41 +18,26 @@ pub(super) struct WholeMprgp {
     /// The bound of the last outer iteration (Coulomb).
     prev: Vec<f64>,
     radii: Vec<f64>,
-    target: f64,
-    max_inner: usize,
 }
 
 impl WholeMprgp {
-    pub fn new(problem: &DualProblem<'_>, max_inner: usize) -> Self {
-        let (m, c) = (problem.dual.m, problem.dual.c);
+    /// `solver` holds the sub-problem stopping rule.
+    pub fn new(problem: &DualProblem<'_>, solver: Mprgp) -> Self {
+        let m = problem.dual.m;
         let coulomb = problem.law.is_coulomb();
         let relaxed = if coulomb { m } else { 0 };
         WholeMprgp {
-            solver: Mprgp::new(c),
+            solver,
             norm: None,
             coulomb,
             relax: Aitken::new(relaxed),
             prev: vec![0.0; relaxed],
             radii: vec![0.0; m],
-            target: 0.0,
-            max_inner,
         }
     }
 }
 
 impl OuterStep for WholeMprgp {
-    fn start(
-        &mut self,
-        _problem: &DualProblem<'_>,
-        _lam: &mut [f64],
-        _w: &mut [f64],
-        _inner: &mut usize,
-        target: f64,
-    ) -> Flow {
-        self.target = target;
-        Flow::Go(Gradient::Exact)
-    }
-
     fn step(
         &mut self,
         problem: &DualProblem<'_>,
@@ -78,9 +63,7 @@ impl OuterStep for WholeMprgp {
             block: dual.d - 1,
             radii: &self.radii,
         };
-        let run =
-            self.solver
-                .solve_convex(&qp, lam, 0.1 * self.target, self.max_inner, &mut self.norm);
+        let run = self.solver.solve_convex(&qp, lam, &mut self.norm);
         Flow::after(run, inner, Gradient::Stale)
     }
 }
