@@ -4,7 +4,7 @@
 
 mod common;
 
-use common::{Mesh, Scene, kkt_of};
+use common::{Mesh, Owned, Scene, kkt_of};
 use dualsplit::ffi::*;
 use dualsplit::{Friction, Method, Options, SolveStatus};
 
@@ -95,42 +95,6 @@ fn the_time_limit_ends_a_solve_with_the_best_iterate() {
         };
         let e = sc.problem().solve(&sc.f, &sc.g, friction, &o).unwrap_err();
         assert_eq!(e.kind, dualsplit::ErrorKind::BadArgument, "{bad}");
-    }
-}
-
-/// CSC int64 arrays of a Csc, borrowed by a DsMatrix.
-struct Owned {
-    nrows: i64,
-    ncols: i64,
-    p: Vec<i64>,
-    i: Vec<i64>,
-    x: Vec<f64>,
-}
-
-impl Owned {
-    fn of(a: &dualsplit::Csc) -> Owned {
-        Owned {
-            nrows: a.nrows as i64,
-            ncols: a.ncols as i64,
-            p: a.col_ptr.iter().map(|&v| v as i64).collect(),
-            i: a.row_idx.iter().map(|&v| v as i64).collect(),
-            x: a.values.clone(),
-        }
-    }
-
-    fn ds(&self) -> DsMatrix {
-        DsMatrix {
-            format: DsFormat::Csc as i32,
-            index_type: DsIndexType::I64 as i32,
-            base: 0,
-            storage: DsStorage::Full as i32,
-            nrows: self.nrows,
-            ncols: self.ncols,
-            nnz: 0,
-            p: self.p.as_ptr().cast(),
-            i: self.i.as_ptr().cast(),
-            x: self.x.as_ptr(),
-        }
     }
 }
 

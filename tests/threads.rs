@@ -10,7 +10,7 @@
 
 mod common;
 
-use common::{Mesh, Scene};
+use common::{Mesh, Owned, Scene};
 use dualsplit::ffi::*;
 use std::ffi::CStr;
 use std::ptr::{null, null_mut};
@@ -57,42 +57,6 @@ fn scenes() -> Vec<Scene> {
         |x| 0.05 * ((x[0] - 1.0).powi(2) + (x[1] - 1.0).powi(2)),
     ));
     out
-}
-
-/// CSC int64 arrays of a Csc.
-struct Owned {
-    nrows: i64,
-    ncols: i64,
-    p: Vec<i64>,
-    i: Vec<i64>,
-    x: Vec<f64>,
-}
-
-impl Owned {
-    fn of(a: &dualsplit::Csc) -> Owned {
-        Owned {
-            nrows: a.nrows as i64,
-            ncols: a.ncols as i64,
-            p: a.col_ptr.iter().map(|&v| v as i64).collect(),
-            i: a.row_idx.iter().map(|&v| v as i64).collect(),
-            x: a.values.clone(),
-        }
-    }
-
-    fn ds(&self) -> DsMatrix {
-        DsMatrix {
-            format: DsFormat::Csc as i32,
-            index_type: DsIndexType::I64 as i32,
-            base: 0,
-            storage: DsStorage::Full as i32,
-            nrows: self.nrows,
-            ncols: self.ncols,
-            nnz: 0,
-            p: self.p.as_ptr().cast(),
-            i: self.i.as_ptr().cast(),
-            x: self.x.as_ptr(),
-        }
-    }
 }
 
 /// Everything one job produces, as raw bits.

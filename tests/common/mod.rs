@@ -13,6 +13,7 @@
 // Element and small dense kernels read best with explicit indices.
 #![allow(clippy::needless_range_loop)]
 
+use dualsplit::ffi::{DsFormat, DsIndexType, DsMatrix, DsStorage};
 use dualsplit::{ContactProblem, Csc, Friction, Method, Options, Solution, SolveStatus};
 
 // ---------------------------------------------------------------------------------
@@ -797,5 +798,41 @@ impl Rng {
     /// True with probability `p`.
     pub fn chance(&mut self, p: f64) -> bool {
         self.uniform() < p
+    }
+}
+
+/// CSC int64 arrays of a Csc, which a `DsMatrix` borrows (0-based, full storage).
+pub struct Owned {
+    pub nrows: i64,
+    pub ncols: i64,
+    pub p: Vec<i64>,
+    pub i: Vec<i64>,
+    pub x: Vec<f64>,
+}
+
+impl Owned {
+    pub fn of(a: &dualsplit::Csc) -> Owned {
+        Owned {
+            nrows: a.nrows as i64,
+            ncols: a.ncols as i64,
+            p: a.col_ptr.iter().map(|&v| v as i64).collect(),
+            i: a.row_idx.iter().map(|&v| v as i64).collect(),
+            x: a.values.clone(),
+        }
+    }
+
+    pub fn ds(&self) -> DsMatrix {
+        DsMatrix {
+            format: DsFormat::Csc as i32,
+            index_type: DsIndexType::I64 as i32,
+            base: 0,
+            storage: DsStorage::Full as i32,
+            nrows: self.nrows,
+            ncols: self.ncols,
+            nnz: 0,
+            p: self.p.as_ptr().cast(),
+            i: self.i.as_ptr().cast(),
+            x: self.x.as_ptr(),
+        }
     }
 }
