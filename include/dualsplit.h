@@ -379,7 +379,7 @@ typedef struct DsMatrix {
   int64_t ncols;
   /*
    COO: number of triplets (>= 0). CSR/CSC: ignored; the number of entries is
-   p[last] - base.
+   `p[last] - base`.
    */
   int64_t nnz;
   /*

@@ -21,26 +21,26 @@ const BLOCK: usize = 32;
 /// The dense condensed dual operator of one set of contact matrices.
 pub struct Dual {
     /// Contact dimension (2 or 3).
-    pub d: usize,
+    pub(crate) d: usize,
     /// Number of contacts.
-    pub m: usize,
+    pub(crate) m: usize,
     /// Number of dual unknowns, d m.
-    pub c: usize,
+    pub(crate) c: usize,
     /// A = B K^-1 B^T, c x c, column-major and exactly symmetric; empty when
     /// matrix-free (`condensation == Condensation::MatrixFree`).
-    pub a: Vec<f64>,
+    pub(crate) a: Vec<f64>,
     /// The products of the matrix-free form (None when A is assembled).
     free: Option<FreeOp>,
     /// Per contact: rho_i = d / trace of the contact's d x d diagonal block of A
     /// (0 when that block vanishes). Units: force / length.
-    pub rho: Vec<f64>,
+    pub(crate) rho: Vec<f64>,
     /// The matrix B = [N; T] (the contact rows, stacked), c x n. (The dual's
     /// linear term, the vector b, lives in `methods::DualProblem::b`.)
-    pub rows: Csc,
+    pub(crate) rows: Csc,
     /// Seconds spent forming A.
-    pub condense_seconds: f64,
+    pub(crate) condense_seconds: f64,
     /// How A was formed.
-    pub condensation: Condensation,
+    pub(crate) condensation: Condensation,
 }
 
 /// How the condensed dual operator was formed.
@@ -155,6 +155,37 @@ impl Dual {
         }
     }
 
+    /// A, c x c column-major, when it is formed (None when it is not: the
+    /// matrix-free form, or no contacts).
+    #[cfg(any(test, feature = "internals"))]
+    pub fn dense(&self) -> Option<&[f64]> {
+        (!self.a.is_empty()).then_some(&self.a[..])
+    }
+
+    /// Number of dual unknowns c = d m.
+    #[cfg(any(test, feature = "internals"))]
+    pub fn unknowns(&self) -> usize {
+        self.c
+    }
+
+    /// Seconds spent forming A.
+    #[cfg(any(test, feature = "internals"))]
+    pub fn condense_seconds(&self) -> f64 {
+        self.condense_seconds
+    }
+
+    /// The stacked contact rows B = [N; T], c x n.
+    #[cfg(any(test, feature = "internals"))]
+    pub fn rows(&self) -> &Csc {
+        &self.rows
+    }
+
+    /// rho_i per contact (see the field), length m.
+    #[cfg(any(test, feature = "internals"))]
+    pub fn rho(&self) -> &[f64] {
+        &self.rho
+    }
+
     /// True when A is not assembled (products only).
     pub fn is_matrix_free(&self) -> bool {
         self.free.is_some()
@@ -247,9 +278,8 @@ impl Dual {
 
 /// y := H x for the leading len(y) x len(x) block H of the column-major array `a`
 /// with leading dimension `ld`. Mostly nonzero x: faer's matrix-vector product
-/// (about 25 % faster than a column loop at 4,002 x 4,002, both bound by reading
-/// the matrix); sparse x (open contacts, active bounds): only the columns of its
-/// nonzeros.
+/// (measured against a column loop: BENCHMARKS.md, "Tuning measurements"); sparse
+/// x (open contacts, active bounds): only the columns of its nonzeros.
 pub(crate) fn leading_block_apply(a: &[f64], ld: usize, x: &[f64], y: &mut [f64]) {
     let nonzeros = x.iter().filter(|&&v| v != 0.0).count();
     if 4 * nonzeros >= 3 * x.len() && !x.is_empty() && !y.is_empty() {

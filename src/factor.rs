@@ -58,6 +58,7 @@ impl Factor {
     ///
     /// Errors: `NotPositiveDefinite` (non-positive pivot: K singular or indefinite),
     /// `OutOfMemory`.
+    #[cfg(any(test, feature = "internals"))]
     pub fn new(k: &Csc) -> Result<Factor> {
         Self::with_last(k, &[])
     }

@@ -6,23 +6,35 @@
 //! is the compressive normal force; the friction force on the body, -T^T lambda_T,
 //! opposes the slip T u.
 
-pub mod dual;
-pub mod error;
-pub mod factor;
+mod dual;
+mod error;
+mod factor;
 pub mod ffi;
-pub mod friction;
-pub mod methods;
+mod friction;
+mod methods;
 pub mod mtx;
-pub mod options;
-pub mod ordering;
-pub mod problem;
-pub mod report;
-pub mod sparse;
+mod options;
+mod ordering;
+mod problem;
+mod report;
+mod sparse;
 
 pub use error::{Error, ErrorKind, Result};
 pub use friction::Friction;
 pub use methods::{Monitor, Progress};
-pub use options::{DualForm, Method, Options};
+pub use options::{DENSE_MAX, DualForm, Method, Options, STALL_FACTOR, STALL_WINDOW};
 pub use problem::{ContactProblem, Solution};
 pub use report::{Report, SolveStatus};
-pub use sparse::{Csc, Format, Indices, MatrixView, Storage};
+pub use sparse::{Csc, Format, Indices, MatrixView, SYMMETRY_TOL, Storage};
+
+/// The library's internal pieces, for its own benchmark and tests only (feature
+/// `internals`, which the crate's dev-dependency on itself turns on): the dense
+/// dual operator, the Cholesky factor of K, the reference residual. Not part of
+/// the API; they change without notice.
+#[cfg(feature = "internals")]
+#[doc(hidden)]
+pub mod internals {
+    pub use crate::dual::{Condensation, Dual, contact_dofs, stack_rows};
+    pub use crate::factor::Factor;
+    pub use crate::report::natural_map_error;
+}

@@ -556,12 +556,29 @@ impl ContactProblem {
         crate::mtx::write_problem(dir, self.d, &self.k, &self.n, &self.t, f, g, friction)
     }
 
-    /// The condensed dual operator (for diagnostics and tests).
+    /// Number of dual unknowns c = d m: the size of the condensed dual operator
+    /// A = B K^-1 B^T (an increment without friction works on its leading m x m
+    /// block; `Report::dual_unknowns` says what a solve used).
+    pub fn dual_unknowns(&self) -> usize {
+        self.dual.c
+    }
+
+    /// Whether the condensed dual operator is applied without being formed
+    /// (`DualForm::MatrixFree`, or `Auto` above its size limit).
+    pub fn is_matrix_free(&self) -> bool {
+        self.dual.is_matrix_free()
+    }
+
+    /// The condensed dual operator (feature `internals`: benchmark and tests).
+    #[cfg(any(test, feature = "internals"))]
+    #[doc(hidden)]
     pub fn dual(&self) -> &Dual {
         &self.dual
     }
 
-    /// The Cholesky factor of K, contact DOFs last (for diagnostics and tests).
+    /// The Cholesky factor of K, contact DOFs last (feature `internals`).
+    #[cfg(any(test, feature = "internals"))]
+    #[doc(hidden)]
     pub fn factor(&self) -> &Factor {
         &self.factor
     }

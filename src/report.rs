@@ -46,14 +46,14 @@ pub struct Report {
     pub status: SolveStatus,
     /// The method that ran.
     pub method: Method,
-    /// |r| / max(|lambda|, |b+| / trace(A)), docs/design.md section 5 with the scale of
-    /// [`natural_map_error`] (dimensionless). Infinite when the contact constraints
+    /// |r| / max(|lambda|, |b+| / trace(A)), the natural-map error of
+    /// docs/design.md section 5 (dimensionless). Infinite when the contact constraints
     /// admit no displacement (no u with N u <= g): a penetrating contact without
     /// rows in N and T, or, for SplitMprgp and Mprgp, a dual unbounded below (a
     /// combination z >= 0 of normal rows with N^T z = 0 and g . z < 0, e.g. two
     /// opposite normals on one DOF with gaps that overlap). The other methods do not
-    /// detect the latter: they end NotConverged at their iteration limit (Newton
-    /// earlier, when it stalls).
+    /// detect the latter: they end `Stalled` (their multipliers grow along the
+    /// unbounded direction and err falls too slowly to reach tol).
     pub err: f64,
     /// |K u - f + N^T lambda_N + T^T lambda_T| / |f| (dimensionless; when f = 0 the
     /// denominator is max(|K u|, |B^T lambda|), and 0 when all three vanish).
@@ -67,11 +67,13 @@ pub struct Report {
     /// was solved as the pure Signorini problem (docs/design.md section 2), d m
     /// otherwise.
     pub dual_unknowns: usize,
-    /// Open contacts (see [`contact_states`]).
+    /// Open contacts: lambda_N,i + rho_i v_N,i <= 0, read off the natural map of
+    /// err (docs/design.md section 5), so the classification is as robust as err.
     pub n_open: usize,
     /// Closed, sticking contacts.
     pub n_stick: usize,
-    /// Closed, slipping contacts (frictionless closed contacts count here).
+    /// Closed, slipping contacts: |lambda_T,i + rho_i v_T,i| >= p_i (frictionless
+    /// closed contacts count here).
     pub n_slip: usize,
     /// Seconds spent in the last numeric factorisation of K.
     pub factor_seconds: f64,
@@ -104,10 +106,8 @@ pub struct Report {
 ///   carry if it alone stopped the load's free displacement b_i; when contacts share
 ///   the load through a compliant body, that overstates the forces by the coupling.
 ///   On the slender beam of tests/hard_scenes.rs (100 contacts, cond(A) 7e7)
-///   |rho . b+| was 24.7 (21.9 normal, 11.4 tangential; the four open contacts next
-///   to the clamp alone 21.5) against |lambda| = 0.0198: err was 1250 times too
-///   small, and Split reported Converged at err 1e-10 with a penetration of 3.7e-5
-///   of max|u|. Since trace(A) >= |A|_2, the new load scale never exceeds
+///   |rho . b+| is 1250 times |lambda|: err would pass an answer that penetrates
+///   by 3.7e-5 of max|u|. Since trace(A) >= |A|_2, the load scale never exceeds
 ///   |b+| / |A|_2 <= |A^-1 b+| (the forces if every contact were tied): on the
 ///   beam it is 1.5e-2, and |lambda| is the scale as soon as the answer carries
 ///   forces. The load scale is still what keeps err finite and small when the

@@ -20,8 +20,8 @@
 mod common;
 
 use common::{Mesh, Scene};
+use dualsplit::SYMMETRY_TOL;
 use dualsplit::ffi::*;
-use dualsplit::sparse::SYMMETRY_TOL;
 use std::ffi::CStr;
 use std::ptr::{null, null_mut};
 

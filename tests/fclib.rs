@@ -1,6 +1,6 @@
 //! The FCLib suite: real global frictional contact problems written by Siconos and
-//! LMGC90 (see ../shared/fclib/README.md), converted to problem folders under
-//! `<manifest>/../shared/fclib/mtx/`. Every folder there is read with
+//! LMGC90, converted to problem folders under `tests/data/fclib/` (provenance and
+//! conversion in its README.md). Every folder there is read with
 //! `mtx::read_problem`, solved with the library, and for each problem the outcome
 //! must be EITHER `Converged` with err <= 1e-8 and a small equilibrium residual,
 //! both recomputed here independently of the solver (own dense Cholesky of K per
@@ -13,44 +13,14 @@
 //! `DEBUG_LARGE_C`). Iteration limits: see `limit`. Every problem but those in
 //! `KNOWN_UNSOLVED` must also be solved by at least one method.
 //!
-//! Results of a release build (`cargo test --release --test fclib -- --nocapture`),
-//! tol 1e-8. Each cell: outer iterations / err (recomputed here; the library's own
-//! err agrees to the digits shown) / solve seconds (iterations and recovery of u).
-//! "setup" is the factorisation of K plus the condensation, once per problem.
-//! **NC**: not converged at the iteration limit. Times on the 2-core development
-//! machine under a load average of about 6 (other builds running), so they are
-//! inflated and noisy. The MPRGP columns were measured while those methods were
-//! still being written.
-//!
-//! | problem | setup | pgs | split | block-gs | newton | mprgp | split-mprgp |
-//! |---|---|---|---|---|---|---|---|
-//! | Box_Stacks-i0122-82-5 | 0.003 s | 40 / 7.2e-09 / 0.001 s | 9 / 3.5e-09 / 0.008 s | 28 / 8.9e-09 / 0.048 s | 12 / 6.8e-09 / 0.022 s | 10 / 3.5e-09 / 0.041 s | 9 / 3.6e-09 / 0.119 s |
-//! | CubeH8 | 0 s | 1 / 4.1e-13 / 0 s | 1 / 4.1e-13 / 0 s | 1 / 4.1e-13 / 0 s | 2 / 1.4e-14 / 0 s | 2 / 4.1e-13 / 0 s | 1 / 4.1e-13 / 0 s |
-//! | GFC3D_OneContact | 0 s | 23 / 5.2e-09 / 0 s | 16 / 7.4e-09 / 0 s | 22 / 7.9e-09 / 0 s | 4 / 2.0e-09 / 0 s | 17 / 9.1e-09 / 0.001 s | 16 / 7.3e-09 / 0 s |
-//! | GFC3D_TwoRods1 | 0 s | 1 / 6.1e-09 / 0 s | 2 / 4.7e-11 / 0 s | 1 / 4.4e-10 / 0 s | 1 / 1.9e-13 / 0 s | 2 / 1.6e-09 / 0 s | 2 / 4.7e-11 / 0 s |
-//! | LMGC_GFC3D-i00001-1-00000 | 0 s | 1 / 4.3e-16 / 0 s | 0 / 4.3e-16 / 0 s | 0 / 4.3e-16 / 0 s | 2 / 2.2e-16 / 0 s | 1 / 4.3e-16 / 0 s | 0 / 4.3e-16 / 0 s |
-//! | LMGC_GFC3D-i00501-4-00000 | 0 s | 17 / 6.4e-09 / 0 s | 5 / 7.5e-10 / 0 s | 5 / 8.5e-10 / 0 s | 5 / 1.8e-13 / 0 s | 6 / 8.0e-10 / 0 s | 5 / 1.2e-09 / 0.005 s |
-//! | LMGC_GlobalFrictionContactProblem00046 | 0 s | 13 / 5.2e-09 / 0 s | 1 / 2.4e-10 / 0 s | 1 / 1.5e-09 / 0 s | 2 / 5.3e-16 / 0 s | 2 / 1.5e-10 / 0 s | 1 / 6.3e-12 / 0 s |
-//! | Spheres-i099-356-679 | 0.35 s | 213 / 9.5e-09 / 0.064 s | 16 / 8.6e-09 / 0.126 s | 18 / 6.6e-09 / 0.1 s | 8 / 3.0e-14 / 0.085 s | 18 / 6.4e-09 / 1.14 s | 16 / 9.4e-09 / 6.68 s |
-//! | gfc2d_granularflowonwall_00069_00350 | 0.001 s | 16 / 9.1e-09 / 0 s | 9 / 6.7e-09 / 0.001 s | 14 / 4.0e-09 / 0 s | 4 / 1.3e-16 / 0.003 s | 10 / 6.6e-09 / 0.002 s | 9 / 6.6e-09 / 0.003 s |
-//! | gfc2d_granularflowonwall_00230_00206 | 0.028 s | 27 / 7.3e-09 / 0.001 s | 9 / 3.4e-09 / 0.011 s | 10 / 9.0e-09 / 0.002 s | 3 / 1.2e-16 / 0.004 s | 10 / 3.2e-09 / 0.054 s | 9 / 3.1e-09 / 0.06 s |
-//! | spheres-in-a-box-98-i10000-256-10 | 0.04 s | **NC** 5000 / 2.9e-06 / 2.03 s | **NC** 20 / 1.3e-02 / 4.07 s | **NC** 20 / 6.8e-04 / 5.17 s | **NC** 100 / 6.3e-05 / 1.03 s | **NC** 20 / 4.9e-04 / 6.4 s | **NC** 20 / 6.8e-04 / 11.9 s |
-//!
-//! The equilibrium residual is at most 1e-14 everywhere (recovery of u by one solve).
-//! In a debug build (`cargo test`), spheres-in-a-box ends not converged with Pgs
-//! (500 sweeps, err 6.3e-5) and Split (1 outer iteration, err 1.9e-2); everything
-//! else converges as above. The debug run takes about 30 s of CPU.
-//!
-//! Weaknesses seen: spheres-in-a-box (redundant contacts: 3 nc = 768 dual
-//! unknowns for n = 588 DOFs, A has about 200 zero eigenvalues and A11 over all
-//! contacts is singular; K's eigenvalues span 4e-12..1.5e-4) is not solved by any
-//! method within the limits: Pgs creeps (2.9e-6 after 5000 sweeps, 2.2e-8 after
-//! 200000), Split stalls near 1e-2 (3.5e-4 even with 20000 inner sweeps), BlockGs
-//! converges only after 1721 outer iterations (1.8 million inner sweeps, about a
-//! minute), and Newton's steps are all rejected (its err follows the PGS fallback
-//! exactly). Everywhere else Newton is the most accurate (err 1e-13..1e-16).
+//! The release results (outer iterations, err, seconds per method and problem) are
+//! in BENCHMARKS.md, "The FCLib suite"; `cargo test --release --test fclib --
+//! --nocapture` prints them. spheres-in-a-box (redundant contacts: 3 nc = 768 dual
+//! unknowns for n = 588 DOFs, A has about 200 zero eigenvalues; K's eigenvalues span
+//! 4e-12..1.5e-4) is the hard one: only SplitMprgp solves it to 1e-8 within the
+//! limits; the other methods end NotConverged or Stalled with their best iterate.
 
-use dualsplit::methods::Progress;
+use dualsplit::Progress;
 use dualsplit::mtx::{self, FrictionData, ProblemFolder};
 use dualsplit::{ContactProblem, Csc, Method, Options, SolveStatus};
 use std::path::{Path, PathBuf};
@@ -118,8 +88,23 @@ const GUARD_SECONDS: (f64, f64) = (30.0, 300.0);
 /// in 1721 outer iterations (about a minute), PGS 2.2e-8 in 200000 sweeps.
 const KNOWN_UNSOLVED: [&str; 1] = ["spheres-in-a-box-98-i10000-256-10"];
 
+/// The problems of tests/data/fclib (every folder there is solved; these must be).
+const PROBLEMS: [&str; 11] = [
+    "Box_Stacks-i0122-82-5",
+    "CubeH8",
+    "GFC3D_OneContact",
+    "GFC3D_TwoRods1",
+    "LMGC_GFC3D-i00001-1-00000",
+    "LMGC_GFC3D-i00501-4-00000",
+    "LMGC_GlobalFrictionContactProblem00046",
+    "Spheres-i099-356-679",
+    "gfc2d_granularflowonwall_00069_00350",
+    "gfc2d_granularflowonwall_00230_00206",
+    "spheres-in-a-box-98-i10000-256-10",
+];
+
 fn fclib_dir() -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/fclib/mtx")
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/fclib")
 }
 
 // ---------------------------------------------------------------------------
@@ -482,17 +467,13 @@ fn solve_folder(dir: &Path) -> Vec<Attempt> {
 #[test]
 fn fclib_problems() {
     let root = fclib_dir();
-    if !root.is_dir() {
-        eprintln!();
-        eprintln!("======================================================================");
-        eprintln!("SKIPPED: FCLib suite: {} not found", root.display());
-        eprintln!("======================================================================");
-        // The folders are team data beside the repository, not part of it: a clone
-        // without them skips loudly (set DUALSPLIT_REQUIRE_FCLIB=1 to fail instead).
-        if std::env::var("DUALSPLIT_REQUIRE_FCLIB").as_deref() == Ok("1") {
-            panic!("the FCLib problem folders are missing: {}", root.display());
-        }
-        return;
+    // The folders are part of the repository: a missing one is a failure.
+    for name in PROBLEMS {
+        assert!(
+            root.join(name).join("K.mtx").is_file(),
+            "FCLib problem {name} is missing from {}",
+            root.display()
+        );
     }
     let mut dirs: Vec<PathBuf> = std::fs::read_dir(&root)
         .unwrap()

@@ -693,7 +693,7 @@ fn bad_size() {
 /// The same shape mismatches through the safe Rust API: errors, not panics.
 #[test]
 fn bad_shapes_in_rust() {
-    use dualsplit::sparse::{Format, MatrixView, Storage};
+    use dualsplit::{Format, MatrixView, Storage};
     fn view(o: &Owned) -> MatrixView<'_> {
         MatrixView {
             format: Format::Csc,
@@ -701,8 +701,8 @@ fn bad_shapes_in_rust() {
             base: 0,
             nrows: o.nrows as usize,
             ncols: o.ncols as usize,
-            p: dualsplit::sparse::Indices::I64(&o.p),
-            i: dualsplit::sparse::Indices::I64(&o.i),
+            p: dualsplit::Indices::I64(&o.p),
+            i: dualsplit::Indices::I64(&o.i),
             x: &o.x,
         }
     }

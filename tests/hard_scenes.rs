@@ -20,8 +20,8 @@
 mod common;
 
 use common::{Kkt, Mesh, Scene, dense_solve, kkt, kkt_of, max_diff, norm_inf, opts, sym_cond};
-use dualsplit::dual::{Condensation, Dual, contact_dofs, stack_rows};
-use dualsplit::factor::Factor;
+use dualsplit::internals::Factor;
+use dualsplit::internals::{Condensation, Dual, contact_dofs, stack_rows};
 use dualsplit::{ContactProblem, Csc, Friction, Method, Options, Solution, SolveStatus};
 
 // ---------------------------------------------------------------------------------
@@ -294,8 +294,9 @@ struct Conds {
 fn conds(pb: &ContactProblem, lambda_n: &[f64]) -> Conds {
     use faer::linalg::solvers::Solve;
     let dual = pb.dual();
-    let (c, m) = (dual.c, dual.m);
-    let a = faer::Mat::<f64>::from_fn(c, c, |i, j| dual.a[i + j * c]);
+    let (c, m) = (dual.unknowns(), pb.n_contacts());
+    let da = dual.dense().expect("A is formed");
+    let a = faer::Mat::<f64>::from_fn(c, c, |i, j| da[i + j * c]);
     let schur = |set: &[usize]| -> f64 {
         let nt = c - m;
         if nt == 0 {
@@ -335,8 +336,9 @@ fn a_two_ways(data: &Data) -> (f64, f64) {
     let f1 = Factor::with_last(&data.k, &last).expect("K factors");
     let a0 = Dual::build_with(&f0, &data.n, &data.t, data.d, Condensation::Solves).unwrap();
     let a1 = Dual::build_with(&f1, &data.n, &data.t, data.d, Condensation::TrailingBlock).unwrap();
-    let scale = norm_inf(&a0.a);
-    let d01 = max_diff(&a0.a, &a1.a) / scale;
+    let (a0, a1) = (a0.dense().unwrap(), a1.dense().unwrap());
+    let scale = norm_inf(a0);
+    let d01 = max_diff(a0, a1) / scale;
     // Dense: A = B K^-1 B^T with K^-1 B^T by one dense LU of K.
     use faer::linalg::solvers::Solve;
     let b = stack_rows(&data.n, &data.t);
@@ -350,7 +352,7 @@ fn a_two_ways(data: &Data) -> (f64, f64) {
         let zj: Vec<f64> = (0..b.ncols).map(|i| z[(i, j)]).collect();
         b.mul_vec(&zj, &mut a2[j * c..(j + 1) * c]);
     }
-    let d02 = max_diff(&a0.a, &a2).max(max_diff(&a1.a, &a2)) / scale;
+    let d02 = max_diff(a0, &a2).max(max_diff(a1, &a2)) / scale;
     (d01, d02)
 }
 
@@ -765,9 +767,10 @@ fn large_coulomb_friction_fixed_point_does_not_contract() {
     let coupling = {
         let pb = data.problem();
         let dual = pb.dual();
-        let c = dual.c;
+        let c = dual.unknowns();
+        let da = dual.dense().expect("A is formed");
         (0..m)
-            .map(|i| dual.a[i + (m + i) * c].abs() / dual.a[i + i * c])
+            .map(|i| da[i + (m + i) * c].abs() / da[i + i * c])
             .fold(f64::INFINITY, f64::min)
     };
     println!("   inclined column: min_i |A_NT,ii| / A_NN,ii = {coupling:.2}");

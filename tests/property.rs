@@ -133,7 +133,8 @@ enum Kind {
 fn cond_of(c: &Case, d: usize) -> f64 {
     let pb = ContactProblem::from_csc(d, c.k.clone(), c.n.clone(), c.t.clone()).unwrap();
     let dual = pb.dual();
-    let a = faer::Mat::<f64>::from_fn(dual.c, dual.c, |i, j| dual.a[i + j * dual.c]);
+    let (c, da) = (dual.unknowns(), dual.dense().expect("A is formed"));
+    let a = faer::Mat::<f64>::from_fn(c, c, |i, j| da[i + j * c]);
     sym_cond(a.as_ref())
 }
 

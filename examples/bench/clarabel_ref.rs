@@ -151,14 +151,14 @@ pub fn solve(sc: &Scene, tol: f64, time_limit: f64) -> Answer {
 /// measures its own answers), and with Clarabel's own primal u. Returns
 /// (err_recovered, err_primal, equilibrium residual of its own u).
 pub fn errors(sc: &Scene, ans: &Answer) -> (f64, f64, f64) {
-    use dualsplit::factor::Factor;
-    use dualsplit::report::natural_map_error;
+    use dualsplit::internals::Factor;
+    use dualsplit::internals::natural_map_error;
     let (d, ndof, m) = (sc.d, sc.k.nrows, sc.n.nrows);
     // rho and B from the library's condensed dual.
     let pb = dualsplit::ContactProblem::from_csc(d, sc.k.clone(), sc.n.clone(), sc.t.clone())
         .expect("valid scene");
     let dual = pb.dual();
-    let bmat = &dual.rows;
+    let bmat = dual.rows();
     let fac = Factor::new(&sc.k).expect("K is SPD");
     let c = d * m;
     // b = B K^-1 f - [g; 0]
@@ -181,8 +181,8 @@ pub fn errors(sc: &Scene, ans: &Answer) -> (f64, f64, f64) {
     bmat.mul_t_vec(&ans.lambda, &mut btl);
     let mut u_rec: Vec<f64> = (0..ndof).map(|i| sc.f[i] - btl[i]).collect();
     fac.solve_vec(&mut u_rec);
-    let e_rec = natural_map_error(&ans.lambda, &v_of(&u_rec), &dual.rho, &bvec, &sc.p, d);
-    let e_pri = natural_map_error(&ans.lambda, &v_of(&ans.u), &dual.rho, &bvec, &sc.p, d);
+    let e_rec = natural_map_error(&ans.lambda, &v_of(&u_rec), dual.rho(), &bvec, &sc.p, d);
+    let e_pri = natural_map_error(&ans.lambda, &v_of(&ans.u), dual.rho(), &bvec, &sc.p, d);
     let mut ku = vec![0.0; ndof];
     sc.k.mul_vec(&ans.u, &mut ku);
     let res: f64 = (0..ndof)

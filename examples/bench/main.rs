@@ -42,10 +42,9 @@ mod report;
 mod row;
 mod scene;
 
-use dualsplit::dual::{Condensation, Dual, contact_dofs, stack_rows};
-use dualsplit::factor::Factor;
-use dualsplit::options::DENSE_MAX;
-use dualsplit::{ContactProblem, DualForm, Friction, Method, Options, SolveStatus};
+use dualsplit::internals::Factor;
+use dualsplit::internals::{Condensation, Dual, contact_dofs, stack_rows};
+use dualsplit::{ContactProblem, DENSE_MAX, DualForm, Friction, Method, Options, SolveStatus};
 use row::{Part, Row, median, peak_mb, reset_peak, rss_mb};
 use scene::{Scene, Spec};
 use std::io::Write as _;
@@ -241,7 +240,7 @@ fn main() {
                 });
                 eprintln!(
                     "setup {t:.3} s, condensation {:.3} s (matrix-free: {})",
-                    pb.dual().condense_seconds,
+                    pb.dual().condense_seconds(),
                     pb.dual().is_matrix_free()
                 );
                 Vec::new()
@@ -504,7 +503,7 @@ fn child_ours(cfg: &Config, spec: Spec) -> Vec<Row> {
         // DualForm::Auto left it matrix-free (c > DENSE_MAX): the dense methods need
         // A, assembled by the first solve with DualForm::Dense. Force it here (one
         // outer iteration), and charge the assembly to the setup.
-        let t_free_build = pb.dual().condense_seconds;
+        let t_free_build = pb.dual().condense_seconds();
         let opts = Options {
             method: Method::Pgs,
             max_outer: 1,
@@ -516,7 +515,7 @@ fn child_ours(cfg: &Config, spec: Spec) -> Vec<Row> {
                 .expect("valid input")
         });
         assert!(!pb.dual().is_matrix_free());
-        let t_asm = pb.dual().condense_seconds;
+        let t_asm = pb.dual().condense_seconds();
         t_setup.iter_mut().for_each(|t| *t += t_asm);
         note = format!(
             "from_csc (auto: matrix-free) {t_from_csc:.3} s incl. matrix-free build \
@@ -524,7 +523,7 @@ fn child_ours(cfg: &Config, spec: Spec) -> Vec<Row> {
         );
         rows.push(time_row(&base, "setup_auto", &walls, "matrix-free".into()));
     }
-    let t_cond = pb.dual().condense_seconds;
+    let t_cond = pb.dual().condense_seconds();
     eprintln!(
         "  setup (factor with contacts last + dense dual): {:.3} s (dense condensation {t_cond:.3} s){}",
         median(&t_setup),
@@ -593,7 +592,7 @@ fn child_free(cfg: &Config, spec: Spec) -> Vec<Row> {
                     .expect("valid scene")
             });
             assert!(pb.dual().is_matrix_free());
-            let (tf, tb) = (0.0, pb.dual().condense_seconds);
+            let (tf, tb) = (0.0, pb.dual().condense_seconds());
             (t, (tf, tb, Some(pb)))
         } else {
             let ((fac, dual), t) = time(|| {
@@ -603,7 +602,7 @@ fn child_free(cfg: &Config, spec: Spec) -> Vec<Row> {
                 (fac, dual)
             });
             assert!(dual.is_matrix_free());
-            (t, (fac.factor_seconds, dual.condense_seconds, None))
+            (t, (fac.factor_seconds, dual.condense_seconds(), None))
         }
     });
     let how = if direct {

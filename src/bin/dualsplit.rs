@@ -545,7 +545,7 @@ fn solve(args: &SolveArgs) -> ExitCode {
         Err(e) => return fail_run(args, Some(&sizes), &e),
     };
     if verbose {
-        let c = problem.dual().c;
+        let c = problem.dual_unknowns();
         println!(
             "factored K and formed the condensed dual ({c} x {c}) in {:.3} s",
             t1.elapsed().as_secs_f64()

@@ -36,7 +36,7 @@ pub struct DsMatrix {
     /// Number of columns, >= 0.
     pub ncols: i64,
     /// COO: number of triplets (>= 0). CSR/CSC: ignored; the number of entries is
-    /// p[last] - base.
+    /// `p[last] - base`.
     pub nnz: i64,
     /// CSC: ncols+1 column pointers; CSR: nrows+1 row pointers; COO: nnz column
     /// indices. Never NULL for CSR/CSC.

@@ -2,7 +2,7 @@
 //! error message, the panic boundary, pointer and slice checks, and the `#[repr(C)]`
 //! options, report and matrix structs. Nothing here does numerics: every entry point
 //! validates what C hands it, borrows it as Rust slices (never copying, never taking
-//! ownership), calls the safe API in [`crate::problem`], and writes outputs back.
+//! ownership), calls the safe API ([`crate::ContactProblem`]), and writes outputs back.
 //!
 //! The header `include/dualsplit.h` is generated from these files by cbindgen
 //! (`DUALSPLIT_BLESS=1 cargo test --test header`); `tests/header.rs` fails when it

@@ -23,7 +23,6 @@ mod subproblem;
 mod whole;
 
 pub use driver::{End, Outcome};
-pub use projection::solve_disk_qp;
 
 use crate::dual::Dual;
 use crate::friction::Friction;

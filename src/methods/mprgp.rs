@@ -194,8 +194,8 @@ impl ConvexQp<'_> {
     /// Relative natural-map residual, rho_j = 1/H_jj per scalar, the inverse mean
     /// diagonal per ball, scaled as err (crate::report::natural_map_error):
     /// |r| / max(|x|, |q+| / trace(H)), q+ with the negative parts of the
-    /// nonnegative unknowns' q cut (gaps, not forces). The earlier |rho . q+| scale
-    /// let the sub-problems stop early exactly where err was masked.
+    /// nonnegative unknowns' q cut (gaps, not forces): the scale of err, so that a
+    /// sub-problem does not stop early where err would not.
     pub fn residual(&self, x: &[f64], g: &[f64]) -> f64 {
         let (mut r2, mut x2, mut q2, mut tr) = (0.0, 0.0, 0.0, 0.0);
         let diag = |j: usize| self.diag(j);

@@ -284,8 +284,7 @@ fn newton_step(
 }
 
 /// Solves the reduced system M z = rhs: by Cholesky when M is `symmetric` (half the
-/// flops of LU: on 2d-2000x250 Tresca, k ~ 4,000, a Newton step took 0.6-1.0 s with
-/// LU), else or when that fails by a partially pivoted LU, unless M is numerically
+/// flops of LU), else or when that fails by a partially pivoted LU, unless M is numerically
 /// singular (the solution is not finite or much larger than M and rhs warrant),
 /// then by the minimum-norm least-squares solution with singular values below
 /// RCOND sigma_max dropped. None when no finite solution is found.

@@ -299,7 +299,7 @@ pub(super) fn parse_entries(text: &str, path: &Path, h: &Header) -> Result<Csc> 
 }
 
 /// Reads a Matrix Market file (see the module documentation) on its own: rows
-/// and columns are limited as in [`parse_matrix`] ([`read_problem`] checks a
+/// and columns are limited as in [`parse_matrix`] ([`super::read_problem`] checks a
 /// folder's matrices against its vectors instead).
 ///
 /// Errors: `Io` for a missing or malformed file, with the file name and the line;

@@ -16,7 +16,7 @@
 //! Exactly one of `mu.txt` and `p.txt` must be present. Any other file in the
 //! folder is ignored. d is inferred from rows(T) = (d-1) rows(N); with no contacts
 //! (m = 0) it cannot be, and d = 2 is taken (the solution, u = K^-1 f, does not
-//! depend on d then). Sizes that do not fit together are [`ErrorKind::BadSize`].
+//! depend on d then). Sizes that do not fit together are [`BadSize`](crate::ErrorKind::BadSize).
 //!
 //! # Matrix Market
 //!
@@ -26,7 +26,7 @@
 //! header line. Indices are 1-based. Duplicate entries are summed. A `symmetric`
 //! file stores one triangle (the lower one, as the format says, or the upper one,
 //! but not a mix) and is mirrored. Every malformed file is rejected with
-//! [`ErrorKind::Io`] and a message that names the file and the line: a bad header,
+//! [`crate::ErrorKind::Io`] and a message that names the file and the line: a bad header,
 //! a bad size line, an entry count that does not match the size line, an index out
 //! of range, a token that is not a number, a NaN or an infinity.
 //!
@@ -54,7 +54,7 @@
 //!   no entry count bounds (N of a large model has few entries and many columns).
 //!   A matrix read on its own ([`parse_matrix`], [`read_matrix`]) may declare at
 //!   most `max(`[`MAX_UNCONFIRMED_DIM`]` = 2^22, length of the file in bytes)` rows
-//!   and columns; more is [`ErrorKind::BadSize`], before any allocation. In a
+//!   and columns; more is [`BadSize`](crate::ErrorKind::BadSize), before any allocation. In a
 //!   problem folder ([`read_problem`]) the vectors confirm the sizes instead: the
 //!   headers of K.mtx, N.mtx and T.mtx are read first and checked against each
 //!   other and against the lengths of f.txt, g.txt and mu.txt / p.txt (which
@@ -62,7 +62,7 @@
 //!   files and the declared sizes named, before any entry is read.
 //! - A vector has no declared length: it grows as its values are read.
 //! - An allocation that fails all the same (sizes that are consistent, on a
-//!   machine without the memory) is [`ErrorKind::OutOfMemory`], with the file and
+//!   machine without the memory) is [`crate::ErrorKind::OutOfMemory`], with the file and
 //!   the declared sizes in the message.
 //!
 //! The `array` (dense) Matrix Market format is not read (an `Io` error on the
