@@ -102,6 +102,11 @@ module dualsplit
    integer(c_int32_t), parameter, public :: DS_DUAL_FORM_DENSE = 1
    integer(c_int32_t), parameter, public :: DS_DUAL_FORM_MATRIX_FREE = 2
 
+   !> DsOrdering: the fill-reducing ordering of K (DsOptions%ordering).
+   integer(c_int32_t), parameter, public :: DS_ORDERING_AUTO = 0
+   integer(c_int32_t), parameter, public :: DS_ORDERING_AMD = 1
+   integer(c_int32_t), parameter, public :: DS_ORDERING_METIS = 2
+
    !> DsFriction: what the `bound` array of ds_solve / ds_step holds.
    integer(c_int32_t), parameter, public :: DS_FRICTION_TRESCA = 0
    integer(c_int32_t), parameter, public :: DS_FRICTION_COULOMB = 1
@@ -122,11 +127,13 @@ module dualsplit
       real(c_double)     :: max_seconds   !< wall-clock budget of a solve in seconds, 0 = none (default 0)
       integer(c_int64_t) :: stall_window  !< stagnation test window in outer iterations, 0 = off (default 100)
       real(c_double)     :: stall_factor  !< progress: the best err drops by this factor per window (default 0.9)
+      integer(c_int32_t) :: threads       !< the handle's threads, 0 = all cores, 1 = the calling thread (default 0)
+      integer(c_int32_t) :: ordering      !< a DS_ORDERING_* value (default DS_ORDERING_AUTO)
    end type DsOptions
 
    !> sizeof(DsOptions) in C: what ds_options_init is told (tests/fortran.rs checks
    !> it against the C compiler's sizeof).
-   integer(c_size_t), parameter, public :: DS_OPTIONS_SIZE = 64
+   integer(c_size_t), parameter, public :: DS_OPTIONS_SIZE = 72
 
    !> A sparse matrix borrowed from the caller (CSparse naming); see ds_matrix_csr.
    type, bind(C), public :: DsMatrix
@@ -208,7 +215,7 @@ module dualsplit
 
    public :: ds_last_error_message, ds_status_string, ds_options_default, ds_options_init
    public :: ds_version
-   public :: ds_problem_new, ds_problem_free, ds_problem_refactor, ds_problem_set_contacts
+   public :: ds_problem_new, ds_problem_new_opts, ds_problem_free, ds_problem_refactor, ds_problem_set_contacts
    public :: ds_problem_sizes, ds_solve, ds_step, ds_history_reset
    public :: ds_problem_set_monitor, ds_problem_set_log, ds_problem_dump, ds_string_from_c
    public :: ds_matrix_csr, ds_matrix_csc, ds_matrix_coo
@@ -271,6 +278,19 @@ module dualsplit
          type(c_ptr), intent(inout) :: out
          integer(c_int) :: status
       end function c_ds_problem_new
+
+      ! enum DsStatus ds_problem_new_opts(int32_t d, const struct DsMatrix *k,
+      !     const struct DsMatrix *n, const struct DsMatrix *t,
+      !     const struct DsOptions *opts, struct DsProblem **out);
+      function c_ds_problem_new_opts(d, k, n, t, opts, out) result(status) &
+            bind(C, name="ds_problem_new_opts")
+         import :: c_int, c_int32_t, c_ptr, DsMatrix, DsOptions
+         integer(c_int32_t), value :: d
+         type(DsMatrix), intent(in) :: k, n, t
+         type(DsOptions), intent(in) :: opts
+         type(c_ptr), intent(inout) :: out
+         integer(c_int) :: status
+      end function c_ds_problem_new_opts
 
       ! void ds_problem_free(struct DsProblem *problem);
       subroutine c_ds_problem_free(problem) bind(C, name="ds_problem_free")
@@ -459,7 +479,8 @@ contains
 
    !> Fills opts with the defaults: struct_size = the size of this module's
    !> DsOptions, DS_METHOD_SPLIT, tol 1e-10, max_outer 10000, max_inner 1000,
-   !> DS_DUAL_FORM_AUTO, max_seconds 0, stall_window 100, stall_factor 0.9.
+   !> DS_DUAL_FORM_AUTO, max_seconds 0, stall_window 100, stall_factor 0.9, threads 0,
+   !> DS_ORDERING_AUTO.
    subroutine ds_options_default(opts)
       type(DsOptions), intent(out) :: opts
       integer :: status
@@ -468,7 +489,7 @@ contains
 
    !> status = ds_options_init(opts): as ds_options_default, with the status of the
    !> C function (DS_STATUS_OK). The size passed is that of this module's DsOptions,
-   !> 64 bytes (the storage size of its components: c_sizeof is Fortran 2008).
+   !> 72 bytes (the storage size of its components: c_sizeof is Fortran 2008).
    function ds_options_init(opts) result(status)
       type(DsOptions), intent(out) :: opts
       integer :: status
@@ -484,6 +505,17 @@ contains
       integer(c_int32_t) :: status
       status = int(c_ds_problem_new(d, k, n, t, problem), c_int32_t)
    end function ds_problem_new
+
+   !> As ds_problem_new, with opts%threads (the handle's own thread pool) and
+   !> opts%ordering (the fill-reducing ordering of K).
+   function ds_problem_new_opts(d, k, n, t, opts, problem) result(status)
+      integer(c_int32_t), intent(in) :: d
+      type(DsMatrix), intent(in) :: k, n, t
+      type(DsOptions), intent(in) :: opts
+      type(c_ptr), intent(inout) :: problem
+      integer(c_int32_t) :: status
+      status = int(c_ds_problem_new_opts(d, k, n, t, opts, problem), c_int32_t)
+   end function ds_problem_new_opts
 
    !> Frees a handle (a null handle is fine) and sets it to c_null_ptr.
    subroutine ds_problem_free(problem)

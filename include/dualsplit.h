@@ -243,6 +243,26 @@ typedef enum DsDualForm {
 } DsDualForm;
 
 /*
+ The fill-reducing ordering of K's factorisation (DsOptions field `ordering`,
+ read by ds_problem_new_opts; as CHOLMOD's ordering policy or MUMPS's ICNTL(7)).
+ */
+typedef enum DsOrdering {
+  /*
+   Whichever of AMD and METIS gives the factor with fewer flops (both symbolic
+   analyses run; AMD on a tie). The default.
+   */
+  DS_ORDERING_AUTO = 0,
+  /*
+   Approximate minimum degree.
+   */
+  DS_ORDERING_AMD = 1,
+  /*
+   Nested dissection (METIS_NodeND, METIS 5 built into the library).
+   */
+  DS_ORDERING_METIS = 2,
+} DsOrdering;
+
+/*
  Friction law of one increment (the `friction` argument of ds_solve / ds_step).
  */
 typedef enum DsFriction {
@@ -273,14 +293,16 @@ typedef struct DsProblem DsProblem;
 
  The struct grows at its end from version to version; struct_size says which
  version the caller was compiled against, and the library reads no byte past
- it: 32 (version 0.1: up to max_inner), 40 (0.2: up to dual_form) and 64 (0.3)
- are accepted, the fields an older struct lacks take their defaults.
+ it: 32 (version 0.1: up to max_inner), 40 (0.2: up to dual_form), 64 (0.3: up
+ to stall_factor) and 72 (0.4) are accepted, the fields an older struct lacks
+ take their defaults.
 
  Errors when read: DS_STATUS_BAD_ARGUMENT if struct_size is not one of those
  sizes, method is not a DsMethod, tol is not finite and positive, max_outer is
  negative, max_inner is not positive, dual_form is not a DsDualForm,
- max_seconds is negative or not finite, stall_window is negative, or
- stall_factor is not in (0, 1].
+ max_seconds is negative or not finite, stall_window is negative,
+ stall_factor is not in (0, 1], threads is negative or above 4096, or ordering
+ is not a DsOrdering.
  */
 typedef struct DsOptions {
   /*
@@ -335,6 +357,22 @@ typedef struct DsOptions {
    by 10 %). Added in version 0.3.
    */
   double stall_factor;
+  /*
+   Threads for the factorisation, the condensation and the dense kernels:
+   0 for all cores (default), 1 for the calling thread only (the library
+   starts no thread), k for at most k (k <= 4096). Each handle owns its pool,
+   so handles used in different threads of a program do not compete for one.
+   Read by ds_problem_new_opts (ds_problem_new: 0); the handle keeps its
+   pool for every later call, and ds_solve / ds_step ignore the field. With
+   1, results are bit-identical from run to run. Added in version 0.4.
+   */
+  int32_t threads;
+  /*
+   A DsOrdering value (default DS_ORDERING_AUTO): the fill-reducing ordering
+   of K, used when K is analysed, by ds_problem_new_opts (ds_problem_refactor
+   keeps the analysis; ds_solve and ds_step ignore it). Added in version 0.4.
+   */
+  int32_t ordering;
 } DsOptions;
 
 /*
@@ -456,7 +494,7 @@ typedef void (*DsLogFn)(int32_t level, const char *message, void *user_data);
  Versions: fields are only ever appended. The library writes the fields of the
  version whose DsOptions the caller passed (DsOptions.struct_size identifies the
  header a program was built with; with opts = NULL, the fields of version 0.1),
- so a program's DsReport is never written past its end. Versions 0.1 to 0.3 have
+ so a program's DsReport is never written past its end. Versions 0.1 to 0.4 have
  the same 88-byte report.
  */
 typedef struct DsReport {
@@ -591,7 +629,28 @@ enum DsStatus ds_problem_new(int32_t d,
                              struct DsProblem **out);
 
 /*
- Frees a handle created by ds_problem_new. NULL is a no-op. The handle must not be
+ As ds_problem_new, with the options that apply to the handle itself: opts->threads
+ (the handle's own thread pool, used by every later call on it) and
+ opts->ordering (the fill-reducing ordering of K). The other fields are checked
+ as ds_solve checks them, and not kept. opts = NULL: the defaults, as
+ ds_problem_new.
+
+ Returns what ds_problem_new returns; DS_STATUS_BAD_ARGUMENT also for invalid
+ options (see DsOptions).
+
+ # Safety
+ As ds_problem_new; opts must be NULL or point to a DsOptions initialised with
+ ds_options_init (at least struct_size readable bytes).
+ */
+enum DsStatus ds_problem_new_opts(int32_t d,
+                                  const struct DsMatrix *k,
+                                  const struct DsMatrix *n,
+                                  const struct DsMatrix *t,
+                                  const struct DsOptions *opts,
+                                  struct DsProblem **out);
+
+/*
+ Frees a handle created by ds_problem_new or ds_problem_new_opts. NULL is a no-op. The handle must not be
  used afterwards.
 
  # Safety
@@ -804,7 +863,7 @@ const char *ds_version(void);
 /* The version of dualsplit this header belongs to (ds_version() gives the one a
  * program runs against; tests/header.rs checks these against Cargo.toml). */
 #define DS_VERSION_MAJOR 0
-#define DS_VERSION_MINOR 3
+#define DS_VERSION_MINOR 4
 #define DS_VERSION_PATCH 0
 
 #ifndef DS_NO_OPTIONS_DEFAULT_MACRO

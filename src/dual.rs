@@ -7,12 +7,14 @@ use crate::error::{ErrorKind, Result, fail};
 use crate::factor::Factor;
 use crate::options::{DENSE_MAX, DualForm};
 use crate::sparse::Csc;
+use crate::threads::{PARALLEL_MIN_ENTRIES, Threads};
 use faer::dyn_stack::{MemBuffer, MemStack};
 use faer::linalg::cholesky::llt::inverse as llt_inverse;
 use faer::linalg::triangular_solve::{
     solve_lower_triangular_in_place, solve_upper_triangular_in_place,
 };
-use faer::{Mat, MatMut, Par};
+use faer::{Mat, MatMut};
+use std::sync::Arc;
 use std::time::Instant;
 
 /// Number of right-hand sides solved together while forming A.
@@ -41,6 +43,8 @@ pub struct Dual {
     pub(crate) condense_seconds: f64,
     /// How A was formed.
     pub(crate) condensation: Condensation,
+    /// The problem's threads (those of the factor it was built from).
+    pub(crate) threads: Arc<Threads>,
 }
 
 /// How the condensed dual operator was formed.
@@ -219,6 +223,7 @@ impl Dual {
                 rows: b,
                 condense_seconds: start.elapsed().as_secs_f64(),
                 condensation: how,
+                threads: factor.threads().clone(),
             });
         }
         let mut a = alloc_zeroed(c, c, "condensed dual")?;
@@ -245,6 +250,7 @@ impl Dual {
             rows: b,
             condense_seconds: start.elapsed().as_secs_f64(),
             condensation: how,
+            threads: factor.threads().clone(),
         })
     }
 
@@ -272,7 +278,7 @@ impl Dual {
             f.apply(x, y);
             return;
         }
-        leading_block_apply(&self.a, self.c, x, y);
+        leading_block_apply(&self.a, self.c, x, y, &self.threads);
     }
 }
 
@@ -280,13 +286,23 @@ impl Dual {
 /// with leading dimension `ld`. Mostly nonzero x: faer's matrix-vector product
 /// (measured against a column loop: BENCHMARKS.md, "Tuning measurements"); sparse
 /// x (open contacts, active bounds): only the columns of its nonzeros.
-pub(crate) fn leading_block_apply(a: &[f64], ld: usize, x: &[f64], y: &mut [f64]) {
+/// Large products run on `threads` (see [`PARALLEL_MIN_ENTRIES`]).
+pub(crate) fn leading_block_apply(
+    a: &[f64],
+    ld: usize,
+    x: &[f64],
+    y: &mut [f64],
+    threads: &Threads,
+) {
     let nonzeros = x.iter().filter(|&&v| v != 0.0).count();
     if 4 * nonzeros >= 3 * x.len() && !x.is_empty() && !y.is_empty() {
         let h = faer::MatRef::from_column_major_slice_with_stride(a, y.len(), x.len(), ld);
         let xm = faer::MatRef::from_column_major_slice(x, x.len(), 1);
+        let big = x.len() * y.len() >= PARALLEL_MIN_ENTRIES;
         let ym = MatMut::from_column_major_slice_mut(y, y.len(), 1);
-        faer::linalg::matmul::matmul(ym, faer::Accum::Replace, h, xm, 1.0, Par::Seq);
+        threads.run(big, |par| {
+            faer::linalg::matmul::matmul(ym, faer::Accum::Replace, h, xm, 1.0, par);
+        });
         return;
     }
     let k = y.len();
@@ -339,6 +355,8 @@ struct FreeOp {
     diag: Vec<f64>,
     /// Workspace of one product (nc).
     z: std::cell::RefCell<Vec<f64>>,
+    /// The problem's threads.
+    threads: Arc<Threads>,
 }
 
 impl FreeOp {
@@ -366,6 +384,7 @@ impl FreeOp {
             bct,
             diag: Vec::new(),
             z: std::cell::RefCell::new(vec![0.0; nc]),
+            threads: factor.threads().clone(),
         };
         op.diag = op.compute_diagonal()?;
         Ok(op)
@@ -401,7 +420,10 @@ impl FreeOp {
                 }
             }
             let lb = self.l.as_ref().submatrix(q0, q0, nc - q0, nc - q0);
-            solve_lower_triangular_in_place(lb, wb.as_mut(), Par::Seq);
+            let big = (nc - q0) * (nc - q0) >= PARALLEL_MIN_ENTRIES;
+            self.threads.run(big, |par| {
+                solve_lower_triangular_in_place(lb, wb.as_mut(), par);
+            });
             for (s, &r) in block.iter().enumerate() {
                 diag[r] = wb.as_ref().col(s).iter().map(|v| v * v).sum();
             }
@@ -422,8 +444,11 @@ impl FreeOp {
             }
         }
         let mut zm = MatMut::from_column_major_slice_mut(&mut z[..], nc, 1);
-        solve_lower_triangular_in_place(self.l.as_ref(), zm.as_mut(), Par::Seq);
-        solve_upper_triangular_in_place(self.l.transpose(), zm.as_mut(), Par::Seq);
+        let l = self.l.as_ref();
+        self.threads.run(nc * nc >= PARALLEL_MIN_ENTRIES, |par| {
+            solve_lower_triangular_in_place(l, zm.as_mut(), par);
+            solve_upper_triangular_in_place(l.transpose(), zm.as_mut(), par);
+        });
         for (r, yr) in y.iter_mut().enumerate() {
             let mut s = 0.0;
             for k in self.bct.col_ptr[r]..self.bct.col_ptr[r + 1] {
@@ -484,14 +509,12 @@ fn a_from_trailing_block(factor: &Factor, b: &Csc, a: &mut [f64]) {
     let l = factor.trailing_block();
     let mut x = Mat::<f64>::zeros(nc, nc);
     {
-        // faer's global parallelism (rayon, all cores unless the caller set
-        // RAYON_NUM_THREADS or faer::set_global_parallelism): the inverse is dense
-        // c^3/3 work; on 2 cores at c = 4,002 it took 0.92 s against 1.3-1.5 s
-        // sequential. (The sparse factorisation decides for itself, see
-        // factor::PARALLEL_FLOPS_PER_ENTRY.)
-        let par = faer::get_global_parallelism();
-        let mut mem = MemBuffer::new(llt_inverse::inverse_scratch::<f64>(nc, par));
-        llt_inverse::inverse(x.as_mut(), l.as_ref(), par, MemStack::new(&mut mem));
+        // On the problem's threads: the inverse is dense c^3/3 work (the sparse
+        // factorisation decides for itself, see factor::PARALLEL_FLOPS_PER_ENTRY).
+        factor.threads().run(true, |par| {
+            let mut mem = MemBuffer::new(llt_inverse::inverse_scratch::<f64>(nc, par));
+            llt_inverse::inverse(x.as_mut(), l.as_ref(), par, MemStack::new(&mut mem));
+        });
     }
     drop(l);
     // Only the lower triangle of X = S_CC^-1 is written: mirror it, by tiles so
@@ -575,7 +598,13 @@ mod tests {
         let n = Csc::from_triplets(m, nx * ny, &nt);
         let t = Csc::from_triplets(m, nx * ny, &tt);
         let last = contact_dofs(&stack_rows(&n, &t));
-        let f1 = Factor::with_last(&k, &last).unwrap();
+        let f1 = Factor::with_last(
+            &k,
+            &last,
+            crate::Ordering::Auto,
+            std::sync::Arc::new(crate::threads::Threads::sequential()),
+        )
+        .unwrap();
         let f0 = Factor::new(&k).unwrap();
         let a1 = Dual::build(&f1, &n, &t, 2, DualForm::Auto).unwrap();
         assert_eq!(a1.condensation, Condensation::TrailingBlock);
@@ -609,7 +638,13 @@ mod tests {
         let n = Csc::from_triplets(m, nx * ny, &nt);
         let t = Csc::from_triplets(2 * m, nx * ny, &tt);
         let last = contact_dofs(&stack_rows(&n, &t));
-        let f = Factor::with_last(&k, &last).unwrap();
+        let f = Factor::with_last(
+            &k,
+            &last,
+            crate::Ordering::Auto,
+            std::sync::Arc::new(crate::threads::Threads::sequential()),
+        )
+        .unwrap();
         let dense = Dual::build(&f, &n, &t, 3, DualForm::Dense).unwrap();
         let free = Dual::build(&f, &n, &t, 3, DualForm::MatrixFree).unwrap();
         assert_eq!(dense.condensation, Condensation::TrailingBlock);

@@ -3,7 +3,9 @@
 //! factorisation once per set of values, and each solve reuses both.
 
 use crate::error::{ErrorKind, Result, fail};
+use crate::options::Ordering;
 use crate::sparse::Csc;
+use crate::threads::Threads;
 use faer::dyn_stack::{MemBuffer, MemStack, StackReq};
 use faer::linalg::cholesky::llt::factor::LltRegularization;
 use faer::perm::PermRef;
@@ -15,6 +17,7 @@ use faer::sparse::linalg::cholesky::{
 };
 use faer::sparse::{SparseColMatRef, SymbolicSparseColMatRef};
 use faer::{Conj, Mat, MatMut, Par, Side};
+use std::sync::Arc;
 use std::time::Instant;
 
 /// A Cholesky pivot L_jj^2 below this fraction of K_jj makes K numerically
@@ -47,10 +50,59 @@ pub struct Factor {
     last: Vec<usize>,
     /// The fill-reducing ordering, new -> old.
     fwd: Vec<usize>,
+    /// Which ordering that is (`Amd` or `Metis`, never `Auto`).
+    ordering: Ordering,
     /// Seconds of the last numeric factorisation.
     pub factor_seconds: f64,
-    /// The parallelism of the numeric factorisation (see PARALLEL_FLOPS_PER_ENTRY).
-    par: Par,
+    /// The problem's threads.
+    threads: Arc<Threads>,
+    /// Whether the factorisation and the solves use them (see
+    /// PARALLEL_FLOPS_PER_ENTRY).
+    parallel: bool,
+}
+
+/// The supernodal symbolic Cholesky factor of `k` in the ordering (`fwd`, `inv`).
+/// Always supernodal: the pivots and the trailing block are read from the
+/// supernodes.
+fn analyse(k: &Csc, fwd: &[usize], inv: &[usize]) -> Result<SymbolicCholesky<usize>> {
+    let n = k.nrows;
+    let sym = SymbolicSparseColMatRef::new_checked(n, n, &k.col_ptr, None, &k.row_idx);
+    let params = CholeskySymbolicParams {
+        supernodal_flop_ratio_threshold: SupernodalThreshold::FORCE_SUPERNODAL,
+        ..Default::default()
+    };
+    factorize_symbolic_cholesky(
+        sym,
+        Side::Lower,
+        SymmetricOrdering::Custom(PermRef::new_checked(fwd, inv, n)),
+        params,
+    )
+    .map_err(|e| {
+        crate::Error::new(
+            ErrorKind::OutOfMemory,
+            format!("K: symbolic analysis: {e:?}"),
+        )
+    })
+}
+
+/// (nonzeros of L, dense supernodal blocks included; flops of the numeric
+/// factorisation, sum over columns of (rows below + 1)^2) of a supernodal symbolic
+/// factor.
+fn symbolic_size(symbolic: &SymbolicCholesky<usize>) -> (usize, f64) {
+    let SymbolicCholeskyRaw::Supernodal(sym) = symbolic.raw() else {
+        unreachable!("always supernodal");
+    };
+    let mut flops = 0.0;
+    for s in 0..sym.n_supernodes() {
+        let node = sym.supernode(s);
+        let width = sym.supernode_end()[s] - sym.supernode_begin()[s];
+        let below = node.pattern().len();
+        for jl in 0..width {
+            let r = (width - jl + below) as f64;
+            flops += r * r;
+        }
+    }
+    (sym.len_val(), flops)
 }
 
 impl Factor {
@@ -60,34 +112,57 @@ impl Factor {
     /// `OutOfMemory`.
     #[cfg(any(test, feature = "internals"))]
     pub fn new(k: &Csc) -> Result<Factor> {
-        Self::with_last(k, &[])
+        Self::with_last(k, &[], Ordering::Auto, Arc::new(Threads::sequential()))
     }
 
     /// Analyses and factors `k` with the DOFs `last` (distinct, in range) ordered
-    /// last, in the given order, and the others by AMD (see [`crate::ordering`]): the
-    /// trailing block of the factor then gives the Schur complement of K onto
-    /// `last` (see [`Factor::trailing_block`]).
+    /// last, in the given order, and the others by `ordering` (see
+    /// [`crate::ordering`]; `Auto` keeps whichever of AMD and METIS gives the
+    /// symbolic factor with fewer flops): the trailing block of the factor then
+    /// gives the Schur complement of K onto `last` (see
+    /// [`Factor::trailing_block`]). `threads`: the pool the factorisation and the
+    /// solves may use (they run sequentially where the fronts are small).
     ///
     /// Errors: as [`Factor::new`].
-    pub fn with_last(k: &Csc, last: &[usize]) -> Result<Factor> {
+    pub fn with_last(
+        k: &Csc,
+        last: &[usize],
+        ordering: Ordering,
+        threads: Arc<Threads>,
+    ) -> Result<Factor> {
         let n = k.nrows;
-        let oom = |what: &str| crate::Error::new(ErrorKind::OutOfMemory, format!("K: {what}"));
-        let sym = SymbolicSparseColMatRef::new_checked(n, n, &k.col_ptr, None, &k.row_idx);
-        let (fwd, inv) =
-            crate::ordering::amd_with_last(k, last).ok_or_else(|| oom("AMD ordering"))?;
-        // Always supernodal: the pivots and the trailing block are read from the
-        // supernodes.
-        let params = CholeskySymbolicParams {
-            supernodal_flop_ratio_threshold: SupernodalThreshold::FORCE_SUPERNODAL,
-            ..Default::default()
+        let candidates: &[Ordering] = match ordering {
+            Ordering::Auto => &[Ordering::Amd, Ordering::Metis],
+            Ordering::Amd => &[Ordering::Amd],
+            Ordering::Metis => &[Ordering::Metis],
         };
-        let symbolic = factorize_symbolic_cholesky(
-            sym,
-            Side::Lower,
-            SymmetricOrdering::Custom(PermRef::new_checked(&fwd, &inv, n)),
-            params,
-        )
-        .map_err(|e| oom(&format!("symbolic analysis: {e:?}")))?;
+        let mut best: Option<(Ordering, SymbolicCholesky<usize>, Vec<usize>, f64)> = None;
+        for &how in candidates {
+            let Some((fwd, inv)) = (match how {
+                Ordering::Metis => crate::ordering::metis_with_last(k, last),
+                _ => crate::ordering::amd_with_last(k, last),
+            }) else {
+                // AUTO falls back to the other ordering when one fails.
+                if candidates.len() == 1 {
+                    return fail(
+                        ErrorKind::OutOfMemory,
+                        format!("K: the {} ordering failed (out of memory)", how.name()),
+                    );
+                }
+                continue;
+            };
+            let symbolic = analyse(k, &fwd, &inv)?;
+            let flops = symbolic_size(&symbolic).1;
+            if best.as_ref().is_none_or(|b| flops < b.3) {
+                best = Some((how, symbolic, fwd, flops));
+            }
+        }
+        let Some((ordering, symbolic, fwd, _)) = best else {
+            return fail(
+                ErrorKind::OutOfMemory,
+                "K: no fill-reducing ordering succeeded",
+            );
+        };
         let mut f = Factor {
             l_values: Vec::new(),
             symbolic,
@@ -95,15 +170,26 @@ impl Factor {
             row_idx: k.row_idx.clone(),
             last: last.to_vec(),
             fwd,
+            ordering,
             factor_seconds: 0.0,
-            par: Par::Seq,
+            threads,
+            parallel: false,
         };
         let (nnz, flops) = f.nnz_and_flops();
-        if flops > PARALLEL_FLOPS_PER_ENTRY * nnz as f64 {
-            f.par = faer::get_global_parallelism();
-        }
+        f.parallel = flops > PARALLEL_FLOPS_PER_ENTRY * nnz as f64;
+        debug_assert_eq!(f.n(), n);
         f.refactor(k)?;
         Ok(f)
+    }
+
+    /// The threads the factorisation and the solves use.
+    pub(crate) fn threads(&self) -> &Arc<Threads> {
+        &self.threads
+    }
+
+    /// The ordering that was used: `Amd` or `Metis`.
+    pub fn ordering(&self) -> Ordering {
+        self.ordering
     }
 
     /// The smallest relative pivot L_jj^2 / K_jj of a numeric factor `values` (j in
@@ -139,18 +225,7 @@ impl Factor {
     /// The size of the factor: (nonzeros of L, dense supernodal blocks included;
     /// flops of the numeric factorisation, sum over columns of (rows below + 1)^2).
     pub fn nnz_and_flops(&self) -> (usize, f64) {
-        let sym = self.supernodal_symbolic();
-        let mut flops = 0.0;
-        for s in 0..sym.n_supernodes() {
-            let node = sym.supernode(s);
-            let width = sym.supernode_end()[s] - sym.supernode_begin()[s];
-            let below = node.pattern().len();
-            for jl in 0..width {
-                let r = (width - jl + below) as f64;
-                flops += r * r;
-            }
-        }
-        (sym.len_val(), flops)
+        symbolic_size(&self.symbolic)
     }
 
     /// The DOFs ordered last (empty when the ordering is plain AMD).
@@ -231,30 +306,35 @@ impl Factor {
             SymbolicSparseColMatRef::new_checked(n, n, &self.col_ptr, None, &self.row_idx),
             &k.values,
         );
-        let req = self
-            .symbolic
-            .factorize_numeric_llt_scratch::<f64>(self.par, Default::default());
-        let mut mem = MemBuffer::try_new(req)
-            .map_err(|_| crate::Error::new(ErrorKind::OutOfMemory, "K: factorisation workspace"))?;
-        let mut values = Vec::new();
-        values
-            .try_reserve_exact(self.symbolic.len_val())
-            .map_err(|_| crate::Error::new(ErrorKind::OutOfMemory, "K: Cholesky factor values"))?;
-        values.resize(self.symbolic.len_val(), 0.0);
-        let result = self.symbolic.factorize_numeric_llt::<f64>(
-            &mut values,
-            a,
-            Side::Lower,
-            LltRegularization::default(),
-            self.par,
-            MemStack::new(&mut mem),
-            Default::default(),
-        );
+        let symbolic = &self.symbolic;
+        let result = self.threads.run(self.parallel, |par| {
+            let req = symbolic.factorize_numeric_llt_scratch::<f64>(par, Default::default());
+            let mut mem = MemBuffer::try_new(req).map_err(|_| {
+                crate::Error::new(ErrorKind::OutOfMemory, "K: factorisation workspace")
+            })?;
+            let mut values = Vec::new();
+            values.try_reserve_exact(symbolic.len_val()).map_err(|_| {
+                crate::Error::new(ErrorKind::OutOfMemory, "K: Cholesky factor values")
+            })?;
+            values.resize(symbolic.len_val(), 0.0);
+            let result = symbolic.factorize_numeric_llt::<f64>(
+                &mut values,
+                a,
+                Side::Lower,
+                LltRegularization::default(),
+                par,
+                MemStack::new(&mut mem),
+                Default::default(),
+            );
+            let result = result.map(|_| ()).map_err(|e| format!("{e:?}"));
+            Ok((values, result))
+        });
+        let (values, result) = result?;
         if let Err(e) = result {
             return fail(
                 ErrorKind::NotPositiveDefinite,
                 format!(
-                    "K is not positive definite (Cholesky: {e:?}): singular, indefinite, \
+                    "K is not positive definite (Cholesky: {e}): singular, indefinite, \
                      or missing Dirichlet conditions"
                 ),
             );
@@ -288,18 +368,20 @@ impl Factor {
 
     /// Workspace needed by [`Factor::solve_in_place`] for `ncols` right-hand sides.
     pub fn solve_scratch(&self, ncols: usize) -> StackReq {
-        self.symbolic.solve_in_place_scratch::<f64>(ncols, Par::Seq)
+        let par = match self.parallel {
+            true => Par::rayon(self.threads.count()),
+            false => Par::Seq,
+        };
+        self.symbolic.solve_in_place_scratch::<f64>(ncols, par)
     }
 
     /// Overwrites `rhs` (n x k) with K^-1 rhs, using `stack` as workspace (at least
     /// `solve_scratch(k)`).
     pub fn solve_in_place(&self, rhs: MatMut<'_, f64>, stack: &mut MemStack) {
-        LltRef::new(&self.symbolic, &self.l_values).solve_in_place_with_conj(
-            Conj::No,
-            rhs,
-            Par::Seq,
-            stack,
-        );
+        let llt = LltRef::new(&self.symbolic, &self.l_values);
+        self.threads.run(self.parallel, |par| {
+            llt.solve_in_place_with_conj(Conj::No, rhs, par, stack);
+        });
     }
 
     /// The forward half of a solve: y := L^-1 P x, y in the factor's ordering
@@ -310,12 +392,11 @@ impl Factor {
             y[new] = x[old];
         }
         let mut mem = MemBuffer::new(self.solve_scratch(1));
-        self.supernodal().l_solve_with_conj(
-            Conj::No,
-            faer::MatMut::from_column_major_slice_mut(y, n, 1),
-            Par::Seq,
-            MemStack::new(&mut mem),
-        );
+        let llt = self.supernodal();
+        self.threads.run(self.parallel, |par| {
+            let y = faer::MatMut::from_column_major_slice_mut(y, n, 1);
+            llt.l_solve_with_conj(Conj::No, y, par, MemStack::new(&mut mem));
+        });
     }
 
     /// As [`Factor::forward`] for an x that vanishes outside the trailing DOFs:
@@ -361,12 +442,11 @@ impl Factor {
     pub fn backward(&self, y: &mut [f64], x: &mut [f64]) {
         let n = self.n();
         let mut mem = MemBuffer::new(self.solve_scratch(1));
-        self.supernodal().l_transpose_solve_with_conj(
-            Conj::No,
-            faer::MatMut::from_column_major_slice_mut(y, n, 1),
-            Par::Seq,
-            MemStack::new(&mut mem),
-        );
+        let llt = self.supernodal();
+        self.threads.run(self.parallel, |par| {
+            let y = faer::MatMut::from_column_major_slice_mut(y, n, 1);
+            llt.l_transpose_solve_with_conj(Conj::No, y, par, MemStack::new(&mut mem));
+        });
         for (new, &old) in self.fwd.iter().enumerate() {
             x[old] = y[new];
         }
@@ -434,7 +514,13 @@ mod tests {
         let n = k.nrows;
         // The bottom row and a column in the middle, in no particular order.
         let last = [5, 0, 8, 1, 2, 3, 4, 6, 7, 40, 31, 49];
-        let f = Factor::with_last(&k, &last).unwrap();
+        let f = Factor::with_last(
+            &k,
+            &last,
+            crate::Ordering::Auto,
+            std::sync::Arc::new(crate::threads::Threads::sequential()),
+        )
+        .unwrap();
         let x_last: Vec<f64> = (0..last.len())
             .map(|q| (q as f64 * 0.7).sin() + 0.2)
             .collect();

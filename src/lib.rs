@@ -6,6 +6,7 @@
 //! is the compressive normal force; the friction force on the body, -T^T lambda_T,
 //! opposes the slip T u.
 
+mod dense;
 mod dual;
 mod error;
 mod factor;
@@ -18,11 +19,12 @@ mod ordering;
 mod problem;
 mod report;
 mod sparse;
+mod threads;
 
 pub use error::{Error, ErrorKind, Result};
 pub use friction::Friction;
 pub use methods::{Monitor, Progress};
-pub use options::{DENSE_MAX, DualForm, Method, Options, STALL_FACTOR, STALL_WINDOW};
+pub use options::{DENSE_MAX, DualForm, Method, Options, Ordering, STALL_FACTOR, STALL_WINDOW};
 pub use problem::{ContactProblem, Solution};
 pub use report::{Report, SolveStatus};
 pub use sparse::{Csc, Format, Indices, MatrixView, SYMMETRY_TOL, Storage};
@@ -37,4 +39,5 @@ pub mod internals {
     pub use crate::dual::{Condensation, Dual, contact_dofs, stack_rows};
     pub use crate::factor::Factor;
     pub use crate::report::natural_map_error;
+    pub use crate::threads::Threads;
 }

@@ -98,6 +98,42 @@ impl DualForm {
     }
 }
 
+/// The fill-reducing ordering of K's sparse Cholesky factorisation (as CHOLMOD's
+/// ordering policy or MUMPS's ICNTL(7)). Both orderings work on K's compressed
+/// graph (one vertex per node: the DOFs whose columns of K share a pattern), with
+/// the contact DOFs ordered last where the condensation needs them there.
+#[derive(Copy, Clone, Debug, PartialEq, Eq)]
+pub enum Ordering {
+    /// The ordering whose symbolic factor needs fewer flops, AMD or METIS: both
+    /// symbolic analyses run (cheap next to the numeric factorisation), the
+    /// cheaper one is kept, AMD on a tie. Nested dissection wins on 3D meshes,
+    /// AMD usually on 2D ones.
+    Auto,
+    /// Approximate minimum degree (faer's AMD).
+    Amd,
+    /// Nested dissection: METIS_NodeND (METIS 5, built from vendored sources).
+    Metis,
+}
+
+impl Ordering {
+    /// Every ordering, in the order of the C enum.
+    pub const ALL: [Ordering; 3] = [Ordering::Auto, Ordering::Amd, Ordering::Metis];
+
+    /// Short lower-case name ("auto", "amd", "metis").
+    pub fn name(self) -> &'static str {
+        match self {
+            Ordering::Auto => "auto",
+            Ordering::Amd => "amd",
+            Ordering::Metis => "metis",
+        }
+    }
+
+    /// Parses a name as returned by [`Ordering::name`].
+    pub fn from_name(s: &str) -> Option<Ordering> {
+        Ordering::ALL.into_iter().find(|o| o.name() == s)
+    }
+}
+
 /// Number of dual unknowns c = d m up to which `DualForm::Auto` assembles A
 /// (8,000: A then takes at most 512 MB).
 pub const DENSE_MAX: usize = 8_000;
@@ -137,6 +173,18 @@ pub struct Options {
     /// (default [`STALL_FACTOR`]; 1 stops only a run whose best err did not improve at
     /// all over the window).
     pub stall_factor: f64,
+    /// Fill-reducing ordering of K (default `Auto`). Read where K is analysed, by
+    /// `ContactProblem::with_options` (`refactor` keeps that analysis); `solve`
+    /// and `step` ignore it.
+    pub ordering: Ordering,
+    /// Threads for the factorisation, the condensation and the dense kernels:
+    /// 0 for all cores (default), 1 for the calling thread only (no thread is
+    /// started), k for at most k (at most 4096). Read by
+    /// `ContactProblem::with_options`: the problem holds its own thread pool of
+    /// that size (not rayon's global one) for all its later calls, so problems in
+    /// different threads of a program do not compete for one pool; `solve` and
+    /// `step` ignore it. Results with 1 thread are bit-identical from run to run.
+    pub threads: usize,
 }
 
 /// Default window of the stagnation test, in outer iterations.
@@ -161,6 +209,8 @@ impl Default for Options {
             max_seconds: 0.0,
             stall_window: STALL_WINDOW,
             stall_factor: STALL_FACTOR,
+            ordering: Ordering::Auto,
+            threads: 0,
         }
     }
 }

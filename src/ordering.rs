@@ -15,6 +15,12 @@
 //! (the d DOFs of a finite element node) are one vertex, so the graph has about
 //! 1/d^2 of K's entries, and a clique among the contact nodes is affordable.
 //!
+//! The other ordering is nested dissection (METIS_NodeND, METIS 5 built from the
+//! sources vendored by the `metis-sys` crate) on the same compressed graph without
+//! the fixed vertices, which are then appended: the ordering of the field's direct
+//! solvers for 3D meshes, where it needs a fraction of AMD's flops. `factor`
+//! chooses between the two by the flop counts of their symbolic factors.
+//!
 //! The measurements behind these choices are in BENCHMARKS.md ("Tuning
 //! measurements").
 
@@ -22,6 +28,9 @@ use crate::sparse::Csc;
 use faer::dyn_stack::{MemBuffer, MemStack};
 use faer::sparse::SymbolicSparseColMatRef;
 use faer::sparse::linalg::amd;
+use metis_sys::idx_t;
+
+const NONE: usize = usize::MAX;
 
 /// Up to this many fixed vertices (in the compressed graph) are joined into a
 /// clique; beyond, each is joined to the `BAND` fixed vertices before it and the
@@ -157,7 +166,6 @@ pub fn amd_with_last(k: &Csc, last: &[usize]) -> Option<(Vec<usize>, Vec<usize>)
             fixed_groups.push(g);
         }
     }
-    const NONE: usize = usize::MAX;
     let mut pos = vec![NONE; ng];
     for (q, &g) in fixed_groups.iter().enumerate() {
         pos[g] = q;
@@ -208,6 +216,124 @@ pub fn amd_with_last(k: &Csc, last: &[usize]) -> Option<(Vec<usize>, Vec<usize>)
         inv[old] = new;
     }
     Some((fwd, inv))
+}
+
+/// The permutation (forward: new -> old, inverse: old -> new) that orders the DOFs
+/// outside `last` by METIS_NodeND on the compressed graph of K without the fixed
+/// DOFs (vertex weights: the DOFs per vertex), then `last` in its given order. `k`
+/// stores both triangles and `last` holds distinct DOFs in range. None when an
+/// allocation fails, the graph does not fit METIS's 32-bit indices, or METIS
+/// reports an error.
+pub fn metis_with_last(k: &Csc, last: &[usize]) -> Option<(Vec<usize>, Vec<usize>)> {
+    let n = k.nrows;
+    let mut fixed = vec![false; n];
+    for &j in last {
+        fixed[j] = true;
+    }
+    let groups = compress(k, &fixed)?;
+    let ng = groups.start.len() - 1;
+    // The free groups, numbered 0..nv in the order of their first DOF.
+    let mut vertex = vec![NONE; ng];
+    let mut free = Vec::new();
+    for g in 0..ng {
+        if !fixed[groups.members[groups.start[g]]] {
+            vertex[g] = free.len();
+            free.push(g);
+        }
+    }
+    let nv = free.len();
+    let idx = |v: usize| idx_t::try_from(v).ok();
+    let mut xadj: Vec<idx_t> = Vec::new();
+    xadj.try_reserve_exact(nv + 1).ok()?;
+    xadj.push(0);
+    let mut adjncy: Vec<idx_t> = Vec::new();
+    let mut vwgt: Vec<idx_t> = Vec::new();
+    vwgt.try_reserve_exact(nv).ok()?;
+    let mut col: Vec<usize> = Vec::new();
+    for &g in &free {
+        let j = groups.members[groups.start[g]];
+        col.clear();
+        col.extend(
+            closed_pattern(k, j)
+                .map(|r| groups.group[r])
+                .filter(|&h| h != g && vertex[h] != NONE)
+                .map(|h| vertex[h]),
+        );
+        col.sort_unstable();
+        col.dedup();
+        adjncy.try_reserve(col.len()).ok()?;
+        for &v in &col {
+            adjncy.push(idx(v)?);
+        }
+        xadj.push(idx(adjncy.len())?);
+        vwgt.push(idx(groups.start[g + 1] - groups.start[g])?);
+    }
+    let order = node_nd(nv, &mut xadj, &mut adjncy, &mut vwgt)?;
+    drop((xadj, adjncy, vwgt));
+    let mut fwd = Vec::new();
+    fwd.try_reserve_exact(n).ok()?;
+    for v in order {
+        let g = free[v];
+        fwd.extend_from_slice(&groups.members[groups.start[g]..groups.start[g + 1]]);
+    }
+    fwd.extend_from_slice(last);
+    let mut inv = vec![0usize; n];
+    for (new, &old) in fwd.iter().enumerate() {
+        inv[old] = new;
+    }
+    Some((fwd, inv))
+}
+
+/// METIS_NodeND on the graph (`xadj`, `adjncy`, `vwgt`) of `nv` vertices: the
+/// vertices in elimination order (new -> old). Graphs of up to two vertices need
+/// no ordering (and METIS wants at least one).
+fn node_nd(
+    nv: usize,
+    xadj: &mut [idx_t],
+    adjncy: &mut [idx_t],
+    vwgt: &mut [idx_t],
+) -> Option<Vec<usize>> {
+    if nv <= 2 {
+        return Some((0..nv).collect());
+    }
+    let mut nvtxs = idx_t::try_from(nv).ok()?;
+    let mut options = [0 as idx_t; metis_sys::METIS_NOPTIONS as usize];
+    // SAFETY: `options` has METIS_NOPTIONS entries, all that METIS_SetDefaultOptions writes.
+    unsafe { metis_sys::METIS_SetDefaultOptions(options.as_mut_ptr()) };
+    options[metis_sys::moptions_et_METIS_OPTION_NUMBERING as usize] = 0;
+    let mut perm = vec![0 as idx_t; nv];
+    let mut iperm = vec![0 as idx_t; nv];
+    // SAFETY: xadj has nv + 1 entries, adjncy xadj[nv] (its length), vwgt, perm and
+    // iperm nv: the sizes METIS_NodeND reads and writes for nvtxs = nv; every index
+    // in adjncy is below nv, and METIS keeps no pointer after it returns.
+    let status = unsafe {
+        metis_sys::METIS_NodeND(
+            &mut nvtxs,
+            xadj.as_mut_ptr(),
+            adjncy.as_mut_ptr(),
+            vwgt.as_mut_ptr(),
+            options.as_mut_ptr(),
+            perm.as_mut_ptr(),
+            iperm.as_mut_ptr(),
+        )
+    };
+    if status != metis_sys::rstatus_et_METIS_OK {
+        return None;
+    }
+    // perm[new] = old (METIS manual: row i of the permuted matrix is row perm[i]).
+    let order: Option<Vec<usize>> = perm
+        .iter()
+        .map(|&v| usize::try_from(v).ok().filter(|&v| v < nv))
+        .collect();
+    let order = order?;
+    // A permutation, or nothing (never trust an index from C blindly).
+    let mut seen = vec![false; nv];
+    for &v in &order {
+        if std::mem::replace(&mut seen[v], true) {
+            return None;
+        }
+    }
+    Some(order)
 }
 
 #[cfg(test)]
@@ -322,7 +448,13 @@ mod tests {
                 .collect();
             let (fwd, _) = amd_with_last(&k, &last).unwrap();
             assert_eq!(&fwd[fwd.len() - last.len()..], &last[..]);
-            let f = Factor::with_last(&k, &last).unwrap();
+            let f = Factor::with_last(
+                &k,
+                &last,
+                crate::Ordering::Auto,
+                std::sync::Arc::new(crate::threads::Threads::sequential()),
+            )
+            .unwrap();
             sizes.push(f.nnz_and_flops());
         }
         assert_eq!(sizes[0], sizes[1]);

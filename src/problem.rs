@@ -11,6 +11,8 @@ use crate::options::{DualForm, Options};
 use crate::report::Report;
 use crate::report::{SolveStatus, contact_states, natural_map_error};
 use crate::sparse::{Csc, MatrixView};
+use crate::threads::Threads;
+use std::sync::Arc;
 use std::time::{Duration, Instant};
 
 /// The result of one solve.
@@ -39,6 +41,9 @@ pub struct ContactProblem {
     u_hist: Vec<f64>,
     lam_hist: Vec<f64>,
 }
+
+/// The largest `Options::threads` accepted (a guard against garbage values).
+const MAX_THREADS: usize = 4096;
 
 /// Times the dual error is tightened when the error measured on the recovered u
 /// misses the tolerance although the dual one met it (rounding in A).
@@ -77,7 +82,8 @@ fn norm(x: &[f64]) -> f64 {
 
 impl ContactProblem {
     /// Validates K (symmetric, any storage), N (m x n) and T ((d-1) m x n), factors
-    /// K and builds the condensed dual. d must be 2 or 3.
+    /// K and builds the condensed dual, with the default options (see
+    /// [`ContactProblem::with_options`]). d must be 2 or 3.
     ///
     /// Errors: `BadArgument` (d), `BadSize` (shapes), `BadIndex`, `NotFinite`,
     /// `NotSymmetric`, `NotPositiveDefinite`, `OutOfMemory`.
@@ -87,17 +93,38 @@ impl ContactProblem {
         n: &MatrixView<'_>,
         t: &MatrixView<'_>,
     ) -> Result<Self> {
+        Self::with_options(d, k, n, t, &Options::default())
+    }
+
+    /// As [`ContactProblem::new`], with `opts.ordering` for K's factorisation and
+    /// `opts.threads` for the problem's thread pool, which every later call
+    /// (refactor, solve, step) uses. The other fields are only checked here.
+    ///
+    /// Errors: those of `new`, and `BadArgument` for invalid options.
+    pub fn with_options(
+        d: usize,
+        k: &MatrixView<'_>,
+        n: &MatrixView<'_>,
+        t: &MatrixView<'_>,
+        opts: &Options,
+    ) -> Result<Self> {
         check_d(d)?;
         let k = Csc::symmetric_from_view(k, "K")?;
         let n = Csc::from_view(n, "N")?;
         let t = Csc::from_view(t, "T")?;
-        Self::from_csc(d, k, n, t)
+        Self::from_csc_with(d, k, n, t, opts)
     }
 
     /// As [`ContactProblem::new`], from matrices already in internal form (`k` holds
     /// both triangles).
     pub fn from_csc(d: usize, k: Csc, n: Csc, t: Csc) -> Result<Self> {
+        Self::from_csc_with(d, k, n, t, &Options::default())
+    }
+
+    /// As [`ContactProblem::with_options`], from matrices in internal form.
+    pub fn from_csc_with(d: usize, k: Csc, n: Csc, t: Csc, opts: &Options) -> Result<Self> {
         check_d(d)?;
+        Self::check_options(opts)?;
         if k.nrows != k.ncols {
             return fail(
                 ErrorKind::BadSize,
@@ -106,7 +133,9 @@ impl ContactProblem {
         }
         check_shapes(k.nrows, d, &n, &t)?;
         // Contact DOFs last, so that the factor's trailing block condenses K onto them.
-        let factor = Factor::with_last(&k, &contact_dofs(&stack_rows(&n, &t)))?;
+        let threads = Arc::new(Threads::new(opts.threads)?);
+        let last = contact_dofs(&stack_rows(&n, &t));
+        let factor = Factor::with_last(&k, &last, opts.ordering, threads)?;
         let dual = Dual::build(&factor, &n, &t, d, DualForm::Auto)?;
         let ndof = k.nrows;
         let c = dual.c;
@@ -233,6 +262,12 @@ impl ContactProblem {
         Ok(())
     }
 
+    /// The number of threads the problem's pool has (1: no pool, the calling
+    /// thread only).
+    pub fn threads(&self) -> usize {
+        self.factor.threads().count()
+    }
+
     fn check_options(opts: &Options) -> Result<()> {
         if !(opts.tol.is_finite() && opts.tol > 0.0) {
             return fail(
@@ -249,6 +284,15 @@ impl ContactProblem {
                 format!(
                     "max_seconds = {} must be finite and >= 0 (0: no limit)",
                     opts.max_seconds
+                ),
+            );
+        }
+        if opts.threads > MAX_THREADS {
+            return fail(
+                ErrorKind::BadArgument,
+                format!(
+                    "threads = {} is more than {MAX_THREADS} (0: all cores)",
+                    opts.threads
                 ),
             );
         }
@@ -440,6 +484,7 @@ impl ContactProblem {
             End::TimeLimit => SolveStatus::TimeLimit,
             End::Converged | End::Limit | End::Infeasible => SolveStatus::NotConverged,
         };
+        let (factor_nnz, factor_flops) = self.factor.nnz_and_flops();
         Ok(Solution {
             u,
             lambda_n: lam[..m].to_vec(),
@@ -458,6 +503,10 @@ impl ContactProblem {
                 factor_seconds: self.factor.factor_seconds,
                 condense_seconds: self.dual.condense_seconds,
                 solve_seconds: start.elapsed().as_secs_f64(),
+                ordering: self.factor.ordering(),
+                factor_nnz,
+                factor_flops,
+                threads: self.threads(),
             },
         })
     }

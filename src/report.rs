@@ -81,6 +81,16 @@ pub struct Report {
     pub condense_seconds: f64,
     /// Seconds of this solve: right-hand side, iterations and recovery of u.
     pub solve_seconds: f64,
+    /// The fill-reducing ordering K's factor was computed with (`Amd` or `Metis`;
+    /// `Options::ordering` = `Auto` picks one).
+    pub ordering: crate::Ordering,
+    /// Nonzeros of the Cholesky factor L (dense supernodal blocks included).
+    pub factor_nnz: usize,
+    /// Flops of one numeric factorisation of K, sum over the columns of L of
+    /// (entries in the column)^2.
+    pub factor_flops: f64,
+    /// Threads the problem's pool has (1: the calling thread only).
+    pub threads: usize,
 }
 
 /// The natural-map error of docs/design.md section 5 for the dual unknowns

@@ -20,9 +20,10 @@
 mod common;
 
 use common::{Kkt, Mesh, Scene, dense_solve, kkt, kkt_of, max_diff, norm_inf, opts, sym_cond};
-use dualsplit::internals::Factor;
 use dualsplit::internals::{Condensation, Dual, contact_dofs, stack_rows};
+use dualsplit::internals::{Factor, Threads};
 use dualsplit::{ContactProblem, Csc, Friction, Method, Options, Solution, SolveStatus};
+use std::sync::Arc;
 
 // ---------------------------------------------------------------------------------
 // Running every method and printing the table
@@ -333,7 +334,13 @@ fn conds(pb: &ContactProblem, lambda_n: &[f64]) -> Conds {
 fn a_two_ways(data: &Data) -> (f64, f64) {
     let f0 = Factor::new(&data.k).expect("K factors");
     let last = contact_dofs(&stack_rows(&data.n, &data.t));
-    let f1 = Factor::with_last(&data.k, &last).expect("K factors");
+    let f1 = Factor::with_last(
+        &data.k,
+        &last,
+        dualsplit::Ordering::Auto,
+        Arc::new(Threads::new(1).expect("no pool")),
+    )
+    .expect("K factors");
     let a0 = Dual::build_with(&f0, &data.n, &data.t, data.d, Condensation::Solves).unwrap();
     let a1 = Dual::build_with(&f1, &data.n, &data.t, data.d, Condensation::TrailingBlock).unwrap();
     let (a0, a1) = (a0.dense().unwrap(), a1.dense().unwrap());

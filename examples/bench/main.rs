@@ -42,14 +42,15 @@ mod report;
 mod row;
 mod scene;
 
-use dualsplit::internals::Factor;
 use dualsplit::internals::{Condensation, Dual, contact_dofs, stack_rows};
+use dualsplit::internals::{Factor, Threads};
 use dualsplit::{ContactProblem, DENSE_MAX, DualForm, Friction, Method, Options, SolveStatus};
 use row::{Part, Row, median, peak_mb, reset_peak, rss_mb};
 use scene::{Scene, Spec};
 use std::io::Write as _;
 use std::path::PathBuf;
 use std::process::Command;
+use std::sync::Arc;
 use std::time::Instant;
 
 /// Tolerances of the work-precision series.
@@ -597,7 +598,13 @@ fn child_free(cfg: &Config, spec: Spec) -> Vec<Row> {
         } else {
             let ((fac, dual), t) = time(|| {
                 let last = contact_dofs(&stack_rows(&sc.n, &sc.t));
-                let fac = Factor::with_last(&sc.k, &last).expect("K is SPD");
+                let fac = Factor::with_last(
+                    &sc.k,
+                    &last,
+                    dualsplit::Ordering::Auto,
+                    Arc::new(Threads::new(1).expect("no pool")),
+                )
+                .expect("K is SPD");
                 let dual = Dual::build(&fac, &sc.n, &sc.t, d, DualForm::MatrixFree).expect("fits");
                 (fac, dual)
             });

@@ -4,7 +4,9 @@
 
 use dualsplit::mtx::{self, ProblemFolder};
 
-use dualsplit::{ContactProblem, DualForm, Error, ErrorKind, Method, Options, Report, SolveStatus};
+use dualsplit::{
+    ContactProblem, DualForm, Error, ErrorKind, Method, Options, Ordering, Report, SolveStatus,
+};
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
@@ -14,7 +16,7 @@ const HELP: &str = "\
 dualsplit: frictional contact solver (Signorini + Tresca or Coulomb friction)
 
 USAGE:
-    dualsplit solve DIR --out OUTDIR [--method NAME] [--tol X] [--max-iter N] [--max-seconds S] [--stall-window N] [--stall-factor X] [--dual-form F] [--verbose] [--quiet]
+    dualsplit solve DIR --out OUTDIR [--method NAME] [--tol X] [--max-iter N] [--max-seconds S] [--stall-window N] [--stall-factor X] [--dual-form F] [--ordering O] [--threads N] [--verbose] [--quiet]
     dualsplit --help
     dualsplit --version
 
@@ -60,6 +62,10 @@ OPTIONS:
     --dual-form F     auto (default), dense or matrix-free: whether the condensed dual
                       A is assembled (dense while d m <= 8000) or applied through K's
                       factor; matrix-free runs only with --method mprgp
+    --ordering O      auto (default), amd or metis: the fill-reducing ordering of K
+                      (auto keeps whichever needs fewer flops)
+    --threads N       threads for the factorisation and the dense kernels: 0 for all
+                      cores (default), 1 for this thread only
     --verbose         print the problem sizes and the timings of every stage
     --quiet           print nothing but errors (no progress, no summary)
     -h, --help        print this help
@@ -90,6 +96,11 @@ OUTPUT (OUTDIR):
         read_seconds, factor_seconds, condense_seconds, solve_seconds
                             times of reading DIR, of the Cholesky factorisation of K,
                             of forming the condensed dual, and of the iterations
+        ordering, factor_nnz, factor_flops
+                            the ordering K was factored with (amd or metis), the
+                            nonzeros of its Cholesky factor and the flops of one
+                            factorisation
+        threads             threads the solve could use
     Numbers are written with full precision (shortest round-trip form). The four
     files left in OUTDIR by an earlier run are removed first; on an error only
     report.json is written (when OUTDIR can be written).
@@ -217,6 +228,8 @@ fn parse_args(args: &[String]) -> Result<Command, String> {
                 | "--stall-window"
                 | "--stall-factor"
                 | "--dual-form"
+                | "--ordering"
+                | "--threads"
         ) {
             return Err(format!("unknown option \"{name}\""));
         }
@@ -240,6 +253,20 @@ fn parse_args(args: &[String]) -> Result<Command, String> {
                         names.join(", ")
                     )
                 })?;
+            }
+            "--ordering" => {
+                opts.ordering = Ordering::from_name(&value).ok_or_else(|| {
+                    format!("unknown ordering \"{value}\": expected one of auto, amd, metis")
+                })?;
+            }
+            "--threads" => {
+                opts.threads = value
+                    .parse::<usize>()
+                    .ok()
+                    .filter(|&t| t <= 4096)
+                    .ok_or_else(|| {
+                        format!("--threads \"{value}\": expected an integer from 0 to 4096")
+                    })?;
             }
             "--dual-form" => {
                 opts.dual_form = DualForm::from_name(&value).ok_or_else(|| {
@@ -448,6 +475,10 @@ fn success_report(args: &SolveArgs, pf: &Sizes, r: &Report, read_s: f64) -> Stri
     j.number("factor_seconds", r.factor_seconds);
     j.number("condense_seconds", r.condense_seconds);
     j.number("solve_seconds", r.solve_seconds);
+    j.string("ordering", r.ordering.name());
+    j.integer("factor_nnz", r.factor_nnz);
+    j.number("factor_flops", r.factor_flops);
+    j.integer("threads", r.threads);
     j.finish()
 }
 
@@ -540,7 +571,7 @@ fn solve(args: &SolveArgs) -> ExitCode {
         ..
     } = pf;
     let t1 = Instant::now();
-    let mut problem = match ContactProblem::from_csc(d, k, nmat, t) {
+    let mut problem = match ContactProblem::from_csc_with(d, k, nmat, t, &args.opts) {
         Ok(p) => p,
         Err(e) => return fail_run(args, Some(&sizes), &e),
     };
@@ -641,6 +672,14 @@ fn print_summary(args: &SolveArgs, sizes: &Sizes, r: &dualsplit::Report, read_s:
         "contacts", r.n_open, r.n_stick, r.n_slip
     );
     println!(
+        "  {:<22}{}, nnz(L) {:.3e}, {:.3e} flops, {} thread(s)",
+        "factor",
+        r.ordering.name(),
+        r.factor_nnz as f64,
+        r.factor_flops,
+        r.threads
+    );
+    println!(
         "  {:<22}factor {:.3e}, condense {:.3e}, solve {:.3e}",
         "seconds", r.factor_seconds, r.condense_seconds, r.solve_seconds
     );
@@ -708,7 +747,7 @@ fn main() -> ExitCode {
         Err(msg) => {
             eprintln!("dualsplit: error: {msg}");
             eprintln!(
-                "usage: dualsplit solve DIR --out OUTDIR [--method NAME] [--tol X] [--max-iter N] [--max-seconds S] [--stall-window N] [--stall-factor X] [--dual-form F] [--verbose] [--quiet]"
+                "usage: dualsplit solve DIR --out OUTDIR [--method NAME] [--tol X] [--max-iter N] [--max-seconds S] [--stall-window N] [--stall-factor X] [--dual-form F] [--ordering O] [--threads N] [--verbose] [--quiet]"
             );
             eprintln!("       dualsplit --help");
             ExitCode::from(EXIT_USAGE)

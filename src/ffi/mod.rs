@@ -35,11 +35,11 @@ pub use monitor::{DsLogFn, DsMonitorFn, DsProgress};
 pub use options::{DsOptions, ds_options_default, ds_options_init};
 pub use problem::{
     DsProblem, ds_history_reset, ds_problem_dump, ds_problem_free, ds_problem_new,
-    ds_problem_refactor, ds_problem_set_contacts, ds_problem_set_log, ds_problem_set_monitor,
-    ds_problem_sizes,
+    ds_problem_new_opts, ds_problem_refactor, ds_problem_set_contacts, ds_problem_set_log,
+    ds_problem_set_monitor, ds_problem_sizes,
 };
 pub use report::DsReport;
 pub use solve::{ds_solve, ds_step};
 pub use status::{DsStatus, ds_status_string};
-pub use types::{DsDualForm, DsFormat, DsFriction, DsIndexType, DsMethod, DsStorage};
+pub use types::{DsDualForm, DsFormat, DsFriction, DsIndexType, DsMethod, DsOrdering, DsStorage};
 pub use version::ds_version;

@@ -3,7 +3,7 @@
 
 use super::boundary::entry;
 use super::status::DsStatus;
-use super::types::{CEnum, DsDualForm, DsMethod};
+use super::types::{CEnum, DsDualForm, DsMethod, DsOrdering};
 use crate::error::{Error, ErrorKind, Result};
 use crate::options::Options;
 use std::panic::{AssertUnwindSafe, catch_unwind};
@@ -14,14 +14,16 @@ use std::panic::{AssertUnwindSafe, catch_unwind};
 ///
 /// The struct grows at its end from version to version; struct_size says which
 /// version the caller was compiled against, and the library reads no byte past
-/// it: 32 (version 0.1: up to max_inner), 40 (0.2: up to dual_form) and 64 (0.3)
-/// are accepted, the fields an older struct lacks take their defaults.
+/// it: 32 (version 0.1: up to max_inner), 40 (0.2: up to dual_form), 64 (0.3: up
+/// to stall_factor) and 72 (0.4) are accepted, the fields an older struct lacks
+/// take their defaults.
 ///
 /// Errors when read: DS_STATUS_BAD_ARGUMENT if struct_size is not one of those
 /// sizes, method is not a DsMethod, tol is not finite and positive, max_outer is
 /// negative, max_inner is not positive, dual_form is not a DsDualForm,
-/// max_seconds is negative or not finite, stall_window is negative, or
-/// stall_factor is not in (0, 1].
+/// max_seconds is negative or not finite, stall_window is negative,
+/// stall_factor is not in (0, 1], threads is negative or above 4096, or ordering
+/// is not a DsOrdering.
 #[repr(C)]
 #[derive(Copy, Clone, Debug, PartialEq)]
 pub struct DsOptions {
@@ -59,6 +61,18 @@ pub struct DsOptions {
     /// iterations to count as progress whatever max_outer, in (0, 1] (default 0.9:
     /// by 10 %). Added in version 0.3.
     pub stall_factor: f64,
+    /// Threads for the factorisation, the condensation and the dense kernels:
+    /// 0 for all cores (default), 1 for the calling thread only (the library
+    /// starts no thread), k for at most k (k <= 4096). Each handle owns its pool,
+    /// so handles used in different threads of a program do not compete for one.
+    /// Read by ds_problem_new_opts (ds_problem_new: 0); the handle keeps its
+    /// pool for every later call, and ds_solve / ds_step ignore the field. With
+    /// 1, results are bit-identical from run to run. Added in version 0.4.
+    pub threads: i32,
+    /// A DsOrdering value (default DS_ORDERING_AUTO): the fill-reducing ordering
+    /// of K, used when K is analysed, by ds_problem_new_opts (ds_problem_refactor
+    /// keeps the analysis; ds_solve and ds_step ignore it). Added in version 0.4.
+    pub ordering: i32,
 }
 
 /// sizeof(DsOptions) of version 0.1 (struct_size, method, tol, max_outer,
@@ -66,6 +80,8 @@ pub struct DsOptions {
 const V01_SIZE: usize = 32;
 /// sizeof(DsOptions) of version 0.2 (and dual_form, padded to 8 bytes).
 const V02_SIZE: usize = 40;
+/// sizeof(DsOptions) of version 0.3 (and max_seconds, stall_window, stall_factor).
+const V03_SIZE: usize = 64;
 /// sizeof(DsOptions) now.
 const SIZE: usize = std::mem::size_of::<DsOptions>();
 
@@ -99,6 +115,8 @@ impl DsOptions {
             max_seconds: opts.max_seconds,
             stall_window: i64::try_from(opts.stall_window).unwrap_or(i64::MAX),
             stall_factor: opts.stall_factor,
+            threads: i32::try_from(opts.threads).unwrap_or(i32::MAX),
+            ordering: DsOrdering::from(opts.ordering) as i32,
         }
     }
 
@@ -109,6 +127,7 @@ impl DsOptions {
         let bad = |msg: String| Error::new(ErrorKind::BadArgument, msg);
         let method = DsMethod::parse(self.method, "opts.method")?;
         let dual_form = DsDualForm::parse(self.dual_form, "opts.dual_form")?;
+        let ordering = DsOrdering::parse(self.ordering, "opts.ordering")?;
         if !(self.tol.is_finite() && self.tol > 0.0) {
             return Err(bad(format!(
                 "opts.tol = {} must be finite and positive",
@@ -143,6 +162,8 @@ impl DsOptions {
             max_seconds: self.max_seconds,
             stall_window: count(self.stall_window, "stall_window", 0)?,
             stall_factor: self.stall_factor,
+            threads: count(i64::from(self.threads), "threads", 0)?,
+            ordering: ordering.into(),
         })
     }
 
@@ -168,12 +189,12 @@ impl DsOptions {
         // SAFETY: non-NULL and aligned; the first field is present whatever the
         // version of the caller's struct.
         let size = unsafe { std::ptr::addr_of!((*ptr).struct_size).read() } as usize;
-        if ![V01_SIZE, V02_SIZE, SIZE].contains(&size) {
+        if ![V01_SIZE, V02_SIZE, V03_SIZE, SIZE].contains(&size) {
             return Err(Error::new(
                 ErrorKind::BadArgument,
                 format!(
                     "opts.struct_size = {size} is not the size of a DsOptions of any version \
-                     ({V01_SIZE}, {V02_SIZE} or {SIZE}): initialise the options with \
+                     ({V01_SIZE}, {V02_SIZE}, {V03_SIZE} or {SIZE}): initialise the options with \
                      ds_options_init(&opts, sizeof opts)"
                 ),
             ));
@@ -193,6 +214,7 @@ impl DsOptions {
             // The 4 bytes after max_inner were never the caller's: the default.
             value.dual_form = DsDualForm::Auto as i32;
         }
+        // Fields past `size` keep the defaults `value` was made with.
         value.to_options()
     }
 }
@@ -228,12 +250,12 @@ pub unsafe extern "C" fn ds_options_init(opts: *mut DsOptions, size: usize) -> D
                 format!("argument opts = {opts:p} is not aligned"),
             ));
         }
-        if ![V01_SIZE, V02_SIZE, SIZE].contains(&size) {
+        if ![V01_SIZE, V02_SIZE, V03_SIZE, SIZE].contains(&size) {
             return Err(Error::new(
                 ErrorKind::BadArgument,
                 format!(
                     "size = {size} is not the size of a DsOptions of any version \
-                     ({V01_SIZE}, {V02_SIZE} or {SIZE})"
+                     ({V01_SIZE}, {V02_SIZE}, {V03_SIZE} or {SIZE})"
                 ),
             ));
         }
@@ -311,7 +333,7 @@ mod tests {
 
     #[test]
     fn init_fills_the_callers_size_and_nothing_past_it() {
-        for size in [V01_SIZE, V02_SIZE, SIZE] {
+        for size in [V01_SIZE, V02_SIZE, V03_SIZE, SIZE] {
             // A guard region after the caller's struct.
             let mut buf = [0xA5u8; 128];
             // An aligned start inside buf.

@@ -7,6 +7,7 @@
 use super::boundary::{OutArray, entry, ref_in, ref_mut, slice_in};
 use super::matrix::DsMatrix;
 use super::monitor::{DsLogFn, DsMonitorFn, LOG_ITERATIONS, LOG_SILENT, Watch};
+use super::options::DsOptions;
 use super::status::DsStatus;
 use super::types::{CEnum, DsFriction};
 use crate::error::{Error, ErrorKind, Result};
@@ -89,7 +90,52 @@ pub unsafe extern "C" fn ds_problem_new(
     })
 }
 
-/// Frees a handle created by ds_problem_new. NULL is a no-op. The handle must not be
+/// As ds_problem_new, with the options that apply to the handle itself: opts->threads
+/// (the handle's own thread pool, used by every later call on it) and
+/// opts->ordering (the fill-reducing ordering of K). The other fields are checked
+/// as ds_solve checks them, and not kept. opts = NULL: the defaults, as
+/// ds_problem_new.
+///
+/// Returns what ds_problem_new returns; DS_STATUS_BAD_ARGUMENT also for invalid
+/// options (see DsOptions).
+///
+/// # Safety
+/// As ds_problem_new; opts must be NULL or point to a DsOptions initialised with
+/// ds_options_init (at least struct_size readable bytes).
+#[unsafe(no_mangle)]
+pub unsafe extern "C" fn ds_problem_new_opts(
+    d: i32,
+    k: *const DsMatrix,
+    n: *const DsMatrix,
+    t: *const DsMatrix,
+    opts: *const DsOptions,
+    out: *mut *mut DsProblem,
+) -> DsStatus {
+    entry("ds_problem_new_opts", || {
+        // SAFETY: pointer validity is this function's contract; NULL is rejected.
+        let (k, n, t, out) = unsafe {
+            (
+                ref_in(k, "k")?,
+                ref_in(n, "n")?,
+                ref_in(t, "t")?,
+                ref_mut(out, "out")?,
+            )
+        };
+        // SAFETY: opts is NULL or a readable DsOptions prefix (contract).
+        let opts = unsafe { DsOptions::read(opts)? };
+        let d = dimension(d)?;
+        // SAFETY: the matrices' arrays match their fields (contract).
+        let (kv, nv, tv) = unsafe { (k.view("K")?, n.view("N")?, t.view("T")?) };
+        let inner = ContactProblem::with_options(d, &kv, &nv, &tv, &opts)?;
+        *out = Box::into_raw(Box::new(DsProblem {
+            inner,
+            watch: Watch::default(),
+        }));
+        Ok(())
+    })
+}
+
+/// Frees a handle created by ds_problem_new or ds_problem_new_opts. NULL is a no-op. The handle must not be
 /// used afterwards.
 ///
 /// # Safety

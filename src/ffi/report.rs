@@ -13,7 +13,7 @@ use crate::report::{Report, SolveStatus};
 /// Versions: fields are only ever appended. The library writes the fields of the
 /// version whose DsOptions the caller passed (DsOptions.struct_size identifies the
 /// header a program was built with; with opts = NULL, the fields of version 0.1),
-/// so a program's DsReport is never written past its end. Versions 0.1 to 0.3 have
+/// so a program's DsReport is never written past its end. Versions 0.1 to 0.4 have
 /// the same 88-byte report.
 #[repr(C)]
 #[derive(Copy, Clone, Debug, PartialEq)]

@@ -4,7 +4,7 @@
 //! header (cbindgen.toml `[export] include`).
 
 use crate::error::{Error, ErrorKind, Result};
-use crate::options::{DualForm, Method};
+use crate::options::{DualForm, Method, Ordering};
 use crate::sparse::{Format, Storage};
 
 /// Layout of a DsMatrix (its `format` field), named as in CSparse.
@@ -87,6 +87,20 @@ pub enum DsDualForm {
     /// block of K's factor (the contact DOFs ordered last); only DS_METHOD_MPRGP
     /// runs this way (the others: DS_STATUS_BAD_ARGUMENT).
     MatrixFree = 2,
+}
+
+/// The fill-reducing ordering of K's factorisation (DsOptions field `ordering`,
+/// read by ds_problem_new_opts; as CHOLMOD's ordering policy or MUMPS's ICNTL(7)).
+#[repr(C)]
+#[derive(Copy, Clone, Debug, PartialEq, Eq)]
+pub enum DsOrdering {
+    /// Whichever of AMD and METIS gives the factor with fewer flops (both symbolic
+    /// analyses run; AMD on a tie). The default.
+    Auto = 0,
+    /// Approximate minimum degree.
+    Amd = 1,
+    /// Nested dissection (METIS_NodeND, METIS 5 built into the library).
+    Metis = 2,
 }
 
 /// Friction law of one increment (the `friction` argument of ds_solve / ds_step).
@@ -181,6 +195,35 @@ impl CEnum for DsDualForm {
         (DsDualForm::Dense, "DS_DUAL_FORM_DENSE"),
         (DsDualForm::MatrixFree, "DS_DUAL_FORM_MATRIX_FREE"),
     ];
+}
+
+impl CEnum for DsOrdering {
+    const NAME: &'static str = "DsOrdering";
+    const ALL: &'static [(Self, &'static str)] = &[
+        (DsOrdering::Auto, "DS_ORDERING_AUTO"),
+        (DsOrdering::Amd, "DS_ORDERING_AMD"),
+        (DsOrdering::Metis, "DS_ORDERING_METIS"),
+    ];
+}
+
+impl From<DsOrdering> for Ordering {
+    fn from(o: DsOrdering) -> Ordering {
+        match o {
+            DsOrdering::Auto => Ordering::Auto,
+            DsOrdering::Amd => Ordering::Amd,
+            DsOrdering::Metis => Ordering::Metis,
+        }
+    }
+}
+
+impl From<Ordering> for DsOrdering {
+    fn from(o: Ordering) -> DsOrdering {
+        match o {
+            Ordering::Auto => DsOrdering::Auto,
+            Ordering::Amd => DsOrdering::Amd,
+            Ordering::Metis => DsOrdering::Metis,
+        }
+    }
 }
 
 impl From<DsDualForm> for DualForm {

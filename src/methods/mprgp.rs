@@ -25,6 +25,8 @@ pub(super) struct ConvexQp<'a> {
     pub n_nonneg: usize,
     pub block: usize,
     pub radii: &'a [f64],
+    /// The problem's threads, for the products with H.
+    pub threads: &'a crate::threads::Threads,
 }
 
 /// Relative distance to the boundary under which a disk block counts as active.
@@ -95,7 +97,7 @@ impl ConvexQp<'_> {
     fn apply(&self, x: &[f64], y: &mut [f64]) {
         match self.op {
             Some(op) => op.apply(x, y),
-            None => crate::dual::leading_block_apply(self.h, self.ld, x, y),
+            None => crate::dual::leading_block_apply(self.h, self.ld, x, y, self.threads),
         }
     }
 
@@ -381,6 +383,8 @@ impl ConvexQp<'_> {
 mod tests {
     use super::*;
 
+    static SEQ: crate::threads::Threads = crate::threads::Threads::SEQUENTIAL;
+
     /// A small SPD matrix with off-diagonal coupling.
     fn spd(k: usize) -> Vec<f64> {
         let mut h = vec![0.0; k * k];
@@ -410,6 +414,7 @@ mod tests {
             n_nonneg: k,
             block: 1,
             radii: &[],
+            threads: &SEQ,
         };
         let mut x = vec![0.0; k];
         let its = qp.solve(&mut x, 1e-14, 1000).expect("bounded");
@@ -442,6 +447,7 @@ mod tests {
             n_nonneg: 2,
             block: 2,
             radii: &radii,
+            threads: &SEQ,
         };
         let mut x = vec![0.0; k];
         let its = qp.solve(&mut x, 1e-13, 2000).expect("bounded");
@@ -488,6 +494,7 @@ mod tests {
             n_nonneg: 2,
             block: 1,
             radii: &[],
+            threads: &SEQ,
         }
     }
 

@@ -44,9 +44,10 @@
 use super::DualProblem;
 use super::driver::{Flow, Gradient, OuterStep};
 use super::pgs;
+use crate::dense;
 use crate::friction::Friction;
+use crate::threads::{PARALLEL_MIN_ENTRIES, Threads};
 use faer::Mat;
-use faer::prelude::Solve;
 
 /// Gauss-Seidel sweeps taken when a Newton step is rejected.
 const FALLBACK_SWEEPS: usize = 5;
@@ -272,7 +273,7 @@ fn newton_step(
     let symmetric = red
         .iter()
         .all(|u| u.n_test == u.n_dir && u.test[..u.n_test] == u.dir[..u.n_dir]);
-    let Some(z) = solve_reduced(&mat, &rhs, symmetric) else {
+    let Some(z) = solve_reduced(&mat, &rhs, symmetric, &dual.threads) else {
         return false;
     };
     for (l, u) in red.iter().enumerate() {
@@ -288,7 +289,12 @@ fn newton_step(
 /// singular (the solution is not finite or much larger than M and rhs warrant),
 /// then by the minimum-norm least-squares solution with singular values below
 /// RCOND sigma_max dropped. None when no finite solution is found.
-fn solve_reduced(mat: &Mat<f64>, rhs: &Mat<f64>, symmetric: bool) -> Option<Mat<f64>> {
+fn solve_reduced(
+    mat: &Mat<f64>,
+    rhs: &Mat<f64>,
+    symmetric: bool,
+    threads: &Threads,
+) -> Option<Mat<f64>> {
     let max_abs = |a: faer::MatRef<'_, f64>| {
         let mut v = 0.0f64;
         for j in 0..a.ncols() {
@@ -301,21 +307,22 @@ fn solve_reduced(mat: &Mat<f64>, rhs: &Mat<f64>, symmetric: bool) -> Option<Mat<
     let (mn, rn) = (max_abs(mat.as_ref()), max_abs(rhs.as_ref()));
     let acceptable =
         |z: &Mat<f64>| z.as_ref().is_all_finite() && mn * max_abs(z.as_ref()) * RCOND <= rn;
-    if symmetric && let Ok(llt) = mat.llt(faer::Side::Lower) {
-        let z = llt.solve(rhs);
-        if acceptable(&z) {
-            return Some(z);
-        }
+    let big = mat.nrows() * mat.ncols() >= PARALLEL_MIN_ENTRIES;
+    let (m, r) = (mat.as_ref(), rhs.as_ref());
+    if symmetric
+        && let Some(z) = threads.run(big, |par| dense::llt_solve(m, r, par))
+        && acceptable(&z)
+    {
+        return Some(z);
     }
-    let z = mat.partial_piv_lu().solve(rhs);
+    let z = threads.run(big, |par| dense::lu_solve(m, r, par));
     if acceptable(&z) {
         return Some(z);
     }
-    let svd = mat.thin_svd().ok()?;
-    let (u, sv, v) = (svd.U(), svd.S().column_vector(), svd.V());
-    let smax = (0..sv.nrows()).fold(0.0f64, |a, i| a.max(sv[i]));
+    let (u, sv, v) = threads.run(big, |par| dense::thin_svd(m, par))?;
+    let smax = sv.iter().fold(0.0f64, |a, &s| a.max(s));
     let mut z = Mat::<f64>::zeros(mat.ncols(), 1);
-    for l in 0..sv.nrows() {
+    for l in 0..sv.len() {
         if sv[l] > RCOND * smax {
             let coef = (0..u.nrows()).map(|r| u[(r, l)] * rhs[(r, 0)]).sum::<f64>() / sv[l];
             for r in 0..v.nrows() {
@@ -593,19 +600,20 @@ mod tests {
     #[test]
     fn the_reduced_solve_takes_cholesky_lu_or_least_squares_as_the_matrix_allows() {
         let rhs = mat(&[&[1.0], &[2.0]]);
+        let seq = Threads::sequential();
         // SPD: Cholesky; z solves M z = rhs.
         let spd = mat(&[&[4.0, 1.0], &[1.0, 3.0]]);
-        let z = solve_reduced(&spd, &rhs, true).unwrap();
+        let z = solve_reduced(&spd, &rhs, true, &seq).unwrap();
         assert!((4.0 * z[(0, 0)] + z[(1, 0)] - 1.0).abs() < 1e-15);
         assert!((z[(0, 0)] + 3.0 * z[(1, 0)] - 2.0).abs() < 1e-15);
         // Symmetric but indefinite: Cholesky fails, LU solves it: z = (2, 1).
         let indef = mat(&[&[0.0, 1.0], &[1.0, 0.0]]);
-        let z = solve_reduced(&indef, &rhs, true).unwrap();
+        let z = solve_reduced(&indef, &rhs, true, &seq).unwrap();
         assert!((z[(0, 0)] - 2.0).abs() < 1e-15 && (z[(1, 0)] - 1.0).abs() < 1e-15);
         // Singular: the minimum-norm least-squares solution of [1 1; 1 1] z = (1, 2)
         // is z = (0.75, 0.75).
         let sing = mat(&[&[1.0, 1.0], &[1.0, 1.0]]);
-        let z = solve_reduced(&sing, &rhs, true).unwrap();
+        let z = solve_reduced(&sing, &rhs, true, &seq).unwrap();
         assert!((z[(0, 0)] - 0.75).abs() < 1e-12 && (z[(1, 0)] - 0.75).abs() < 1e-12);
     }
 }

@@ -52,6 +52,7 @@ impl<S: SubSolver> OuterStep for Signorini<S> {
             block: 1,
             radii: None,
             op: dual.is_matrix_free().then_some(dual),
+            threads: &dual.threads,
         };
         let run = self.solver.solve(&qp, &mut lam[..m], &mut self.norm);
         Flow::after(run, inner, Gradient::Stale)

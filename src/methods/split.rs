@@ -30,9 +30,10 @@ use super::DualProblem;
 use super::driver::{Flow, Gradient, OuterStep};
 use super::pgs::Aitken;
 use super::subproblem::{SubQp, SubSolver};
+use crate::dense::llt_solve;
+use crate::threads::PARALLEL_MIN_ENTRIES;
 use faer::linalg::matmul::matmul;
-use faer::prelude::Solve;
-use faer::{Accum, Mat, Par, Side};
+use faer::{Accum, Mat};
 
 /// The Schur complement data of one contact set.
 struct Schur {
@@ -59,9 +60,10 @@ fn schur(problem: &DualProblem<'_>, active: &[bool]) -> Option<Schur> {
             problem.b[idx[r]]
         }
     });
+    let threads = &*dual.threads;
+    let big = na * (na + ct) >= PARALLEL_MIN_ENTRIES;
     let x = if na > 0 {
-        let llt = a11.llt(Side::Lower).ok()?;
-        let x = llt.solve(&rhs);
+        let x = threads.run(big, |par| llt_solve(a11.as_ref(), rhs.as_ref(), par))?;
         if !x.as_ref().is_all_finite() {
             return None;
         }
@@ -78,14 +80,10 @@ fn schur(problem: &DualProblem<'_>, active: &[bool]) -> Option<Schur> {
         }
     });
     if na > 0 {
-        matmul(
-            sq.as_mut(),
-            Accum::Add,
-            rhs.subcols(0, ct).transpose(),
-            x.as_ref(),
-            -1.0,
-            Par::Seq,
-        );
+        let lhs = rhs.subcols(0, ct).transpose();
+        threads.run(big, |par| {
+            matmul(sq.as_mut(), Accum::Add, lhs, x.as_ref(), -1.0, par);
+        });
     }
     let mut s = vec![0.0; ct * ct];
     for j in 0..ct {
@@ -195,6 +193,7 @@ impl<S: SubSolver> Split<S> {
             block: 1,
             radii: None,
             op: None,
+            threads: &dual.threads,
         };
         let run = self.solver.solve(&sub, &mut lam[..m], &mut self.norm_n);
         Flow::after(run, inner, Gradient::Stale)
@@ -230,6 +229,7 @@ impl<S: SubSolver> Split<S> {
                 block: d - 1,
                 radii: Some(&self.p),
                 op: None,
+                threads: &dual.threads,
             },
             _ => {
                 // q_T = b_T - A21 lambda_N
@@ -248,6 +248,7 @@ impl<S: SubSolver> Split<S> {
                     block: d - 1,
                     radii: Some(&self.p),
                     op: None,
+                    threads: &dual.threads,
                 }
             }
         };

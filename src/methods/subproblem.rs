@@ -8,6 +8,7 @@
 use super::mprgp::{ConvexQp, Scratch, Unbounded};
 use super::projection::{project_disk, solve_disk_qp};
 use crate::dual::Dual;
+use crate::threads::Threads;
 
 /// w += delta * col.
 #[inline]
@@ -31,6 +32,8 @@ pub(super) struct SubQp<'a> {
     /// The whole condensed dual by its products instead of `h` (matrix-free; only
     /// for MPRGP, and only when k = c and H = A).
     pub op: Option<&'a Dual>,
+    /// The problem's threads, for the products with H.
+    pub threads: &'a Threads,
 }
 
 impl<'a> SubQp<'a> {
@@ -49,6 +52,7 @@ impl<'a> SubQp<'a> {
             n_nonneg,
             block: self.block,
             radii,
+            threads: self.threads,
         }
     }
 

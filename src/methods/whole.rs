@@ -62,6 +62,7 @@ impl OuterStep for WholeMprgp {
             n_nonneg: m,
             block: dual.d - 1,
             radii: &self.radii,
+            threads: &dual.threads,
         };
         let run = self.solver.solve_convex(&qp, lam, &mut self.norm);
         Flow::after(run, inner, Gradient::Stale)
