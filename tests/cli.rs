@@ -419,6 +419,41 @@ fn matrix_free_dual_form_from_the_command_line() {
 }
 
 #[test]
+fn ordering_and_threads_from_the_command_line() {
+    let dir = TempDir::new("ordering");
+    let prob = dir.path().join("problem");
+    write(&prob, &problem(3, 4), true);
+    let mut answers = Vec::new();
+    for ordering in ["amd", "metis", "auto"] {
+        let out = dir.path().join(format!("out-{ordering}"));
+        let o = run(&[
+            "solve",
+            prob.to_str().unwrap(),
+            "--out",
+            out.to_str().unwrap(),
+            "--ordering",
+            ordering,
+            "--threads",
+            "1",
+            "--quiet",
+        ]);
+        assert_eq!(o.status.code(), Some(0), "{}", text(&o.stderr));
+        let r = report(&out);
+        if ordering != "auto" {
+            assert_eq!(string(&r, "ordering"), ordering);
+        }
+        assert_eq!(num(&r, "threads"), 1.0);
+        assert!(num(&r, "factor_flops") > 0.0 && num(&r, "factor_nnz") > 0.0);
+        answers.push(std::fs::read_to_string(out.join("u.txt")).unwrap());
+    }
+    let u: Vec<Vec<f64>> = answers
+        .iter()
+        .map(|t| t.lines().map(|l| l.trim().parse().unwrap()).collect())
+        .collect();
+    assert!(close(&u[0], &u[1]), "AMD and METIS give the same u");
+}
+
+#[test]
 fn verbose_prints_more() {
     let dir = TempDir::new("verbose");
     let prob = dir.path().join("problem");
@@ -502,7 +537,12 @@ fn help_documents_everything() {
         let h = text(&o.stdout);
         for needle in [
             "dualsplit solve DIR --out OUTDIR [--method NAME] [--tol X] [--max-iter N] \
-             [--max-seconds S] [--stall-window N] [--stall-factor X] [--dual-form F] [--verbose]",
+             [--max-seconds S] [--stall-window N] [--stall-factor X] [--dual-form F] \
+             [--ordering O] [--threads N] [--verbose]",
+            "--ordering",
+            "metis",
+            "--threads",
+            "factor_flops",
             "K.mtx",
             "N.mtx",
             "T.mtx",
@@ -566,6 +606,18 @@ fn bad_command_lines_exit_2() {
         (
             vec!["solve", p, "--out", "x", "--dual-form", "sparse"],
             "unknown dual form \"sparse\"",
+        ),
+        (
+            vec!["solve", p, "--out", "x", "--ordering", "rcm"],
+            "unknown ordering \"rcm\"",
+        ),
+        (
+            vec!["solve", p, "--out", "x", "--threads", "-1"],
+            "--threads",
+        ),
+        (
+            vec!["solve", p, "--out", "x", "--threads", "5000"],
+            "--threads",
         ),
         (vec!["solve", p, "--out", "x", "--tol", "0"], "--tol"),
         (vec!["solve", p, "--out", "x", "--tol", "abc"], "--tol"),

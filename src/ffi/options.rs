@@ -319,16 +319,35 @@ mod tests {
         dual_form: i32,
     }
 
+    /// DsOptions as compiled against the 0.3 header.
+    #[repr(C)]
+    struct V03 {
+        head: V02,
+        max_seconds: f64,
+        stall_window: i64,
+        stall_factor: f64,
+    }
+
     #[test]
     fn older_layouts_are_prefixes_of_this_one() {
         use std::mem::{offset_of, size_of};
         assert_eq!(size_of::<V01>(), V01_SIZE);
         assert_eq!(size_of::<V02>(), V02_SIZE);
-        assert_eq!(SIZE, 64);
+        assert_eq!(SIZE, 72);
         assert_eq!(offset_of!(V01, tol), offset_of!(DsOptions, tol));
         assert_eq!(offset_of!(V01, max_inner), offset_of!(DsOptions, max_inner));
         assert_eq!(offset_of!(V02, dual_form), offset_of!(DsOptions, dual_form));
         assert_eq!(offset_of!(DsOptions, max_seconds), V02_SIZE);
+        assert_eq!(
+            offset_of!(DsOptions, stall_factor) + size_of::<f64>(),
+            V03_SIZE
+        );
+        assert_eq!(offset_of!(DsOptions, threads), V03_SIZE);
+        assert_eq!(size_of::<V03>(), V03_SIZE);
+        assert_eq!(
+            offset_of!(V03, stall_factor),
+            offset_of!(DsOptions, stall_factor)
+        );
     }
 
     #[test]
@@ -438,6 +457,43 @@ mod tests {
             ..want
         };
         assert_eq!(read, want);
+        // 0.3: threads and ordering take their defaults (all cores, AUTO), even
+        // when the bytes after the caller's struct are not zero.
+        let old = [
+            V03 {
+                head: V02 {
+                    struct_size: V03_SIZE as u32,
+                    ..old
+                },
+                max_seconds: 2.5,
+                stall_window: 7,
+                stall_factor: 0.5,
+            },
+            V03 {
+                head: V02 {
+                    struct_size: u32::MAX,
+                    method: -1,
+                    tol: f64::NAN,
+                    max_outer: -1,
+                    max_inner: -1,
+                    dual_form: -1,
+                },
+                max_seconds: f64::NAN,
+                stall_window: -1,
+                stall_factor: f64::NAN,
+            },
+        ];
+        // SAFETY: old[0] has the 0.3 layout and says so in struct_size; the bytes
+        // after it (old[1], garbage as options) are never read.
+        let read = unsafe { DsOptions::read(&old[0] as *const V03 as *const DsOptions) }.unwrap();
+        let want = Options {
+            max_seconds: 2.5,
+            stall_window: 7,
+            stall_factor: 0.5,
+            ..want
+        };
+        assert_eq!(read, want);
+        assert_eq!((read.threads, read.ordering), (0, crate::Ordering::Auto));
     }
 
     #[test]
