@@ -149,7 +149,8 @@ module dualsplit
       type(c_ptr)        :: x             !< values (const double *)
    end type DsMatrix
 
-   !> What a solve reports besides u and the multipliers.
+   !> What a solve reports besides u and the multipliers (the 0.4 fields are written
+   !> because this module passes DsOptions of version 0.4).
    type, bind(C), public :: DsReport
       integer(c_int32_t) :: status        !< DS_STATUS_OK or DS_STATUS_NOT_CONVERGED
       integer(c_int32_t) :: method        !< the DS_METHOD_* that ran
@@ -163,6 +164,10 @@ module dualsplit
       real(c_double)     :: factor_seconds
       real(c_double)     :: condense_seconds
       real(c_double)     :: solve_seconds
+      integer(c_int32_t) :: ordering      !< DS_ORDERING_AMD or DS_ORDERING_METIS: K's factor (0.4)
+      integer(c_int32_t) :: threads       !< threads of the handle's pool (0.4)
+      integer(c_int64_t) :: factor_nnz    !< nonzeros of K's Cholesky factor (0.4)
+      real(c_double)     :: factor_flops  !< flops of one factorisation of K (0.4)
    end type DsReport
 
    !> What the monitor callback receives after every outer iteration.

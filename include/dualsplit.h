@@ -494,8 +494,10 @@ typedef void (*DsLogFn)(int32_t level, const char *message, void *user_data);
  Versions: fields are only ever appended. The library writes the fields of the
  version whose DsOptions the caller passed (DsOptions.struct_size identifies the
  header a program was built with; with opts = NULL, the fields of version 0.1),
- so a program's DsReport is never written past its end. Versions 0.1 to 0.4 have
- the same 88-byte report.
+ so a program's DsReport is never written past its end. Versions 0.1 to 0.3 have
+ the same 88-byte report; 0.4 appends ordering, threads, factor_nnz and
+ factor_flops (112 bytes), written when the caller's DsOptions is of version 0.4
+ (struct_size 72) or later.
  */
 typedef struct DsReport {
   /*
@@ -553,6 +555,26 @@ typedef struct DsReport {
    Seconds of this solve (right-hand side, iterations, recovery of u).
    */
   double solve_seconds;
+  /*
+   The DsOrdering K's factor was computed with: DS_ORDERING_AMD or
+   DS_ORDERING_METIS (DS_ORDERING_AUTO picks one). Added in version 0.4.
+   */
+  int32_t ordering;
+  /*
+   Threads the handle's pool has (1: the calling thread only). Added in
+   version 0.4.
+   */
+  int32_t threads;
+  /*
+   Nonzeros of the Cholesky factor of K (dense supernodal blocks included).
+   Added in version 0.4.
+   */
+  int64_t factor_nnz;
+  /*
+   Flops of one numeric factorisation of K (sum over the columns of L of the
+   squared column counts). Added in version 0.4.
+   */
+  double factor_flops;
 } DsReport;
 
 #ifdef __cplusplus

@@ -511,10 +511,12 @@ fn a_from_trailing_block(factor: &Factor, b: &Csc, a: &mut [f64]) {
     {
         // On the problem's threads: the inverse is dense c^3/3 work (the sparse
         // factorisation decides for itself, see factor::PARALLEL_FLOPS_PER_ENTRY).
-        factor.threads().run(true, |par| {
-            let mut mem = MemBuffer::new(llt_inverse::inverse_scratch::<f64>(nc, par));
-            llt_inverse::inverse(x.as_mut(), l.as_ref(), par, MemStack::new(&mut mem));
-        });
+        factor
+            .threads()
+            .run(nc * nc >= PARALLEL_MIN_ENTRIES, |par| {
+                let mut mem = MemBuffer::new(llt_inverse::inverse_scratch::<f64>(nc, par));
+                llt_inverse::inverse(x.as_mut(), l.as_ref(), par, MemStack::new(&mut mem));
+            });
     }
     drop(l);
     // Only the lower triangle of X = S_CC^-1 is written: mirror it, by tiles so

@@ -32,6 +32,12 @@ use metis_sys::idx_t;
 
 const NONE: usize = usize::MAX;
 
+/// METIS keeps its random number generator in a global (GKlib's `mt` array, not
+/// thread-local) and seeds it at the start of every call: two calls at once from
+/// different threads would race on it and give orderings that depend on timing.
+/// One call at a time, so that every call is reproducible.
+static METIS_LOCK: std::sync::Mutex<()> = std::sync::Mutex::new(());
+
 /// Up to this many fixed vertices (in the compressed graph) are joined into a
 /// clique; beyond, each is joined to the `BAND` fixed vertices before it and the
 /// `BAND` after it (in the order of `last`).
@@ -303,6 +309,9 @@ fn node_nd(
     options[metis_sys::moptions_et_METIS_OPTION_NUMBERING as usize] = 0;
     let mut perm = vec![0 as idx_t; nv];
     let mut iperm = vec![0 as idx_t; nv];
+    // A panic cannot happen while the lock is held (only the C call runs), so a
+    // poisoned lock still guards nothing broken.
+    let _one_at_a_time = METIS_LOCK.lock().unwrap_or_else(|e| e.into_inner());
     // SAFETY: xadj has nv + 1 entries, adjncy xadj[nv] (its length), vwgt, perm and
     // iperm nv: the sizes METIS_NodeND reads and writes for nvtxs = nv; every index
     // in adjncy is below nv, and METIS keeps no pointer after it returns.
@@ -399,6 +408,36 @@ mod tests {
             }
         }
         Csc::from_triplets(2 * nodes, 2 * nodes, &t)
+    }
+
+    #[test]
+    fn metis_orders_every_dof_once_with_the_fixed_ones_last_and_repeats_itself() {
+        let k = two_dofs(30, 12, true);
+        let last: Vec<usize> = (0..60).rev().collect();
+        let (fwd, inv) = metis_with_last(&k, &last).unwrap();
+        assert_eq!(&fwd[fwd.len() - 60..], &last[..]);
+        let mut seen = vec![false; k.nrows];
+        for (new, &old) in fwd.iter().enumerate() {
+            assert!(!std::mem::replace(&mut seen[old], true));
+            assert_eq!(inv[old], new);
+        }
+        // The two DOFs of a node stay together (one vertex of the graph).
+        for pair in fwd[..fwd.len() - 60].chunks(2) {
+            assert_eq!(pair[0] / 2, pair[1] / 2);
+        }
+        // Calls from several threads at once give the same ordering (METIS's
+        // random state is global; the calls are serialised).
+        let runs: Vec<Vec<usize>> = std::thread::scope(|s| {
+            let hs: Vec<_> = (0..4)
+                .map(|_| s.spawn(|| metis_with_last(&k, &last).unwrap().0))
+                .collect();
+            hs.into_iter().map(|h| h.join().unwrap()).collect()
+        });
+        assert!(runs.iter().all(|r| *r == fwd));
+        // Tiny graphs (no free vertex, one, two) need no METIS call.
+        let k1 = grid(1, 2);
+        assert_eq!(metis_with_last(&k1, &[]).unwrap().0, vec![0, 1]);
+        assert_eq!(metis_with_last(&k1, &[1, 0]).unwrap().0, vec![1, 0]);
     }
 
     #[test]

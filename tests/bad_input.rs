@@ -185,6 +185,10 @@ fn solve(h: *mut DsProblem, sc: &Scene, friction: DsFriction, bound: &[f64]) -> 
             factor_seconds: 0.0,
             condense_seconds: 0.0,
             solve_seconds: 0.0,
+            ordering: 0,
+            threads: 0,
+            factor_nnz: 0,
+            factor_flops: 0.0,
         },
     };
     // SAFETY: arrays sized for the problem.

@@ -161,6 +161,10 @@ fn sentinel_report() -> DsReport {
         factor_seconds: SENTINEL,
         condense_seconds: SENTINEL,
         solve_seconds: SENTINEL,
+        ordering: -99,
+        threads: -99,
+        factor_nnz: -99,
+        factor_flops: SENTINEL,
     }
 }
 

@@ -433,7 +433,8 @@ const LAYOUT_F90: &str = r#"program layout
       off(c_loc(o), c_loc(o%method)), off(c_loc(o), c_loc(o%tol)), &
       off(c_loc(o), c_loc(o%max_outer)), off(c_loc(o), c_loc(o%max_inner)), &
       off(c_loc(o), c_loc(o%dual_form)), off(c_loc(o), c_loc(o%max_seconds)), &
-      off(c_loc(o), c_loc(o%stall_window)), off(c_loc(o), c_loc(o%stall_factor))
+      off(c_loc(o), c_loc(o%stall_window)), off(c_loc(o), c_loc(o%stall_factor)), &
+      off(c_loc(o), c_loc(o%threads)), off(c_loc(o), c_loc(o%ordering))
    write (*, '(a,99(1x,i0))') 'DS_OPTIONS_SIZE', DS_OPTIONS_SIZE
    write (*, '(a,99(1x,i0))') 'DsReport', c_sizeof(r), off(c_loc(r), c_loc(r%status)), &
       off(c_loc(r), c_loc(r%method)), off(c_loc(r), c_loc(r%err)), &
@@ -441,7 +442,9 @@ const LAYOUT_F90: &str = r#"program layout
       off(c_loc(r), c_loc(r%inner_iterations)), off(c_loc(r), c_loc(r%n_open)), &
       off(c_loc(r), c_loc(r%n_stick)), off(c_loc(r), c_loc(r%n_slip)), &
       off(c_loc(r), c_loc(r%factor_seconds)), off(c_loc(r), c_loc(r%condense_seconds)), &
-      off(c_loc(r), c_loc(r%solve_seconds))
+      off(c_loc(r), c_loc(r%solve_seconds)), off(c_loc(r), c_loc(r%ordering)), &
+      off(c_loc(r), c_loc(r%threads)), off(c_loc(r), c_loc(r%factor_nnz)), &
+      off(c_loc(r), c_loc(r%factor_flops))
    write (*, '(a,99(1x,i0))') 'DsProgress', c_sizeof(g), off(c_loc(g), c_loc(g%iteration)), &
       off(c_loc(g), c_loc(g%err)), off(c_loc(g), c_loc(g%n_open)), &
       off(c_loc(g), c_loc(g%n_stick)), off(c_loc(g), c_loc(g%n_slip)), &
@@ -464,17 +467,19 @@ int main(void)
            O(DsMatrix, format), O(DsMatrix, index_type), O(DsMatrix, base), O(DsMatrix, storage),
            O(DsMatrix, nrows), O(DsMatrix, ncols), O(DsMatrix, nnz), O(DsMatrix, p),
            O(DsMatrix, i), O(DsMatrix, x));
-    printf("DsOptions %d %d %d %d %d %d %d %d %d %d\n", (int)sizeof(DsOptions),
+    printf("DsOptions %d %d %d %d %d %d %d %d %d %d %d %d\n", (int)sizeof(DsOptions),
            O(DsOptions, struct_size), O(DsOptions, method), O(DsOptions, tol),
            O(DsOptions, max_outer), O(DsOptions, max_inner), O(DsOptions, dual_form),
-           O(DsOptions, max_seconds), O(DsOptions, stall_window), O(DsOptions, stall_factor));
+           O(DsOptions, max_seconds), O(DsOptions, stall_window), O(DsOptions, stall_factor),
+           O(DsOptions, threads), O(DsOptions, ordering));
     printf("DS_OPTIONS_SIZE %d\n", (int)sizeof(DsOptions));
-    printf("DsReport %d %d %d %d %d %d %d %d %d %d %d %d %d\n", (int)sizeof(DsReport),
+    printf("DsReport %d %d %d %d %d %d %d %d %d %d %d %d %d %d %d %d %d\n", (int)sizeof(DsReport),
            O(DsReport, status), O(DsReport, method), O(DsReport, err),
            O(DsReport, equilibrium_residual), O(DsReport, outer_iterations),
            O(DsReport, inner_iterations), O(DsReport, n_open), O(DsReport, n_stick),
            O(DsReport, n_slip), O(DsReport, factor_seconds), O(DsReport, condense_seconds),
-           O(DsReport, solve_seconds));
+           O(DsReport, solve_seconds), O(DsReport, ordering), O(DsReport, threads),
+           O(DsReport, factor_nnz), O(DsReport, factor_flops));
     printf("DsProgress %d %d %d %d %d %d %d\n", (int)sizeof(DsProgress),
            O(DsProgress, iteration), O(DsProgress, err), O(DsProgress, n_open),
            O(DsProgress, n_stick), O(DsProgress, n_slip), O(DsProgress, elapsed_seconds));

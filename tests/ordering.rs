@@ -170,3 +170,60 @@ fn bad_threads_and_orderings_are_refused() {
     // SAFETY: a handle from ds_problem_new_opts, freed once.
     unsafe { ds_problem_free(out) };
 }
+
+#[test]
+fn the_c_report_carries_the_ordering_for_new_callers_only() {
+    let sc = block3d(4, 2);
+    let (k, n, t) = (Owned::of(&sc.k), Owned::of(&sc.n), Owned::of(&sc.t));
+    let (kd, nd, td) = (k.ds(), n.ds(), t.ds());
+    let opts = DsOptions {
+        threads: 1,
+        ordering: DsOrdering::Metis as i32,
+        ..DsOptions::default()
+    };
+    let mut h: *mut DsProblem = null_mut();
+    // SAFETY: valid matrices, options and out pointer.
+    let st = unsafe { ds_problem_new_opts(3, &kd, &nd, &td, &opts, &mut h) };
+    assert_eq!(st, DsStatus::Ok);
+    let m = sc.m();
+    let mu = vec![0.3; m];
+    let (mut u, mut ln, mut lt) = (vec![0.0; sc.k.nrows], vec![0.0; m], vec![0.0; 2 * m]);
+    let solve = |opts: *const DsOptions, u: &mut [f64], ln: &mut [f64], lt: &mut [f64]| {
+        // All bytes 0xA5: what the library does not write stays so.
+        // SAFETY: DsReport is plain old data; any bit pattern is a value.
+        let mut report: DsReport = unsafe { std::mem::transmute([0xA5u8; 112]) };
+        // SAFETY: the handle is live and every array is sized for the problem.
+        let st = unsafe {
+            ds_solve(
+                h,
+                opts,
+                DsFriction::Coulomb as i32,
+                sc.f.as_ptr(),
+                sc.g.as_ptr(),
+                mu.as_ptr(),
+                u.as_mut_ptr(),
+                ln.as_mut_ptr(),
+                lt.as_mut_ptr(),
+                &mut report,
+            )
+        };
+        assert_eq!(st, DsStatus::Ok);
+        report
+    };
+    // A 0.4 caller gets the new fields.
+    let r = solve(&opts, &mut u, &mut ln, &mut lt);
+    assert_eq!(r.ordering, DsOrdering::Metis as i32);
+    assert_eq!(r.threads, 1);
+    assert!(r.factor_nnz > 0 && r.factor_flops > 0.0);
+    // NULL options (an old caller's way): the 0.1-0.3 report, nothing past it.
+    let r = solve(null(), &mut u, &mut ln, &mut lt);
+    assert_eq!(r.status, DsStatus::Ok as i32);
+    // SAFETY: DsReport is plain old data.
+    let bytes: [u8; 112] = unsafe { std::mem::transmute(r) };
+    assert!(
+        bytes[88..].iter().all(|&b| b == 0xA5),
+        "wrote past 88 bytes"
+    );
+    // SAFETY: a handle from ds_problem_new_opts, freed once.
+    unsafe { ds_problem_free(h) };
+}

@@ -165,6 +165,27 @@ impl<T: Copy> OutArray<T> {
     }
 }
 
+impl<T: Copy> OutArray<T> {
+    /// Copies the first `bytes` bytes of `src` into the caller's single struct
+    /// (an array of length 1): the fields of an older, shorter layout of `T`.
+    ///
+    /// # Safety
+    /// The pointer given to [`OutArray::new`] (with length 1) must be valid for
+    /// writes of `bytes` bytes, and no Rust reference to that memory may be alive.
+    pub(crate) unsafe fn write_prefix(&self, src: &T, bytes: usize) {
+        assert!(self.len == 1 && bytes <= std::mem::size_of::<T>());
+        // SAFETY: ptr is non-NULL and aligned (checked in new), valid for `bytes`
+        // writes (caller's contract); src is library memory, so no overlap.
+        unsafe {
+            std::ptr::copy_nonoverlapping(
+                (src as *const T).cast::<u8>(),
+                self.ptr.cast::<u8>(),
+                bytes,
+            )
+        };
+    }
+}
+
 /// Borrows the struct at `ptr`.
 ///
 /// Errors: `NullPointer`, `BadArgument` (misaligned).

@@ -82,6 +82,8 @@ const V01_SIZE: usize = 32;
 const V02_SIZE: usize = 40;
 /// sizeof(DsOptions) of version 0.3 (and max_seconds, stall_window, stall_factor).
 const V03_SIZE: usize = 64;
+/// sizeof(DsOptions) of version 0.4 (and threads, ordering).
+pub(crate) const V04_SIZE: usize = 72;
 /// sizeof(DsOptions) now.
 const SIZE: usize = std::mem::size_of::<DsOptions>();
 
@@ -165,6 +167,19 @@ impl DsOptions {
             threads: count(i64::from(self.threads), "threads", 0)?,
             ordering: ordering.into(),
         })
+    }
+
+    /// The struct_size of the options at `ptr`, 0 for NULL. Call after
+    /// [`DsOptions::read`] accepted `ptr`.
+    ///
+    /// # Safety
+    /// As [`DsOptions::read`].
+    pub(crate) unsafe fn caller_size(ptr: *const DsOptions) -> usize {
+        if ptr.is_null() || !ptr.is_aligned() {
+            return 0;
+        }
+        // SAFETY: non-NULL and aligned; the first field is always present.
+        (unsafe { std::ptr::addr_of!((*ptr).struct_size).read() }) as usize
     }
 
     /// Reads the options at `ptr` (NULL: the defaults). `struct_size` is read first,

@@ -1,7 +1,7 @@
 //! The report struct of the C API.
 
 use super::status::DsStatus;
-use super::types::DsMethod;
+use super::types::{DsMethod, DsOrdering};
 use crate::report::{Report, SolveStatus};
 
 /// What a solve reports besides u and the multipliers. Written by ds_solve / ds_step
@@ -13,8 +13,10 @@ use crate::report::{Report, SolveStatus};
 /// Versions: fields are only ever appended. The library writes the fields of the
 /// version whose DsOptions the caller passed (DsOptions.struct_size identifies the
 /// header a program was built with; with opts = NULL, the fields of version 0.1),
-/// so a program's DsReport is never written past its end. Versions 0.1 to 0.4 have
-/// the same 88-byte report.
+/// so a program's DsReport is never written past its end. Versions 0.1 to 0.3 have
+/// the same 88-byte report; 0.4 appends ordering, threads, factor_nnz and
+/// factor_flops (112 bytes), written when the caller's DsOptions is of version 0.4
+/// (struct_size 72) or later.
 #[repr(C)]
 #[derive(Copy, Clone, Debug, PartialEq)]
 pub struct DsReport {
@@ -49,6 +51,31 @@ pub struct DsReport {
     pub condense_seconds: f64,
     /// Seconds of this solve (right-hand side, iterations, recovery of u).
     pub solve_seconds: f64,
+    /// The DsOrdering K's factor was computed with: DS_ORDERING_AMD or
+    /// DS_ORDERING_METIS (DS_ORDERING_AUTO picks one). Added in version 0.4.
+    pub ordering: i32,
+    /// Threads the handle's pool has (1: the calling thread only). Added in
+    /// version 0.4.
+    pub threads: i32,
+    /// Nonzeros of the Cholesky factor of K (dense supernodal blocks included).
+    /// Added in version 0.4.
+    pub factor_nnz: i64,
+    /// Flops of one numeric factorisation of K (sum over the columns of L of the
+    /// squared column counts). Added in version 0.4.
+    pub factor_flops: f64,
+}
+
+/// sizeof(DsReport) of versions 0.1 to 0.3.
+pub(crate) const V03_SIZE: usize = 88;
+
+/// The bytes of DsReport the caller has room for, from the struct_size of the
+/// DsOptions it passed (0 for NULL): the report of the same version.
+pub(crate) fn caller_size(options_size: usize) -> usize {
+    if options_size >= super::options::V04_SIZE {
+        std::mem::size_of::<DsReport>()
+    } else {
+        V03_SIZE
+    }
 }
 
 /// A count as int64_t (saturating, never reached in practice).
@@ -77,6 +104,10 @@ impl From<&Report> for DsReport {
             factor_seconds: r.factor_seconds,
             condense_seconds: r.condense_seconds,
             solve_seconds: r.solve_seconds,
+            ordering: DsOrdering::from(r.ordering) as i32,
+            threads: i32::try_from(r.threads).unwrap_or(i32::MAX),
+            factor_nnz: count(r.factor_nnz),
+            factor_flops: r.factor_flops,
         }
     }
 }

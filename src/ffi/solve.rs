@@ -49,6 +49,8 @@ unsafe fn solve_impl(
     let problem = unsafe { ref_mut(problem, "problem")? };
     // SAFETY: opts is NULL or a DsOptions of struct_size bytes (contract).
     let options = unsafe { DsOptions::read(opts)? };
+    // SAFETY: as above; read accepted opts.
+    let report_size = super::report::caller_size(unsafe { DsOptions::caller_size(opts) });
     let law = DsFriction::parse(friction, "friction")?;
     let bound_name = match law {
         DsFriction::Tresca => "bound (Tresca p)",
@@ -108,8 +110,9 @@ unsafe fn solve_impl(
         }
     }
     if let Some(r) = &report {
-        // SAFETY: report is valid for one write (contract).
-        unsafe { r.write(&[ds_report])? };
+        // SAFETY: report is valid for the DsReport of the caller's version, which
+        // report_size is (contract).
+        unsafe { r.write_prefix(&ds_report, report_size) };
     }
     let (r, name) = (&solution.report, options.method.name());
     let (err, outer) = (r.err, r.outer_iterations);
