@@ -168,6 +168,7 @@ module dualsplit
       integer(c_int32_t) :: threads       !< threads of the handle's pool (0.4)
       integer(c_int64_t) :: factor_nnz    !< nonzeros of K's Cholesky factor (0.4)
       real(c_double)     :: factor_flops  !< flops of one factorisation of K (0.4)
+      real(c_double)     :: analyse_seconds !< seconds of K's ordering and symbolic analysis (0.4)
    end type DsReport
 
    !> What the monitor callback receives after every outer iteration.

@@ -248,8 +248,9 @@ typedef enum DsDualForm {
  */
 typedef enum DsOrdering {
   /*
-   Whichever of AMD and METIS gives the factor with fewer flops (both symbolic
-   analyses run; AMD on a tie). The default.
+   AMD, and METIS as well where AMD's factor has large fronts (more than 500
+   flops per entry of L: 3D meshes), the one with fewer flops kept. The
+   default.
    */
   DS_ORDERING_AUTO = 0,
   /*
@@ -495,8 +496,8 @@ typedef void (*DsLogFn)(int32_t level, const char *message, void *user_data);
  version whose DsOptions the caller passed (DsOptions.struct_size identifies the
  header a program was built with; with opts = NULL, the fields of version 0.1),
  so a program's DsReport is never written past its end. Versions 0.1 to 0.3 have
- the same 88-byte report; 0.4 appends ordering, threads, factor_nnz and
- factor_flops (112 bytes), written when the caller's DsOptions is of version 0.4
+ the same 88-byte report; 0.4 appends ordering, threads, factor_nnz,
+ factor_flops and analyse_seconds (120 bytes), written when the caller's DsOptions is of version 0.4
  (struct_size 72) or later.
  */
 typedef struct DsReport {
@@ -575,6 +576,11 @@ typedef struct DsReport {
    squared column counts). Added in version 0.4.
    */
   double factor_flops;
+  /*
+   Seconds of K's analysis (ordering and symbolic factorisation) when the
+   handle was created. Added in version 0.4.
+   */
+  double analyse_seconds;
 } DsReport;
 
 #ifdef __cplusplus

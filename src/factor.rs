@@ -33,6 +33,13 @@ pub const PIVOT_TOL: f64 = 1e-14;
 /// "Tuning measurements").
 const PARALLEL_FLOPS_PER_ENTRY: f64 = 500.0;
 
+/// `Ordering::Auto` tries METIS besides AMD when AMD's factor needs more flops per
+/// entry of L than this (about its mean front size, as CHOLMOD's default policy
+/// decides): 3D meshes, where nested dissection saves several times its cost; in
+/// 2D AMD's fronts are small and METIS's analysis costs more than it can save
+/// (BENCHMARKS.md, "Orderings, threads and CHOLMOD").
+const METIS_FLOPS_PER_ENTRY: f64 = 500.0;
+
 /// The numeric part of a factorisation, as handed back by [`Factor::refactor`].
 pub struct NumericFactor {
     l_values: Vec<f64>,
@@ -52,6 +59,9 @@ pub struct Factor {
     fwd: Vec<usize>,
     /// Which ordering that is (`Amd` or `Metis`, never `Auto`).
     ordering: Ordering,
+    /// Seconds of the analysis: the ordering (both, where AUTO tries METIS) and
+    /// the symbolic factorisation.
+    pub analyse_seconds: f64,
     /// Seconds of the last numeric factorisation.
     pub factor_seconds: f64,
     /// The problem's threads.
@@ -131,38 +141,43 @@ impl Factor {
         threads: Arc<Threads>,
     ) -> Result<Factor> {
         let n = k.nrows;
-        let candidates: &[Ordering] = match ordering {
-            Ordering::Auto => &[Ordering::Amd, Ordering::Metis],
-            Ordering::Amd => &[Ordering::Amd],
-            Ordering::Metis => &[Ordering::Metis],
+        let start = Instant::now();
+        let order = |how: Ordering| match how {
+            Ordering::Metis => crate::ordering::metis_with_last(k, last),
+            _ => crate::ordering::amd_with_last(k, last),
         };
-        let mut best: Option<(Ordering, SymbolicCholesky<usize>, Vec<usize>, f64)> = None;
-        for &how in candidates {
-            let Some((fwd, inv)) = (match how {
-                Ordering::Metis => crate::ordering::metis_with_last(k, last),
-                _ => crate::ordering::amd_with_last(k, last),
-            }) else {
-                // AUTO falls back to the other ordering when one fails.
-                if candidates.len() == 1 {
-                    return fail(
-                        ErrorKind::OutOfMemory,
-                        format!("K: the {} ordering failed (out of memory)", how.name()),
-                    );
-                }
-                continue;
-            };
-            let symbolic = analyse(k, &fwd, &inv)?;
-            let flops = symbolic_size(&symbolic).1;
-            if best.as_ref().is_none_or(|b| flops < b.3) {
-                best = Some((how, symbolic, fwd, flops));
+        let failed = |how: Ordering| {
+            fail(
+                ErrorKind::OutOfMemory,
+                format!("K: the {} ordering failed (out of memory)", how.name()),
+            )
+        };
+        let first = match ordering {
+            Ordering::Metis => Ordering::Metis,
+            _ => Ordering::Amd,
+        };
+        let (fwd, inv) = match order(first) {
+            Some(p) => p,
+            None => return failed(first),
+        };
+        let mut symbolic = analyse(k, &fwd, &inv)?;
+        let (mut chosen, mut fwd) = (first, fwd);
+        // AUTO: METIS too where AMD's factor has large fronts (flops per entry of
+        // L, about the mean front size, above METIS_FLOPS_PER_ENTRY: 3D meshes),
+        // the cheaper kept; elsewhere (2D) METIS costs more to compute than it
+        // can save. A failed METIS leaves AMD.
+        let (nnz, flops) = symbolic_size(&symbolic);
+        if ordering == Ordering::Auto
+            && flops > METIS_FLOPS_PER_ENTRY * nnz as f64
+            && let Some((fwd_m, inv_m)) = order(Ordering::Metis)
+        {
+            let symbolic_m = analyse(k, &fwd_m, &inv_m)?;
+            if symbolic_size(&symbolic_m).1 < flops {
+                (symbolic, chosen, fwd) = (symbolic_m, Ordering::Metis, fwd_m);
             }
         }
-        let Some((ordering, symbolic, fwd, _)) = best else {
-            return fail(
-                ErrorKind::OutOfMemory,
-                "K: no fill-reducing ordering succeeded",
-            );
-        };
+        let (symbolic, ordering) = (symbolic, chosen);
+        let analyse_seconds = start.elapsed().as_secs_f64();
         let mut f = Factor {
             l_values: Vec::new(),
             symbolic,
@@ -171,6 +186,7 @@ impl Factor {
             last: last.to_vec(),
             fwd,
             ordering,
+            analyse_seconds,
             factor_seconds: 0.0,
             threads,
             parallel: false,

@@ -104,10 +104,10 @@ impl DualForm {
 /// the contact DOFs ordered last where the condensation needs them there.
 #[derive(Copy, Clone, Debug, PartialEq, Eq)]
 pub enum Ordering {
-    /// The ordering whose symbolic factor needs fewer flops, AMD or METIS: both
-    /// symbolic analyses run (cheap next to the numeric factorisation), the
-    /// cheaper one is kept, AMD on a tie. Nested dissection wins on 3D meshes,
-    /// AMD usually on 2D ones.
+    /// AMD, and METIS as well where AMD's factor has large fronts (more than 500
+    /// flops per entry of L, as CHOLMOD's default policy decides: 3D meshes), the
+    /// one whose symbolic factor needs fewer flops kept (AMD on a tie). In 2D
+    /// AMD's fronts are small and METIS's analysis would cost more than it saves.
     Auto,
     /// Approximate minimum degree (faer's AMD).
     Amd,

@@ -507,6 +507,7 @@ impl ContactProblem {
                 factor_nnz,
                 factor_flops,
                 threads: self.threads(),
+                analyse_seconds: self.factor.analyse_seconds,
             },
         })
     }

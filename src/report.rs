@@ -91,6 +91,9 @@ pub struct Report {
     pub factor_flops: f64,
     /// Threads the problem's pool has (1: the calling thread only).
     pub threads: usize,
+    /// Seconds of K's analysis (ordering and symbolic factorisation) when the
+    /// problem was created.
+    pub analyse_seconds: f64,
 }
 
 /// The natural-map error of docs/design.md section 5 for the dual unknowns

@@ -189,6 +189,7 @@ fn solve(h: *mut DsProblem, sc: &Scene, friction: DsFriction, bound: &[f64]) -> 
             threads: 0,
             factor_nnz: 0,
             factor_flops: 0.0,
+            analyse_seconds: 0.0,
         },
     };
     // SAFETY: arrays sized for the problem.

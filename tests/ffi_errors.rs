@@ -165,6 +165,7 @@ fn sentinel_report() -> DsReport {
         threads: -99,
         factor_nnz: -99,
         factor_flops: SENTINEL,
+        analyse_seconds: SENTINEL,
     }
 }
 

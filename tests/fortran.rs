@@ -444,7 +444,7 @@ const LAYOUT_F90: &str = r#"program layout
       off(c_loc(r), c_loc(r%factor_seconds)), off(c_loc(r), c_loc(r%condense_seconds)), &
       off(c_loc(r), c_loc(r%solve_seconds)), off(c_loc(r), c_loc(r%ordering)), &
       off(c_loc(r), c_loc(r%threads)), off(c_loc(r), c_loc(r%factor_nnz)), &
-      off(c_loc(r), c_loc(r%factor_flops))
+      off(c_loc(r), c_loc(r%factor_flops)), off(c_loc(r), c_loc(r%analyse_seconds))
    write (*, '(a,99(1x,i0))') 'DsProgress', c_sizeof(g), off(c_loc(g), c_loc(g%iteration)), &
       off(c_loc(g), c_loc(g%err)), off(c_loc(g), c_loc(g%n_open)), &
       off(c_loc(g), c_loc(g%n_stick)), off(c_loc(g), c_loc(g%n_slip)), &
@@ -473,13 +473,13 @@ int main(void)
            O(DsOptions, max_seconds), O(DsOptions, stall_window), O(DsOptions, stall_factor),
            O(DsOptions, threads), O(DsOptions, ordering));
     printf("DS_OPTIONS_SIZE %d\n", (int)sizeof(DsOptions));
-    printf("DsReport %d %d %d %d %d %d %d %d %d %d %d %d %d %d %d %d %d\n", (int)sizeof(DsReport),
+    printf("DsReport %d %d %d %d %d %d %d %d %d %d %d %d %d %d %d %d %d %d\n", (int)sizeof(DsReport),
            O(DsReport, status), O(DsReport, method), O(DsReport, err),
            O(DsReport, equilibrium_residual), O(DsReport, outer_iterations),
            O(DsReport, inner_iterations), O(DsReport, n_open), O(DsReport, n_stick),
            O(DsReport, n_slip), O(DsReport, factor_seconds), O(DsReport, condense_seconds),
            O(DsReport, solve_seconds), O(DsReport, ordering), O(DsReport, threads),
-           O(DsReport, factor_nnz), O(DsReport, factor_flops));
+           O(DsReport, factor_nnz), O(DsReport, factor_flops), O(DsReport, analyse_seconds));
     printf("DsProgress %d %d %d %d %d %d %d\n", (int)sizeof(DsProgress),
            O(DsProgress, iteration), O(DsProgress, err), O(DsProgress, n_open),
            O(DsProgress, n_stick), O(DsProgress, n_slip), O(DsProgress, elapsed_seconds));

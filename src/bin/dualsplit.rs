@@ -101,6 +101,7 @@ OUTPUT (OUTDIR):
                             nonzeros of its Cholesky factor and the flops of one
                             factorisation
         threads             threads the solve could use
+        analyse_seconds     time of K's analysis (ordering, symbolic factor)
     Numbers are written with full precision (shortest round-trip form). The four
     files left in OUTDIR by an earlier run are removed first; on an error only
     report.json is written (when OUTDIR can be written).
@@ -479,6 +480,7 @@ fn success_report(args: &SolveArgs, pf: &Sizes, r: &Report, read_s: f64) -> Stri
     j.integer("factor_nnz", r.factor_nnz);
     j.number("factor_flops", r.factor_flops);
     j.integer("threads", r.threads);
+    j.number("analyse_seconds", r.analyse_seconds);
     j.finish()
 }
 

@@ -14,8 +14,8 @@ use crate::report::{Report, SolveStatus};
 /// version whose DsOptions the caller passed (DsOptions.struct_size identifies the
 /// header a program was built with; with opts = NULL, the fields of version 0.1),
 /// so a program's DsReport is never written past its end. Versions 0.1 to 0.3 have
-/// the same 88-byte report; 0.4 appends ordering, threads, factor_nnz and
-/// factor_flops (112 bytes), written when the caller's DsOptions is of version 0.4
+/// the same 88-byte report; 0.4 appends ordering, threads, factor_nnz,
+/// factor_flops and analyse_seconds (120 bytes), written when the caller's DsOptions is of version 0.4
 /// (struct_size 72) or later.
 #[repr(C)]
 #[derive(Copy, Clone, Debug, PartialEq)]
@@ -63,6 +63,9 @@ pub struct DsReport {
     /// Flops of one numeric factorisation of K (sum over the columns of L of the
     /// squared column counts). Added in version 0.4.
     pub factor_flops: f64,
+    /// Seconds of K's analysis (ordering and symbolic factorisation) when the
+    /// handle was created. Added in version 0.4.
+    pub analyse_seconds: f64,
 }
 
 /// sizeof(DsReport) of versions 0.1 to 0.3.
@@ -108,6 +111,7 @@ impl From<&Report> for DsReport {
             threads: i32::try_from(r.threads).unwrap_or(i32::MAX),
             factor_nnz: count(r.factor_nnz),
             factor_flops: r.factor_flops,
+            analyse_seconds: r.analyse_seconds,
         }
     }
 }

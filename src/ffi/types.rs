@@ -94,8 +94,9 @@ pub enum DsDualForm {
 #[repr(C)]
 #[derive(Copy, Clone, Debug, PartialEq, Eq)]
 pub enum DsOrdering {
-    /// Whichever of AMD and METIS gives the factor with fewer flops (both symbolic
-    /// analyses run; AMD on a tie). The default.
+    /// AMD, and METIS as well where AMD's factor has large fronts (more than 500
+    /// flops per entry of L: 3D meshes), the one with fewer flops kept. The
+    /// default.
     Auto = 0,
     /// Approximate minimum degree.
     Amd = 1,
