@@ -127,8 +127,9 @@ impl Factor {
 
     /// Analyses and factors `k` with the DOFs `last` (distinct, in range) ordered
     /// last, in the given order, and the others by `ordering` (see
-    /// [`crate::ordering`]; `Auto` keeps whichever of AMD and METIS gives the
-    /// symbolic factor with fewer flops): the trailing block of the factor then
+    /// [`crate::ordering`]; `Auto`: AMD, and METIS as well where AMD's factor
+    /// needs more than METIS_FLOPS_PER_ENTRY flops per entry of L, the one with
+    /// fewer flops kept): the trailing block of the factor then
     /// gives the Schur complement of K onto `last` (see
     /// [`Factor::trailing_block`]). `threads`: the pool the factorisation and the
     /// solves may use (they run sequentially where the fronts are small).
@@ -161,7 +162,7 @@ impl Factor {
             None => return failed(first),
         };
         let mut symbolic = analyse(k, &fwd, &inv)?;
-        let (mut chosen, mut fwd) = (first, fwd);
+        let (mut ordering_used, mut fwd) = (first, fwd);
         // AUTO: METIS too where AMD's factor has large fronts (flops per entry of
         // L, about the mean front size, above METIS_FLOPS_PER_ENTRY: 3D meshes),
         // the cheaper kept; elsewhere (2D) METIS costs more to compute than it
@@ -173,10 +174,9 @@ impl Factor {
         {
             let symbolic_m = analyse(k, &fwd_m, &inv_m)?;
             if symbolic_size(&symbolic_m).1 < flops {
-                (symbolic, chosen, fwd) = (symbolic_m, Ordering::Metis, fwd_m);
+                (symbolic, ordering_used, fwd) = (symbolic_m, Ordering::Metis, fwd_m);
             }
         }
-        let (symbolic, ordering) = (symbolic, chosen);
         let analyse_seconds = start.elapsed().as_secs_f64();
         let mut f = Factor {
             l_values: Vec::new(),
@@ -185,7 +185,7 @@ impl Factor {
             row_idx: k.row_idx.clone(),
             last: last.to_vec(),
             fwd,
-            ordering,
+            ordering: ordering_used,
             analyse_seconds,
             factor_seconds: 0.0,
             threads,
