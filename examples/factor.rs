@@ -229,7 +229,7 @@ fn main() {
             dualsplit::mtx::write_matrix(&mtx, &sc.k).expect("write K");
         }
         for &th in &args.threads {
-            let pool = Arc::new(Threads::new(th).expect("threads"));
+            let pool = Arc::new(Threads::new(th));
             let mut rows = vec![
                 factor("plain amd", &sc.k, &[], Ordering::Amd, &pool, args.reps),
                 factor("plain metis", &sc.k, &[], Ordering::Metis, &pool, args.reps),

@@ -183,7 +183,10 @@ pub struct Options {
     /// `ContactProblem::with_options`: the problem holds its own thread pool of
     /// that size (not rayon's global one) for all its later calls, so problems in
     /// different threads of a program do not compete for one pool; `solve` and
-    /// `step` ignore it. Results with 1 thread are bit-identical from run to run.
+    /// `step` ignore it. The pool is started by the first piece of work large
+    /// enough to use it (a problem whose work stays small never starts one; if the
+    /// system refuses the threads, the work runs on the calling thread). Results
+    /// with 1 thread are bit-identical from run to run.
     pub threads: usize,
 }
 

@@ -133,7 +133,7 @@ impl ContactProblem {
         }
         check_shapes(k.nrows, d, &n, &t)?;
         // Contact DOFs last, so that the factor's trailing block condenses K onto them.
-        let threads = Arc::new(Threads::new(opts.threads)?);
+        let threads = Arc::new(Threads::new(opts.threads));
         let last = contact_dofs(&stack_rows(&n, &t));
         let factor = Factor::with_last(&k, &last, opts.ordering, threads)?;
         let dual = Dual::build(&factor, &n, &t, d, DualForm::Auto)?;

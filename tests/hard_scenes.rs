@@ -338,7 +338,7 @@ fn a_two_ways(data: &Data) -> (f64, f64) {
         &data.k,
         &last,
         dualsplit::Ordering::Auto,
-        Arc::new(Threads::new(1).expect("no pool")),
+        Arc::new(Threads::new(1)),
     )
     .expect("K factors");
     let a0 = Dual::build_with(&f0, &data.n, &data.t, data.d, Condensation::Solves).unwrap();

@@ -602,7 +602,7 @@ fn child_free(cfg: &Config, spec: Spec) -> Vec<Row> {
                     &sc.k,
                     &last,
                     dualsplit::Ordering::Auto,
-                    Arc::new(Threads::new(1).expect("no pool")),
+                    Arc::new(Threads::new(1)),
                 )
                 .expect("K is SPD");
                 let dual = Dual::build(&fac, &sc.n, &sc.t, d, DualForm::MatrixFree).expect("fits");

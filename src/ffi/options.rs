@@ -64,7 +64,8 @@ pub struct DsOptions {
     /// Threads for the factorisation, the condensation and the dense kernels:
     /// 0 for all cores (default), 1 for the calling thread only (the library
     /// starts no thread), k for at most k (k <= 4096). Each handle owns its pool,
-    /// so handles used in different threads of a program do not compete for one.
+    /// so handles used in different threads of a program do not compete for one;
+    /// it is started by the first piece of work large enough to use it.
     /// Read by ds_problem_new_opts (ds_problem_new: 0); the handle keeps its
     /// pool for every later call, and ds_solve / ds_step ignore the field. With
     /// 1, results are bit-identical from run to run. Added in version 0.4.

@@ -383,7 +383,7 @@ impl ConvexQp<'_> {
 mod tests {
     use super::*;
 
-    static SEQ: crate::threads::Threads = crate::threads::Threads::SEQUENTIAL;
+    static SEQ: crate::threads::Threads = crate::threads::Threads::sequential();
 
     /// A small SPD matrix with off-diagonal coupling.
     fn spd(k: usize) -> Vec<f64> {
