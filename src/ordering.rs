@@ -155,12 +155,7 @@ fn compress(k: &Csc, fixed: &[bool]) -> Option<Groups> {
 /// triangles and `last` holds distinct DOFs in range. None when AMD runs out of
 /// memory.
 pub fn amd_with_last(k: &Csc, last: &[usize]) -> Option<(Vec<usize>, Vec<usize>)> {
-    let n = k.nrows;
-    let mut fixed = vec![false; n];
-    for &j in last {
-        fixed[j] = true;
-    }
-    let groups = compress(k, &fixed)?;
+    let (_, groups) = compress_with_fixed(k, last)?;
     let ng = groups.start.len() - 1;
     // The fixed vertices, in the order of their first DOF in `last`.
     let mut seen = vec![false; ng];
@@ -209,19 +204,7 @@ pub fn amd_with_last(k: &Csc, last: &[usize]) -> Option<(Vec<usize>, Vec<usize>)
     )
     .ok()?;
     drop(mem);
-    let mut fwd = Vec::new();
-    fwd.try_reserve_exact(n).ok()?;
-    for &g in &perm {
-        if pos[g] == NONE {
-            fwd.extend_from_slice(&groups.members[groups.start[g]..groups.start[g + 1]]);
-        }
-    }
-    fwd.extend_from_slice(last);
-    let mut inv = vec![0usize; n];
-    for (new, &old) in fwd.iter().enumerate() {
-        inv[old] = new;
-    }
-    Some((fwd, inv))
+    expand(&groups, perm.into_iter().filter(|&g| pos[g] == NONE), last)
 }
 
 /// The permutation (forward: new -> old, inverse: old -> new) that orders the DOFs
@@ -231,12 +214,7 @@ pub fn amd_with_last(k: &Csc, last: &[usize]) -> Option<(Vec<usize>, Vec<usize>)
 /// allocation fails, the graph does not fit METIS's 32-bit indices, or METIS
 /// reports an error.
 pub fn metis_with_last(k: &Csc, last: &[usize]) -> Option<(Vec<usize>, Vec<usize>)> {
-    let n = k.nrows;
-    let mut fixed = vec![false; n];
-    for &j in last {
-        fixed[j] = true;
-    }
-    let groups = compress(k, &fixed)?;
+    let (fixed, groups) = compress_with_fixed(k, last)?;
     let ng = groups.start.len() - 1;
     // The free groups, numbered 0..nv in the order of their first DOF.
     let mut vertex = vec![NONE; ng];
@@ -276,13 +254,36 @@ pub fn metis_with_last(k: &Csc, last: &[usize]) -> Option<(Vec<usize>, Vec<usize
     }
     let order = node_nd(nv, &mut xadj, &mut adjncy, &mut vwgt)?;
     drop((xadj, adjncy, vwgt));
+    expand(&groups, order.into_iter().map(|v| free[v]), last)
+}
+
+/// The flags of the DOFs in `last` (distinct, in range) and the groups of `k`
+/// with them fixed (see [`compress`]). None when an allocation fails.
+fn compress_with_fixed(k: &Csc, last: &[usize]) -> Option<(Vec<bool>, Groups)> {
+    let mut fixed = vec![false; k.nrows];
+    for &j in last {
+        fixed[j] = true;
+    }
+    let groups = compress(k, &fixed)?;
+    Some((fixed, groups))
+}
+
+/// The permutation (forward: new -> old, inverse: old -> new) that takes the DOFs
+/// of the free groups in `order`, then `last` in its given order. None when an
+/// allocation fails.
+fn expand(
+    groups: &Groups,
+    order: impl Iterator<Item = usize>,
+    last: &[usize],
+) -> Option<(Vec<usize>, Vec<usize>)> {
+    let n = groups.group.len();
     let mut fwd = Vec::new();
     fwd.try_reserve_exact(n).ok()?;
-    for v in order {
-        let g = free[v];
+    for g in order {
         fwd.extend_from_slice(&groups.members[groups.start[g]..groups.start[g + 1]]);
     }
     fwd.extend_from_slice(last);
+    debug_assert_eq!(fwd.len(), n);
     let mut inv = vec![0usize; n];
     for (new, &old) in fwd.iter().enumerate() {
         inv[old] = new;
