@@ -122,16 +122,7 @@ fn triplets(a: &dualsplit::Csc) -> Vec<(usize, usize, f64)> {
 
 fn scene() -> Scene {
     let mesh = Mesh::grid2d(6, 2, 2.0, 1.0);
-    let mut prescribed = Vec::new();
-    for &a in &mesh.top_nodes() {
-        prescribed.push((2 * a, 0.004));
-        prescribed.push((2 * a + 1, -0.02));
-    }
-    let f_ext = vec![0.0; mesh.n_dofs()];
-    let bottom = mesh.bottom_nodes();
-    Scene::build(mesh, 100.0, 0.3, &prescribed, &f_ext, &bottom, |x| {
-        0.05 * (x[0] - 1.0).powi(2)
-    })
+    Scene::pressed_block(mesh, &[0.004, -0.02], 0.05, &[1.0])
 }
 
 fn last_message() -> String {

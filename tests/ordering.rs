@@ -20,32 +20,13 @@ use std::ptr::{null, null_mut};
 /// bottom node a contact over a paraboloid gap.
 fn block3d(nx: usize, nz: usize) -> Scene {
     let mesh = Mesh::grid3d(nx, nx, nz, 2.0, 2.0, 1.0);
-    let mut prescribed = Vec::new();
-    for &a in &mesh.top_nodes() {
-        prescribed.push((3 * a, 0.004));
-        prescribed.push((3 * a + 1, 0.002));
-        prescribed.push((3 * a + 2, -0.03));
-    }
-    let f_ext = vec![0.0; mesh.n_dofs()];
-    let bottom = mesh.bottom_nodes();
-    Scene::build(mesh, 100.0, 0.3, &prescribed, &f_ext, &bottom, |x| {
-        0.02 * ((x[0] - 1.0).powi(2) + (x[1] - 1.0).powi(2))
-    })
+    Scene::pressed_block(mesh, &[0.004, 0.002, -0.03], 0.02, &[1.0, 1.0])
 }
 
 /// A long 2D strip of nx x ny Q4 cells, pressed and sheared from the top.
 fn strip2d(nx: usize, ny: usize) -> Scene {
     let mesh = Mesh::grid2d(nx, ny, 20.0, 1.0);
-    let mut prescribed = Vec::new();
-    for &a in &mesh.top_nodes() {
-        prescribed.push((2 * a, 0.004));
-        prescribed.push((2 * a + 1, -0.02));
-    }
-    let f_ext = vec![0.0; mesh.n_dofs()];
-    let bottom = mesh.bottom_nodes();
-    Scene::build(mesh, 100.0, 0.3, &prescribed, &f_ext, &bottom, |x| {
-        0.002 * (x[0] - 10.0).powi(2)
-    })
+    Scene::pressed_block(mesh, &[0.004, -0.02], 0.002, &[10.0])
 }
 
 fn problem(sc: &Scene, ordering: Ordering, threads: usize) -> ContactProblem {

@@ -21,40 +21,14 @@ fn scenes() -> Vec<Scene> {
     let mut out = Vec::new();
     for (nx, shear) in [(6, 0.004), (10, 0.006), (8, -0.003)] {
         let mesh = Mesh::grid2d(nx, 3, 2.0, 1.0);
-        let mut prescribed = Vec::new();
-        for &a in &mesh.top_nodes() {
-            prescribed.push((2 * a, shear));
-            prescribed.push((2 * a + 1, -0.02));
-        }
-        let f_ext = vec![0.0; mesh.n_dofs()];
-        let bottom = mesh.bottom_nodes();
-        out.push(Scene::build(
-            mesh,
-            100.0,
-            0.3,
-            &prescribed,
-            &f_ext,
-            &bottom,
-            |x| 0.05 * (x[0] - 1.0).powi(2),
-        ));
+        out.push(Scene::pressed_block(mesh, &[shear, -0.02], 0.05, &[1.0]));
     }
     let mesh = Mesh::grid3d(3, 3, 2, 2.0, 2.0, 1.0);
-    let mut prescribed = Vec::new();
-    for &a in &mesh.top_nodes() {
-        prescribed.push((3 * a, 0.006));
-        prescribed.push((3 * a + 1, 0.003));
-        prescribed.push((3 * a + 2, -0.03));
-    }
-    let f_ext = vec![0.0; mesh.n_dofs()];
-    let bottom = mesh.bottom_nodes();
-    out.push(Scene::build(
+    out.push(Scene::pressed_block(
         mesh,
-        100.0,
-        0.3,
-        &prescribed,
-        &f_ext,
-        &bottom,
-        |x| 0.05 * ((x[0] - 1.0).powi(2) + (x[1] - 1.0).powi(2)),
+        &[0.006, 0.003, -0.03],
+        0.05,
+        &[1.0, 1.0],
     ));
     out
 }

@@ -629,6 +629,30 @@ impl Scene {
         }
     }
 
+    /// A block of `mesh` (E = 100, nu = 0.3, no loads) whose top face is moved by
+    /// `top` (one value per component: the horizontal ones, then the vertical),
+    /// every bottom node a contact over the gap kappa |x_h - centre|^2, x_h the
+    /// node's horizontal coordinates.
+    pub fn pressed_block(mesh: Mesh, top: &[f64], kappa: f64, centre: &[f64]) -> Scene {
+        let dim = mesh.dim;
+        assert_eq!((top.len(), centre.len()), (dim, dim - 1));
+        let mut prescribed = Vec::new();
+        for &a in &mesh.top_nodes() {
+            for (s, &v) in top.iter().enumerate() {
+                prescribed.push((dim * a + s, v));
+            }
+        }
+        let f_ext = vec![0.0; mesh.n_dofs()];
+        let bottom = mesh.bottom_nodes();
+        let centre = centre.to_vec();
+        Scene::build(mesh, 100.0, 0.3, &prescribed, &f_ext, &bottom, move |x| {
+            kappa
+                * (0..dim - 1)
+                    .map(|s| (x[s] - centre[s]).powi(2))
+                    .sum::<f64>()
+        })
+    }
+
     /// The contact problem (K factored, dual condensed).
     pub fn problem(&self) -> ContactProblem {
         ContactProblem::from_csc(self.d, self.k.clone(), self.n.clone(), self.t.clone())
