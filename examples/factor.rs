@@ -32,6 +32,9 @@
 //! the analysis and the numeric factorisation apart, nnz(L), flops, and the ratio to
 //! the best plain factorisation of the same thread count.
 
+#[path = "bench/cholmod.rs"]
+#[allow(dead_code)]
+mod cholmod;
 #[path = "bench/scene.rs"]
 #[allow(dead_code)]
 mod scene;
@@ -39,8 +42,7 @@ mod scene;
 use dualsplit::internals::{Factor, Threads, contact_dofs, stack_rows};
 use dualsplit::{ContactProblem, Options, Ordering};
 use scene::{Scene, Spec};
-use std::path::{Path, PathBuf};
-use std::process::Command;
+use std::path::Path;
 use std::sync::Arc;
 use std::time::Instant;
 
@@ -145,71 +147,27 @@ fn factor(
     }
 }
 
-/// The CHOLMOD shim, compiled once; None (with the reason) without SuiteSparse.
-fn cholmod_shim() -> Result<PathBuf, String> {
-    let dir = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("target/factor-bench");
-    std::fs::create_dir_all(&dir).map_err(|e| e.to_string())?;
-    let exe = dir.join("cholmod_factor");
-    let src = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("examples/cholmod_factor.c");
-    let out = Command::new(std::env::var("CC").unwrap_or_else(|_| "cc".into()))
-        .args(["-O2", "-I/usr/include/suitesparse", "-o"])
-        .arg(&exe)
-        .arg(&src)
-        .args(["-lcholmod", "-lsuitesparseconfig", "-lm"])
-        .output()
-        .map_err(|e| format!("cc: {e}"))?;
-    if !out.status.success() {
-        return Err(format!(
-            "cc could not build the CHOLMOD shim (libsuitesparse-dev installed?): {}",
-            String::from_utf8_lossy(&out.stderr)
-        ));
-    }
-    Ok(exe)
-}
-
-fn cholmod(exe: &Path, mtx: &Path, reps: usize, threads: usize, metis: bool) -> Meas {
-    let mut cmd = Command::new(exe);
-    cmd.arg(mtx).arg(reps.to_string());
-    if metis {
-        cmd.arg("metis");
-    }
-    let out = cmd
-        .env("OPENBLAS_NUM_THREADS", threads.to_string())
-        .env("OMP_NUM_THREADS", threads.to_string())
-        .output()
-        .expect("run the CHOLMOD shim");
-    assert!(
-        out.status.success(),
-        "CHOLMOD shim: {}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    let text = String::from_utf8_lossy(&out.stdout);
-    let (mut total, mut analyse, mut numeric) = (Vec::new(), Vec::new(), Vec::new());
-    let (mut nnz, mut flops, mut ord) = (0.0, 0.0, String::new());
-    for line in text.lines() {
-        let v: Vec<&str> = line.split_whitespace().collect();
-        let (a, f): (f64, f64) = (v[0].parse().unwrap(), v[1].parse().unwrap());
-        total.push(a + f);
-        analyse.push(a);
-        numeric.push(f);
-        nnz = v[2].parse().unwrap();
-        flops = v[3].parse().unwrap();
-        ord = v[4].to_string();
-    }
+/// A CHOLMOD measurement as a row of the table.
+fn cholmod_row(exe: &Path, mtx: &Path, reps: usize, threads: usize, metis: bool) -> Meas {
+    let r = cholmod::run(exe, mtx, reps, threads, metis).expect("CHOLMOD runs");
     Meas {
-        what: format!("cholmod{} (-> {ord})", if metis { " metis" } else { "" }),
-        seconds: median(total),
-        analyse: median(analyse),
-        numeric: median(numeric),
-        nnz,
-        flops,
+        what: format!(
+            "cholmod{} (-> {})",
+            if metis { " metis" } else { "" },
+            r.ordering
+        ),
+        seconds: r.seconds,
+        analyse: r.analyse,
+        numeric: r.numeric,
+        nnz: r.nnz,
+        flops: r.flops,
     }
 }
 
 fn main() {
     let args = parse_args();
     let shim = if args.cholmod {
-        cholmod_shim()
+        cholmod::shim()
     } else {
         Err("--no-cholmod".to_string())
     };
@@ -274,8 +232,8 @@ fn main() {
                 flops: f64::NAN,
             });
             if let Ok(exe) = &shim {
-                rows.push(cholmod(exe, &mtx, args.reps, th, false));
-                rows.push(cholmod(exe, &mtx, args.reps, th, true));
+                rows.push(cholmod_row(exe, &mtx, args.reps, th, false));
+                rows.push(cholmod_row(exe, &mtx, args.reps, th, true));
             }
             for r in rows {
                 println!(

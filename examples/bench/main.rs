@@ -5,7 +5,8 @@
 //!     [--out DIR] [--cap SECONDS] [--rep-below S] [--solves-cap S]
 //!     [--no-clarabel] [--no-free] [--clarabel-max-n N] [--clarabel-max-n-3d N]
 //!     [--clarabel-limit S] [--only ours|ours-dense|ours-free|clarabel]
-//!     [--frictions tresca,coulomb] [--append] [--report-only]
+//!     [--frictions tresca,coulomb] [--append] [--report-only] [--threads K]
+//!     [--no-cholmod]
 //! ```
 //!
 //! For each scene (2D Q4 / 3D H8 blocks on a rigid foundation with a curved gap, see
@@ -13,7 +14,12 @@
 //! part gets its own peak memory:
 //!
 //! - child `ours` (the dense condensed dual):
-//!   - the sparse Cholesky factorisation of K alone (plain AMD ordering), one solve;
+//!   - the baseline: the best plain sparse Cholesky factorisation of K alone
+//!     (`Ordering::Auto`: AMD, and METIS where AMD's fronts are large, the one
+//!     with fewer flops kept), one solve; and CHOLMOD's own factorisation of the
+//!     same K (its default ordering policy, `examples/cholmod_factor.c` built with
+//!     cc against SuiteSparse; rows absent, with a message, where it is not
+//!     installed or with `--no-cholmod`);
 //!   - the setup: `ContactProblem::from_csc` (factor with the contact DOFs last +
 //!     the dual); where `DualForm::Auto` leaves it matrix-free (c > `DENSE_MAX`),
 //!     the dense assembly of A that the dense methods need is forced before any
@@ -32,10 +38,15 @@
 //!   (tolerances and history as above);
 //! - child `clarabel`: Clarabel on the same Tresca problem.
 //!
+//! Every contact problem is built with `Options::threads = K` (`--threads`,
+//! default 1), the baseline factor runs in a pool of K threads, CHOLMOD with K
+//! BLAS threads: one run, one thread count.
+//!
 //! The rows go to DIR/results.csv (with `--append`, the rows of the scenes and parts
 //! measured again replace the old ones); the figures (SVG) and DIR/summary.md are
 //! drawn from that file (`--report-only` redraws them without measuring).
 
+mod cholmod;
 mod clarabel_ref;
 mod plot;
 mod report;
@@ -44,7 +55,9 @@ mod scene;
 
 use dualsplit::internals::{Condensation, Dual, contact_dofs, stack_rows};
 use dualsplit::internals::{Factor, Threads};
-use dualsplit::{ContactProblem, DENSE_MAX, DualForm, Friction, Method, Options, SolveStatus};
+use dualsplit::{
+    ContactProblem, DENSE_MAX, DualForm, Friction, Method, Options, Ordering, SolveStatus,
+};
 use row::{Part, Row, median, peak_mb, reset_peak, rss_mb};
 use scene::{Scene, Spec};
 use std::io::Write as _;
@@ -104,6 +117,12 @@ struct Config {
     append: bool,
     clarabel_limit: f64,
     frictions: Vec<String>,
+    /// `Options::threads` of every contact problem and the thread count of the
+    /// baseline factorisations (faer's pool; CHOLMOD's BLAS threads).
+    threads: usize,
+    /// Measure CHOLMOD's factorisation of K next to ours (where SuiteSparse is
+    /// installed).
+    cholmod: bool,
     report_only: bool,
     child: Option<String>,
 }
@@ -127,6 +146,8 @@ impl Config {
             append: false,
             clarabel_limit: if quick { 20.0 } else { 150.0 },
             frictions: vec!["tresca".into(), "coulomb".into()],
+            threads: 1,
+            cholmod: true,
             report_only: false,
             child: None,
         };
@@ -153,6 +174,8 @@ impl Config {
                 "--clarabel-limit" => c.clarabel_limit = val().parse().unwrap_or_else(|_| usage(a)),
                 "--frictions" => c.frictions = val().split(',').map(String::from).collect(),
                 "--report-only" => c.report_only = true,
+                "--threads" => c.threads = val().parse().unwrap_or_else(|_| usage(a)),
+                "--no-cholmod" => c.cholmod = false,
                 "--child" => c.child = Some(val()),
                 "-h" | "--help" => usage(""),
                 _ => usage(a),
@@ -201,7 +224,12 @@ impl Config {
             self.clarabel_limit.to_string(),
             "--frictions".into(),
             self.frictions.join(","),
+            "--threads".into(),
+            self.threads.to_string(),
         ];
+        if !self.cholmod {
+            v.push("--no-cholmod".into());
+        }
         if self.quick {
             v.push("--quick".into());
         }
@@ -218,7 +246,7 @@ fn usage(bad: &str) -> ! {
          \x20   [--out DIR] [--cap S] [--rep-below S] [--solves-cap S] [--frictions tresca,coulomb]\n\
          \x20   [--no-clarabel] [--no-free] [--clarabel-max-n N] [--clarabel-max-n-3d N]\n\
          \x20   [--clarabel-limit S] [--only ours|ours-dense|ours-free|clarabel] [--append]\n\
-         \x20   [--report-only]\n\
+         \x20   [--report-only] [--threads K] [--no-cholmod]\n\
          scenes: 2d-NXxNY (Q4 plane strain, NX x NY cells) or 3d-NXxNYxNZ (H8)"
     );
     std::process::exit(2);
@@ -235,10 +263,7 @@ fn main() {
             "profile-setup" => {
                 // Only the scene and the contact problem (for a profiler).
                 let sc = Scene::build(spec);
-                let (pb, t) = time(|| {
-                    ContactProblem::from_csc(sc.d, sc.k.clone(), sc.n.clone(), sc.t.clone())
-                        .expect("valid scene")
-                });
+                let (pb, t) = time(|| problem(&cfg, &sc));
                 eprintln!(
                     "setup {t:.3} s, condensation {:.3} s (matrix-free: {})",
                     pb.dual().condense_seconds(),
@@ -408,6 +433,65 @@ fn friction_of<'a>(sc: &'a Scene, name: &str) -> Friction<'a> {
     }
 }
 
+/// The contact problem of a scene with the run's thread count.
+fn problem(cfg: &Config, sc: &Scene) -> ContactProblem {
+    let opts = Options {
+        threads: cfg.threads,
+        ..Options::default()
+    };
+    ContactProblem::from_csc_with(sc.d, sc.k.clone(), sc.n.clone(), sc.t.clone(), &opts)
+        .expect("valid scene")
+}
+
+/// CHOLMOD's factorisation of the scene's K (rows `cholmod`, `cholmod_numeric`);
+/// no rows, with the reason on stderr, where the shim cannot be built or run.
+fn cholmod_rows(cfg: &Config, sc: &Scene, base: &Row) -> Vec<Row> {
+    let exe = match cholmod::shim() {
+        Ok(exe) => exe,
+        Err(why) => {
+            eprintln!("  CHOLMOD column left out: {why}");
+            return Vec::new();
+        }
+    };
+    let mtx = std::env::temp_dir().join(format!(
+        "dualsplit-bench-{}-{}.mtx",
+        sc.spec.name(),
+        std::process::id()
+    ));
+    if let Err(e) = dualsplit::mtx::write_matrix(&mtx, &sc.k) {
+        eprintln!("  CHOLMOD column left out: cannot write K: {e}");
+        return Vec::new();
+    }
+    // One run first; two more where it is short (as `repeated`).
+    let mut res = cholmod::run(&exe, &mtx, 1, cfg.threads, false);
+    if let Ok(r) = &res
+        && r.seconds < cfg.rep_below
+    {
+        res = cholmod::run(&exe, &mtx, 3, cfg.threads, false);
+    }
+    let _ = std::fs::remove_file(&mtx);
+    match res {
+        Ok(r) => {
+            eprintln!(
+                "  CHOLMOD: {:.3} s (numeric {:.3} s, ordering {}, nnz(L) {:.3e}, flops {:.3e})",
+                r.seconds, r.numeric, r.ordering, r.nnz, r.flops
+            );
+            let note = format!(
+                "ordering={} nnz_L={} flops={:.3e} threads={} analyse={:.3}",
+                r.ordering, r.nnz, r.flops, cfg.threads, r.analyse
+            );
+            vec![
+                time_row(base, "cholmod", &r.walls, note),
+                time_row(base, "cholmod_numeric", &[r.numeric], String::new()),
+            ]
+        }
+        Err(why) => {
+            eprintln!("  CHOLMOD column left out: {why}");
+            Vec::new()
+        }
+    }
+}
+
 fn child_ours(cfg: &Config, spec: Spec) -> Vec<Row> {
     let mut rows = Vec::new();
     let (sc, t_asm) = time(|| Scene::build(spec));
@@ -428,14 +512,22 @@ fn child_ours(cfg: &Config, spec: Spec) -> Vec<Row> {
     rows.push(mem_row(&base, "assembly"));
 
     // The factorisation of K alone: the floor every method pays.
+    let pool = Arc::new(Threads::new(cfg.threads));
     let (walls, (fac, numeric)) = repeated(cfg.rep_below, || {
-        let (f, t) = time(|| Factor::new(&sc.k).expect("K is SPD"));
+        let (f, t) =
+            time(|| Factor::with_last(&sc.k, &[], Ordering::Auto, pool.clone()).expect("K is SPD"));
         let num = f.factor_seconds;
         (t, (f, num))
     });
     let t_fac = median(&walls);
     eprintln!("  factor of K alone: {t_fac:.3} s (numeric {numeric:.3} s)");
-    rows.push(time_row(&base, "factor", &walls, String::new()));
+    let (nnz_l, flops_l) = fac.nnz_and_flops();
+    let fac_note = format!(
+        "ordering={} nnz_L={nnz_l} flops={flops_l:.3e} threads={}",
+        fac.ordering().name(),
+        cfg.threads
+    );
+    rows.push(time_row(&base, "factor", &walls, fac_note));
     rows.push(time_row(&base, "factor_numeric", &[numeric], String::new()));
     let (ts, _) = repeated(cfg.rep_below, || {
         let mut x = sc.f.clone();
@@ -481,6 +573,9 @@ fn child_ours(cfg: &Config, spec: Spec) -> Vec<Row> {
     }
     drop(fac);
     rows.push(mem_row(&base, "factor"));
+    if cfg.cholmod {
+        rows.extend(cholmod_rows(cfg, &sc, &base));
+    }
 
     // The contact problem: factor with the contact DOFs last + the dual. The peak
     // memory from here on is that of the setup (and the scene, still resident).
@@ -490,10 +585,7 @@ fn child_ours(cfg: &Config, spec: Spec) -> Vec<Row> {
         ..mem_row(&base, "setup-start")
     });
     let (walls, mut pb) = repeated(cfg.rep_below, || {
-        let (pb, t) = time(|| {
-            ContactProblem::from_csc(d, sc.k.clone(), sc.n.clone(), sc.t.clone())
-                .expect("valid scene")
-        });
+        let (pb, t) = time(|| problem(cfg, &sc));
         (t, pb)
     });
     let t_from_csc = median(&walls);
@@ -588,10 +680,7 @@ fn child_free(cfg: &Config, spec: Spec) -> Vec<Row> {
     let direct = base.c > DENSE_MAX;
     let (walls, (t_factor, t_build, pb)) = repeated(cfg.rep_below, || {
         if direct {
-            let (pb, t) = time(|| {
-                ContactProblem::from_csc(d, sc.k.clone(), sc.n.clone(), sc.t.clone())
-                    .expect("valid scene")
-            });
+            let (pb, t) = time(|| problem(cfg, &sc));
             assert!(pb.dual().is_matrix_free());
             let (tf, tb) = (0.0, pb.dual().condense_seconds());
             (t, (tf, tb, Some(pb)))
@@ -601,8 +690,8 @@ fn child_free(cfg: &Config, spec: Spec) -> Vec<Row> {
                 let fac = Factor::with_last(
                     &sc.k,
                     &last,
-                    dualsplit::Ordering::Auto,
-                    Arc::new(Threads::new(1)),
+                    Ordering::Auto,
+                    Arc::new(Threads::new(cfg.threads)),
                 )
                 .expect("K is SPD");
                 let dual = Dual::build(&fac, &sc.n, &sc.t, d, DualForm::MatrixFree).expect("fits");
@@ -630,8 +719,7 @@ fn child_free(cfg: &Config, spec: Spec) -> Vec<Row> {
             // c <= DENSE_MAX: Auto assembles A here; the first matrix-free solve
             // below replaces it by the matrix-free form (peak memory past the
             // reading above is not the matrix-free setup's).
-            ContactProblem::from_csc(d, sc.k.clone(), sc.n.clone(), sc.t.clone())
-                .expect("valid scene")
+            problem(cfg, &sc)
         }
     };
     let mut t_factor = t_factor;

@@ -209,8 +209,12 @@ pub fn summary(rows: &[Row]) -> String {
     let _ = writeln!(
         s,
         "Times in seconds (wall, median of up to 3 runs), memory in MB (peak resident, \
-         per child process). `factor` = sparse Cholesky of K alone (AMD, symbolic + \
-         numeric); `setup` = `ContactProblem::from_csc` (factor with the contact DOFs \
+         per child process). `factor` = the best plain sparse Cholesky of K alone \
+         (faer, `Ordering::Auto`: AMD, or METIS where it has fewer flops; ordering + \
+         symbolic + numeric), the baseline of every `x factor` ratio; `CHOLMOD` = \
+         CHOLMOD's own factorisation of the same K (its default ordering policy, \
+         analyse + factorize, BLAS threads = the run's threads; `-` where SuiteSparse \
+         is not installed); `setup` = `ContactProblem::from_csc` (factor with the contact DOFs \
          last + condensed dual A from the trailing block; where `DualForm::Auto` leaves \
          it matrix-free, c > 8,000, plus the dense assembly of A that the dense methods \
          need); `setup (m-free)` = the same factor + the matrix-free dual (no A); \
@@ -221,11 +225,11 @@ pub fn summary(rows: &[Row]) -> String {
     let _ = writeln!(s, "## Scenes and the cost of the setup\n");
     let _ = writeln!(
         s,
-        "| scene | d | n | m | c | factor | of which numeric | solve1 | setup | of which numeric factor (contacts last) | of which condensation | condensation by solves | peak MB (ours, dense) | peak MB (Clarabel) | load avg |"
+        "| scene | d | n | m | c | factor (ordering) | of which numeric | CHOLMOD (ordering) | CHOLMOD / factor | solve1 | setup | setup / factor | of which numeric factor (contacts last) | of which condensation | condensation by solves | peak MB (ours, dense) | peak MB (Clarabel) | load avg |"
     );
     let _ = writeln!(
         s,
-        "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|"
+        "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|"
     );
     for name in &sc {
         let Some(r) = find(rows, name, "factor", None) else {
@@ -249,6 +253,7 @@ pub fn summary(rows: &[Row]) -> String {
                 .map(|v| format!("{v:.0}"))
                 .unwrap_or_else(|| "-".into())
         };
+        let cholmod = find(rows, name, "cholmod", None);
         let loads: Vec<&str> = rows
             .iter()
             .filter(|r| r.scene == *name && r.kind == "mem")
@@ -256,15 +261,20 @@ pub fn summary(rows: &[Row]) -> String {
             .collect();
         let _ = writeln!(
             s,
-            "| {name} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} |",
+            "| {name} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} |",
             r.dim,
             r.n,
             r.m,
             r.c,
-            f3(r.time_s),
+            with_ordering(f3(r.time_s), &r.note),
             f3(time_of(rows, name, "factor_numeric")),
+            cholmod
+                .map(|c| with_ordering(f3(c.time_s), &c.note))
+                .unwrap_or_else(|| "-".into()),
+            ratio(cholmod.and_then(|c| c.time_s), r.time_s),
             f3(time_of(rows, name, "solve1")),
             f3(time_of(rows, name, "setup")),
+            ratio(time_of(rows, name, "setup"), r.time_s),
             f3(time_of(rows, name, "setup_factor")),
             f3(time_of(rows, name, "condense_trailing")),
             solves.unwrap_or_else(|| "-".into()),
@@ -567,5 +577,24 @@ fn free_table(s: &mut String, rows: &[Row], sc: &[String], frs: &[String]) {
             );
         }
         let _ = writeln!(s, "{line}");
+    }
+}
+
+/// `time (ordering)` where the row's note names the ordering (`ordering=NAME`).
+fn with_ordering(time: String, note: &str) -> String {
+    match note
+        .split_whitespace()
+        .find_map(|w| w.strip_prefix("ordering="))
+    {
+        Some(o) => format!("{time} ({o})"),
+        None => time,
+    }
+}
+
+/// `a / b` to two decimals, `-` where either is missing.
+fn ratio(a: Option<f64>, b: Option<f64>) -> String {
+    match (a, b) {
+        (Some(a), Some(b)) if b > 0.0 => format!("{:.2}", a / b),
+        _ => "-".into(),
     }
 }

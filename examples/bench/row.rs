@@ -8,8 +8,11 @@ err,eq_res,outer,inner,status,open,stick,slip,mem_mb,note";
 
 /// One measurement. Empty fields are written as empty CSV cells.
 ///
-/// `kind` is one of: `assembly`, `factor` (sparse Cholesky of K alone, plain AMD,
-/// symbolic + numeric wall time), `factor_numeric` (its numeric part),
+/// `kind` is one of: `assembly`, `factor` (the best plain sparse Cholesky of K
+/// alone, `Ordering::Auto`, ordering + symbolic + numeric wall time; the note
+/// names the ordering, nnz(L), flops and threads), `factor_numeric` (its numeric
+/// part), `cholmod` / `cholmod_numeric` (CHOLMOD's analyse + factorize of the same
+/// K and its numeric part; the note as for `factor`),
 /// `solve1` (one forward and back solve with that factor), `setup`
 /// (`ContactProblem::from_csc` wall time: factor with the contact DOFs last + dense
 /// condensation; where Auto made it matrix-free, from_csc + the dense assembly, and
