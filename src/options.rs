@@ -1,67 +1,6 @@
 //! Solver options: which method, tolerances and iteration limits.
 
-/// The iterative method run on the condensed dual problem.
-#[derive(Copy, Clone, Debug, PartialEq, Eq)]
-pub enum Method {
-    /// Pop's dual splitting, Schur complement variant (docs/design.md section 3): the
-    /// tangential step on S = A22 - A21 A11^-1 A12 over the current contact set,
-    /// then the normal step on A11; both sub-problems by projected Gauss-Seidel.
-    Split,
-    /// Plain block Gauss-Seidel on (lambda_N, lambda_T): tangential step on A22,
-    /// normal step on A11, both by projected Gauss-Seidel.
-    BlockGs,
-    /// Projected Gauss-Seidel on the whole dual, contact by contact (Siconos NSGS).
-    Pgs,
-    /// Semismooth Newton (primal-dual active set) on the condensed dual with the
-    /// generalised Jacobian of the friction projections. Up to 40 Gauss-Seidel
-    /// sweeps first (counted as inner iterations); a step (or half, a quarter, an
-    /// eighth of it) is kept when it lowers the natural residual |F|, otherwise
-    /// Gauss-Seidel sweeps follow. One outer iteration is one Newton step (a dense
-    /// LU on the free unknowns).
-    Newton,
-    /// Pop's splitting (Schur variant) with MPRGP / MPGP for the sub-problems instead
-    /// of projected Gauss-Seidel.
-    SplitMprgp,
-    /// MPRGP / MPGP (Dostal) on the whole dual; for Coulomb, the fixed point
-    /// p = mu lambda_N outside (one outer iteration per Tresca solve).
-    Mprgp,
-}
-
-impl Method {
-    /// Every method, in the order of the C enum.
-    pub const ALL: [Method; 6] = [
-        Method::Split,
-        Method::BlockGs,
-        Method::Pgs,
-        Method::Newton,
-        Method::SplitMprgp,
-        Method::Mprgp,
-    ];
-
-    /// Short lower-case name ("split", "block-gs", "pgs", "newton",
-    /// "split-mprgp", "mprgp").
-    pub fn name(self) -> &'static str {
-        match self {
-            Method::Split => "split",
-            Method::BlockGs => "block-gs",
-            Method::Pgs => "pgs",
-            Method::Newton => "newton",
-            Method::SplitMprgp => "split-mprgp",
-            Method::Mprgp => "mprgp",
-        }
-    }
-
-    /// True when the method reads entries of A (and so needs it assembled); only
-    /// `Mprgp` runs on products alone.
-    pub fn needs_entries(self) -> bool {
-        self != Method::Mprgp
-    }
-
-    /// Parses a name as returned by [`Method::name`].
-    pub fn from_name(s: &str) -> Option<Method> {
-        Method::ALL.into_iter().find(|m| m.name() == s)
-    }
-}
+pub use crate::methods::Method;
 
 /// How the products with the condensed dual operator A = B K^-1 B^T are formed.
 #[derive(Copy, Clone, Debug, PartialEq, Eq)]

@@ -275,29 +275,20 @@ impl From<DsStorage> for Storage {
     }
 }
 
+// DsMethod lists the methods in the order of `Method::ALL` (the table in
+// `methods/mod.rs`): a method added there without its C value fails to compile
+// here, and `c_values_are_indices` checks that the names match.
+const _: () = assert!(<DsMethod as CEnum>::ALL.len() == Method::ALL.len());
+
 impl From<DsMethod> for Method {
     fn from(m: DsMethod) -> Method {
-        match m {
-            DsMethod::Split => Method::Split,
-            DsMethod::BlockGs => Method::BlockGs,
-            DsMethod::Pgs => Method::Pgs,
-            DsMethod::Newton => Method::Newton,
-            DsMethod::SplitMprgp => Method::SplitMprgp,
-            DsMethod::Mprgp => Method::Mprgp,
-        }
+        Method::ALL[m as usize]
     }
 }
 
 impl From<Method> for DsMethod {
     fn from(m: Method) -> DsMethod {
-        match m {
-            Method::Split => DsMethod::Split,
-            Method::BlockGs => DsMethod::BlockGs,
-            Method::Pgs => DsMethod::Pgs,
-            Method::Newton => DsMethod::Newton,
-            Method::SplitMprgp => DsMethod::SplitMprgp,
-            Method::Mprgp => DsMethod::Mprgp,
-        }
+        <DsMethod as CEnum>::ALL[m as usize].0
     }
 }
 
@@ -330,6 +321,8 @@ mod tests {
         }
         for m in Method::ALL {
             assert_eq!(Method::from(DsMethod::from(m)), m);
+            let c_name = format!("DS_METHOD_{}", m.name().to_uppercase().replace('-', "_"));
+            assert_eq!(<DsMethod as CEnum>::ALL[m as usize].1, c_name);
             assert_eq!(
                 DsMethod::from(m) as usize,
                 Method::ALL.iter().position(|&x| x == m).unwrap()

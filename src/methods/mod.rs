@@ -8,7 +8,8 @@
 //! `driver` owns the outer loop and its stop tests; a method is an
 //! [`driver::OuterStep`] in a file of its own (`pgs`, `split`, `newton`,
 //! `whole` for MPRGP on the whole dual, `signorini` for frictionless increments),
-//! built by [`outer_step`]. The sub-problems of the splittings are solved by a
+//! described by a [`MethodSpec`] in its file and listed in the table that defines
+//! [`Method`] (`methods!`). The sub-problems of the splittings are solved by a
 //! [`subproblem::SubSolver`]: projected Gauss-Seidel or MPRGP. Projections onto
 //! the friction sets and the small local problems live in `projection`.
 
@@ -26,15 +27,11 @@ pub use driver::{End, Outcome};
 
 use crate::dual::Dual;
 use crate::friction::Friction;
-use crate::options::{Method, Options};
+use crate::options::Options;
 use crate::report::natural_map_error;
 use driver::OuterStep;
-use signorini::Signorini;
-use split::Split;
-use split::Variant::{Block, Schur};
 use std::cell::RefCell;
 use std::time::Instant;
-use subproblem::{GaussSeidel, Mprgp};
 
 /// What the monitor sees after every outer iteration.
 #[derive(Copy, Clone, Debug, PartialEq)]
@@ -92,49 +89,104 @@ impl DualProblem<'_> {
     }
 }
 
-/// The method `opts.method` as an outer step for `problem` and the dual target
-/// `target`, and the number of dual unknowns it iterates on. Sub-problems are
-/// solved to a tenth of the target within `opts.max_inner` iterations. A
-/// frictionless increment (every slip bound zero) is the pure Signorini problem in
-/// the m normal unknowns for the splittings and whole-dual MPRGP (docs/design.md
-/// section 2); PGS's tangential steps cost O(1) per contact with a zero bound, and
-/// Newton drops the unknowns at zero bounds from its linear systems, so those two
-/// run as they are.
-fn outer_step(
-    problem: &DualProblem<'_>,
-    opts: &Options,
-    target: f64,
-) -> (Box<dyn OuterStep>, usize) {
-    let (m, c) = (problem.dual.m, problem.dual.c);
-    let (tol, max) = (0.1 * target, opts.max_inner);
-    if problem.law.frictionless() {
-        match opts.method {
-            Method::Split | Method::BlockGs => {
-                return (Box::new(Signorini::new(GaussSeidel::new(m, tol, max))), m);
-            }
-            Method::SplitMprgp | Method::Mprgp => {
-                return (Box::new(Signorini::new(Mprgp::new(m, tol, max))), m);
-            }
-            Method::Pgs | Method::Newton => {}
+/// What the driver knows of a method: its name and how to build its outer step.
+/// Each method's file holds its `MethodSpec` constant(s); the table of
+/// [`methods!`] below lists them and defines [`Method`] from them.
+struct MethodSpec {
+    /// Short lower-case name (CLI, report.json, C's `ds_method_name`).
+    name: &'static str,
+    /// True when the method reads entries of A (and so needs it assembled).
+    needs_entries: bool,
+    /// The outer step for a problem and dual target, and the number of dual
+    /// unknowns it iterates on (d m; m for a frictionless increment solved as the
+    /// pure Signorini problem).
+    build: fn(&DualProblem<'_>, &Options, f64) -> Built,
+}
+
+/// A method's outer step and the number of dual unknowns it iterates on.
+type Built = (Box<dyn OuterStep>, usize);
+
+/// The sub-problem stopping rule of the methods that solve sub-problems: a tenth
+/// of the dual target, within `opts.max_inner` iterations.
+fn inner_rule(opts: &Options, target: f64) -> (f64, usize) {
+    (0.1 * target, opts.max_inner)
+}
+
+/// Defines [`Method`] (public API; its order is the C enum's, `DsMethod`) from
+/// the table of `Variant => spec` lines: adding a method is its file (with its
+/// `MethodSpec`), its `mod` line above and one line here (and, for C, its
+/// `DsMethod` value, whose count is checked against this table at compile time).
+macro_rules! methods {
+    ($( $(#[$doc:meta])* $variant:ident => $spec:path, )*) => {
+        /// The iterative method run on the condensed dual problem.
+        #[derive(Copy, Clone, Debug, PartialEq, Eq)]
+        pub enum Method {
+            $( $(#[$doc])* $variant, )*
         }
-    }
-    let k = m.max(c - m);
-    let step: Box<dyn OuterStep> = match opts.method {
-        Method::Pgs => Box::new(pgs::Pgs::new(problem)),
-        Method::Split => Box::new(Split::new(problem, Schur, GaussSeidel::new(k, tol, max))),
-        Method::BlockGs => Box::new(Split::new(problem, Block, GaussSeidel::new(k, tol, max))),
-        Method::SplitMprgp => Box::new(Split::new(problem, Schur, Mprgp::new(k, tol, max))),
-        Method::Mprgp => Box::new(whole::WholeMprgp::new(problem, Mprgp::new(c, tol, max))),
-        Method::Newton => Box::new(newton::Newton::new(problem, target)),
+
+        impl Method {
+            /// Every method, in the order of the C enum.
+            pub const ALL: [Method; [$(stringify!($variant)),*].len()] = [$(Method::$variant),*];
+
+            /// The method's entry in the table.
+            fn spec(self) -> &'static MethodSpec {
+                match self {
+                    $( Method::$variant => &$spec, )*
+                }
+            }
+        }
     };
-    (step, c)
+}
+
+methods! {
+    /// Pop's dual splitting, Schur complement variant (docs/design.md section 3): the
+    /// tangential step on S = A22 - A21 A11^-1 A12 over the current contact set,
+    /// then the normal step on A11; both sub-problems by projected Gauss-Seidel.
+    Split => split::SPLIT,
+    /// Plain block Gauss-Seidel on (lambda_N, lambda_T): tangential step on A22,
+    /// normal step on A11, both by projected Gauss-Seidel.
+    BlockGs => split::BLOCK_GS,
+    /// Projected Gauss-Seidel on the whole dual, contact by contact (Siconos NSGS).
+    Pgs => pgs::PGS,
+    /// Semismooth Newton (primal-dual active set) on the condensed dual with the
+    /// generalised Jacobian of the friction projections. Up to 40 Gauss-Seidel
+    /// sweeps first (counted as inner iterations); a step (or half, a quarter, an
+    /// eighth of it) is kept when it lowers the natural residual |F|, otherwise
+    /// Gauss-Seidel sweeps follow. One outer iteration is one Newton step (a dense
+    /// LU on the free unknowns).
+    Newton => newton::NEWTON,
+    /// Pop's splitting (Schur variant) with MPRGP / MPGP for the sub-problems instead
+    /// of projected Gauss-Seidel.
+    SplitMprgp => split::SPLIT_MPRGP,
+    /// MPRGP / MPGP (Dostal) on the whole dual; for Coulomb, the fixed point
+    /// p = mu lambda_N outside (one outer iteration per Tresca solve).
+    Mprgp => whole::MPRGP,
+}
+
+impl Method {
+    /// Short lower-case name ("split", "block-gs", "pgs", "newton",
+    /// "split-mprgp", "mprgp").
+    pub fn name(self) -> &'static str {
+        self.spec().name
+    }
+
+    /// True when the method reads entries of A (and so needs it assembled); only
+    /// `Mprgp` runs on products alone.
+    pub fn needs_entries(self) -> bool {
+        self.spec().needs_entries
+    }
+
+    /// Parses a name as returned by [`Method::name`].
+    pub fn from_name(s: &str) -> Option<Method> {
+        Method::ALL.into_iter().find(|m| m.name() == s)
+    }
 }
 
 /// Runs `opts.method` from the starting point in `lam` (length d m; a warm start or
 /// zeros) until the dual error is at most `target` or another stop test fires
 /// (see [`End`]).
 pub fn run(problem: &DualProblem<'_>, lam: &mut [f64], opts: &Options, target: f64) -> Outcome {
-    let (mut method, unknowns) = outer_step(problem, opts, target);
+    let (mut method, unknowns) = (opts.method.spec().build)(problem, opts, target);
     let mut out = driver::drive(problem, lam, opts, target, method.as_mut());
     out.unknowns = unknowns;
     out

@@ -41,9 +41,9 @@
 //! multipliers (see WARM_C), not by the natural map, so that a history step starts
 //! from the active set of the previous increment.
 
-use super::DualProblem;
 use super::driver::{Flow, Gradient, OuterStep};
 use super::pgs;
+use super::{DualProblem, MethodSpec};
 use crate::dense;
 use crate::friction::Friction;
 use crate::threads::{PARALLEL_MIN_ENTRIES, Threads};
@@ -355,6 +355,14 @@ fn residual_norm(problem: &DualProblem<'_>, lam: &[f64], w: &[f64]) -> f64 {
     }
     r2.sqrt()
 }
+
+/// `newton`: one semismooth Newton step per outer iteration, on frictionless
+/// increments as well (the unknowns at zero bounds leave its linear systems).
+pub(super) const NEWTON: MethodSpec = MethodSpec {
+    name: "newton",
+    needs_entries: true,
+    build: |problem, _opts, target| (Box::new(Newton::new(problem, target)), problem.dual.c),
+};
 
 /// The globalised semismooth Newton method.
 pub(super) struct Newton {

@@ -5,10 +5,18 @@
 //! Every sweep keeps w = A lam - b current by rank-one updates, so a sweep costs
 //! one column of A per changed unknown and the stopping test costs O(c).
 
-use super::DualProblem;
 use super::driver::{Flow, Gradient, OuterStep};
 use super::projection::{project_disk, solve_disk_qp};
 use super::subproblem::axpy;
+use super::{DualProblem, MethodSpec};
+
+/// `pgs`: one sweep per outer iteration, on frictionless increments as well (a
+/// tangential step at a zero bound costs O(1) per contact).
+pub(super) const PGS: MethodSpec = MethodSpec {
+    name: "pgs",
+    needs_entries: true,
+    build: |problem, _opts, _target| (Box::new(Pgs::new(problem)), problem.dual.c),
+};
 
 /// Projected Gauss-Seidel on the whole dual, contact by contact: the normal
 /// multiplier first, then the tangential block with the bound of the updated

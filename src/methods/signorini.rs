@@ -5,9 +5,27 @@
 //! MPRGP only). One outer iteration is one sub-problem solve (to a tenth of the
 //! target); the stopping test is the whole problem's err.
 
-use super::DualProblem;
 use super::driver::{Flow, Gradient, OuterStep};
 use super::subproblem::{SubQp, SubSolver};
+use super::{Built, DualProblem, Options, inner_rule};
+
+/// The outer step of a frictionless increment (every slip bound zero) for the
+/// methods that solve it as the pure Signorini problem in the m normal unknowns
+/// (the splittings and whole-dual MPRGP), its sub-problems by `solver(k, tol,
+/// max)`; None when the increment has friction.
+pub(super) fn frictionless<S: SubSolver + 'static>(
+    problem: &DualProblem<'_>,
+    opts: &Options,
+    target: f64,
+    solver: fn(usize, f64, usize) -> S,
+) -> Option<Built> {
+    if !problem.law.frictionless() {
+        return None;
+    }
+    let (tol, max) = inner_rule(opts, target);
+    let m = problem.dual.m;
+    Some((Box::new(Signorini::new(solver(m, tol, max))), m))
+}
 
 /// The frictionless increment solved by the sub-problem solver `S`.
 pub(super) struct Signorini<S> {

@@ -26,10 +26,11 @@
 //! the block variant, whose steps ignore that response, relaxes the whole iterate.
 //! At the iteration limit the iterate with the lowest error is returned.
 
-use super::DualProblem;
 use super::driver::{Flow, Gradient, OuterStep};
 use super::pgs::Aitken;
-use super::subproblem::{SubQp, SubSolver};
+use super::signorini::frictionless;
+use super::subproblem::{GaussSeidel, Mprgp, SubQp, SubSolver};
+use super::{Built, DualProblem, MethodSpec, Options, inner_rule};
 use crate::dense::llt_solve;
 use crate::threads::PARALLEL_MIN_ENTRIES;
 use faer::linalg::matmul::matmul;
@@ -105,6 +106,45 @@ fn schur(problem: &DualProblem<'_>, active: &[bool]) -> Option<Schur> {
         s,
         q,
     })
+}
+
+/// `split`: the Schur variant, sub-problems by projected Gauss-Seidel.
+pub(super) const SPLIT: MethodSpec = MethodSpec {
+    name: "split",
+    needs_entries: true,
+    build: |problem, opts, target| build(problem, opts, target, Variant::Schur, GaussSeidel::new),
+};
+
+/// `block-gs`: the block variant, sub-problems by projected Gauss-Seidel.
+pub(super) const BLOCK_GS: MethodSpec = MethodSpec {
+    name: "block-gs",
+    needs_entries: true,
+    build: |problem, opts, target| build(problem, opts, target, Variant::Block, GaussSeidel::new),
+};
+
+/// `split-mprgp`: the Schur variant, sub-problems by MPRGP / MPGP.
+pub(super) const SPLIT_MPRGP: MethodSpec = MethodSpec {
+    name: "split-mprgp",
+    needs_entries: true,
+    build: |problem, opts, target| build(problem, opts, target, Variant::Schur, Mprgp::new),
+};
+
+/// The splitting `variant` with sub-problems by `solver(k, tol, max)`; a
+/// frictionless increment as the pure Signorini problem (m unknowns).
+fn build<S: SubSolver + 'static>(
+    problem: &DualProblem<'_>,
+    opts: &Options,
+    target: f64,
+    variant: Variant,
+    solver: fn(usize, f64, usize) -> S,
+) -> Built {
+    if let Some(signorini) = frictionless(problem, opts, target, solver) {
+        return signorini;
+    }
+    let (m, c) = (problem.dual.m, problem.dual.c);
+    let (tol, max) = inner_rule(opts, target);
+    let sub = solver(m.max(c - m), tol, max);
+    (Box::new(Split::new(problem, variant, sub)), c)
 }
 
 /// Which tangential matrix the splitting uses.

@@ -142,7 +142,7 @@ impl<'a> SubQp<'a> {
 /// A solver of [`SubQp`] sub-problems, holding its own work space (allocated once
 /// per method run) and its stopping rule: a relative residual of at most `tol`, or
 /// `max` iterations (a tenth of the outer target and `Options::max_inner`, set by
-/// `methods::outer_step`).
+/// the method's `MethodSpec::build`).
 pub(super) trait SubSolver {
     /// Solves `qp` from `x` (at most k unknowns, k the size given at creation)
     /// until the stopping rule holds; returns the iterations, or [`Unbounded`] when

@@ -3,11 +3,30 @@
 //! (one outer iteration for Tresca). The Coulomb bound is relaxed as in the
 //! splittings (`pgs::Aitken`; the plain fixed point while it does not oscillate).
 
-use super::DualProblem;
 use super::driver::{Flow, Gradient, OuterStep};
 use super::mprgp::ConvexQp;
 use super::pgs::Aitken;
+use super::signorini::frictionless;
 use super::subproblem::Mprgp;
+use super::{DualProblem, MethodSpec, inner_rule};
+
+/// `mprgp`: MPRGP / MPGP on the whole dual (a frictionless increment: on the m
+/// normal unknowns); the one method that runs on products with A alone.
+pub(super) const MPRGP: MethodSpec = MethodSpec {
+    name: "mprgp",
+    needs_entries: false,
+    build: |problem, opts, target| {
+        if let Some(signorini) = frictionless(problem, opts, target, Mprgp::new) {
+            return signorini;
+        }
+        let (tol, max) = inner_rule(opts, target);
+        let c = problem.dual.c;
+        (
+            Box::new(WholeMprgp::new(problem, Mprgp::new(c, tol, max))),
+            c,
+        )
+    },
+};
 
 pub(super) struct WholeMprgp {
     solver: Mprgp,
