@@ -58,6 +58,7 @@ program minimal_f
    type(DsMatrix) :: k, n, t, kbad
    type(DsOptions) :: opts
    type(DsReport) :: rep
+   type(DsInfo) :: info
    type(c_ptr) :: pb, pb2
    real(8) :: f(2) = [1.0d0, -10.0d0], g(1) = [0.5d0], p(1) = [0.4d0]
    real(8) :: u(2), ln(1), lt(1)
@@ -85,6 +86,14 @@ program minimal_f
    if (st /= DS_STATUS_OK) stop 2
 
    call ds_options_default(opts)
+   ! the analysis alone, and the handle's: c = 2 dual unknowns, memory predicted
+   call ds_info_init(info)
+   st = ds_analyse(2, k, n, t, opts, info)
+   if (st /= DS_STATUS_OK) stop 2
+   print '(a,3(1x,i0))', 'INFO', info%n, info%c, merge(1, 0, info%setup_bytes > 0)
+   call ds_info_init(info)
+   st = ds_problem_info(pb, opts, info)
+   if (st /= DS_STATUS_OK .or. info%c /= 2) stop 2
    u = 0.0d0
    ln = 0.0d0
    lt = 0.0d0
@@ -97,6 +106,8 @@ program minimal_f
    print '(a,5(1x,es23.15e3),3(1x,i0))', 'RESULT', ln(1), lt(1), u(1), u(2), rep%err, &
       rep%n_open, rep%n_stick, rep%n_slip
    print '(a,2(1x,i0))', 'MONITOR', counter(1), rep%outer_iterations
+   print '(a,1x,i0)', 'MEMORY', merge(1, 0, rep%memory_peak > 0 .and. &
+      rep%memory_peak <= rep%memory_predicted)
    ok = counter(1) == rep%outer_iterations
    ok = ok .and. abs(ln(1) - 8.0d0) <= 1.0d-9 .and. abs(lt(1) - 0.4d0) <= 1.0d-9 .and. &
         abs(u(1) - 0.3d0) <= 1.0d-9 .and. abs(u(2) + 0.5d0) <= 1.0d-9

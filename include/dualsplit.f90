@@ -129,11 +129,12 @@ module dualsplit
       real(c_double)     :: stall_factor  !< progress: the best err drops by this factor per window (default 0.9)
       integer(c_int32_t) :: threads       !< the handle's threads, 0 = all cores, 1 = the calling thread (default 0)
       integer(c_int32_t) :: ordering      !< a DS_ORDERING_* value (default DS_ORDERING_AUTO)
+      integer(c_int64_t) :: max_memory    !< uint64_t in C: bytes the large allocations may take, 0 = the machine's limit (0.5)
    end type DsOptions
 
    !> sizeof(DsOptions) in C: what ds_options_init is told (tests/fortran.rs checks
    !> it against the C compiler's sizeof).
-   integer(c_size_t), parameter, public :: DS_OPTIONS_SIZE = 72
+   integer(c_size_t), parameter, public :: DS_OPTIONS_SIZE = 80
 
    !> A sparse matrix borrowed from the caller (CSparse naming); see ds_matrix_csr.
    type, bind(C), public :: DsMatrix
@@ -149,8 +150,8 @@ module dualsplit
       type(c_ptr)        :: x             !< values (const double *)
    end type DsMatrix
 
-   !> What a solve reports besides u and the multipliers (the 0.4 fields are written
-   !> because this module passes DsOptions of version 0.4).
+   !> What a solve reports besides u and the multipliers (the 0.4 and 0.5 fields are
+   !> written because this module passes DsOptions of version 0.5).
    type, bind(C), public :: DsReport
       integer(c_int32_t) :: status        !< DS_STATUS_OK or DS_STATUS_NOT_CONVERGED
       integer(c_int32_t) :: method        !< the DS_METHOD_* that ran
@@ -169,7 +170,34 @@ module dualsplit
       integer(c_int64_t) :: factor_nnz    !< nonzeros of K's Cholesky factor (0.4)
       real(c_double)     :: factor_flops  !< flops of one factorisation of K (0.4)
       real(c_double)     :: analyse_seconds !< seconds of K's ordering and symbolic analysis (0.4)
+      integer(c_int64_t) :: memory_predicted !< uint64_t in C: predicted peak bytes of this solve (0.5)
+      integer(c_int64_t) :: memory_peak   !< uint64_t in C: counted peak bytes of this solve (0.5)
    end type DsReport
+
+   !> What the analysis tells before any numeric work (ds_analyse, ds_problem_info).
+   !> ds_info_init sets struct_size; the uint64_t fields of C are integer(c_int64_t).
+   type, bind(C), public :: DsInfo
+      integer(c_int32_t) :: struct_size   !< uint32_t in C: sizeof(DsInfo), set by ds_info_init
+      integer(c_int32_t) :: d
+      integer(c_int64_t) :: n             !< DOFs
+      integer(c_int64_t) :: m             !< contacts
+      integer(c_int64_t) :: c             !< dual unknowns d m
+      integer(c_int64_t) :: nnz_k         !< stored entries of K, both triangles
+      integer(c_int64_t) :: factor_nnz    !< entries of K's Cholesky factor
+      real(c_double)     :: factor_flops  !< flops of one factorisation of K
+      integer(c_int32_t) :: ordering      !< DS_ORDERING_AMD or DS_ORDERING_METIS
+      integer(c_int32_t) :: setup_form    !< DS_DUAL_FORM_DENSE or DS_DUAL_FORM_MATRIX_FREE
+      integer(c_int32_t) :: method        !< the DS_METHOD_* of the options
+      integer(c_int32_t) :: solve_form    !< the DS_DUAL_FORM_* a solve with it uses
+      integer(c_int64_t) :: setup_bytes   !< predicted peak bytes of ds_problem_new
+      integer(c_int64_t) :: resident_bytes !< predicted bytes a handle holds
+      integer(c_int64_t) :: solve_bytes   !< predicted peak bytes of one solve
+      integer(c_int64_t) :: memory_limit  !< the limit checked against, bytes (0: unknown)
+      real(c_double)     :: analyse_seconds
+   end type DsInfo
+
+   !> sizeof(DsInfo) in C (tests/fortran.rs checks it).
+   integer(c_size_t), parameter, public :: DS_INFO_SIZE = 112
 
    !> What the monitor callback receives after every outer iteration.
    type, bind(C), public :: DsProgress
@@ -223,6 +251,7 @@ module dualsplit
    public :: ds_version
    public :: ds_problem_new, ds_problem_new_opts, ds_problem_free, ds_problem_refactor, ds_problem_set_contacts
    public :: ds_problem_sizes, ds_solve, ds_step, ds_history_reset
+   public :: ds_analyse, ds_problem_info, ds_info_init
    public :: ds_problem_set_monitor, ds_problem_set_log, ds_problem_dump, ds_string_from_c
    public :: ds_matrix_csr, ds_matrix_csc, ds_matrix_coo
 
@@ -297,6 +326,29 @@ module dualsplit
          type(c_ptr), intent(inout) :: out
          integer(c_int) :: status
       end function c_ds_problem_new_opts
+
+      ! enum DsStatus ds_analyse(int32_t d, const struct DsMatrix *k,
+      !     const struct DsMatrix *n, const struct DsMatrix *t,
+      !     const struct DsOptions *opts, struct DsInfo *info);
+      function c_ds_analyse(d, k, n, t, opts, info) result(status) bind(C, name="ds_analyse")
+         import :: c_int, c_int32_t, DsMatrix, DsOptions, DsInfo
+         integer(c_int32_t), value :: d
+         type(DsMatrix), intent(in) :: k, n, t
+         type(DsOptions), intent(in) :: opts
+         type(DsInfo), intent(inout) :: info
+         integer(c_int) :: status
+      end function c_ds_analyse
+
+      ! enum DsStatus ds_problem_info(const struct DsProblem *problem,
+      !     const struct DsOptions *opts, struct DsInfo *info);
+      function c_ds_problem_info(problem, opts, info) result(status) &
+            bind(C, name="ds_problem_info")
+         import :: c_int, c_ptr, DsOptions, DsInfo
+         type(c_ptr), value :: problem
+         type(DsOptions), intent(in) :: opts
+         type(DsInfo), intent(inout) :: info
+         integer(c_int) :: status
+      end function c_ds_problem_info
 
       ! void ds_problem_free(struct DsProblem *problem);
       subroutine c_ds_problem_free(problem) bind(C, name="ds_problem_free")
@@ -495,7 +547,7 @@ contains
 
    !> status = ds_options_init(opts): as ds_options_default, with the status of the
    !> C function (DS_STATUS_OK). The size passed is that of this module's DsOptions,
-   !> 72 bytes (the storage size of its components: c_sizeof is Fortran 2008).
+   !> 80 bytes (the storage size of its components: c_sizeof is Fortran 2008).
    function ds_options_init(opts) result(status)
       type(DsOptions), intent(out) :: opts
       integer :: status
@@ -522,6 +574,37 @@ contains
       integer(c_int32_t) :: status
       status = int(c_ds_problem_new_opts(d, k, n, t, opts, problem), c_int32_t)
    end function ds_problem_new_opts
+
+   !> Sets info%struct_size to DS_INFO_SIZE (and the other fields to 0): call before
+   !> ds_analyse or ds_problem_info.
+   subroutine ds_info_init(info)
+      type(DsInfo), intent(out) :: info
+      info = DsInfo(int(DS_INFO_SIZE, c_int32_t), 0, 0_c_int64_t, 0_c_int64_t, 0_c_int64_t, &
+         0_c_int64_t, 0_c_int64_t, 0.0_c_double, 0, 0, 0, 0, 0_c_int64_t, 0_c_int64_t, &
+         0_c_int64_t, 0_c_int64_t, 0.0_c_double)
+   end subroutine ds_info_init
+
+   !> The analysis alone (no handle, nothing factored): sizes, the factor's size
+   !> and flops, the route opts lead to and its predicted memory. Call
+   !> ds_info_init(info) first.
+   function ds_analyse(d, k, n, t, opts, info) result(status)
+      integer(c_int32_t), intent(in) :: d
+      type(DsMatrix), intent(in) :: k, n, t
+      type(DsOptions), intent(in) :: opts
+      type(DsInfo), intent(inout) :: info
+      integer(c_int32_t) :: status
+      status = int(c_ds_analyse(d, k, n, t, opts, info), c_int32_t)
+   end function ds_analyse
+
+   !> The analysis of a handle as it is now, the solve memory predicted for
+   !> opts%method. Call ds_info_init(info) first.
+   function ds_problem_info(problem, opts, info) result(status)
+      type(c_ptr), intent(in) :: problem
+      type(DsOptions), intent(in) :: opts
+      type(DsInfo), intent(inout) :: info
+      integer(c_int32_t) :: status
+      status = int(c_ds_problem_info(problem, opts, info), c_int32_t)
+   end function ds_problem_info
 
    !> Frees a handle (a null handle is fine) and sets it to c_null_ptr.
    subroutine ds_problem_free(problem)

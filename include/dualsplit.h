@@ -288,6 +288,67 @@ typedef enum DsFriction {
 typedef struct DsProblem DsProblem;
 
 /*
+ A sparse matrix borrowed from the caller, with CSparse naming. The library reads
+ it during the call only; it never frees or keeps the arrays.
+
+ A CSparse `cs` or a packed `cholmod_sparse` maps field by field: format CSC (or
+ COO for a `cs` triplet matrix, nz >= 0, with nnz = nz), p, i, x; CHOLMOD stype 1
+ is DS_STORAGE_UPPER, -1 DS_STORAGE_LOWER, 0 DS_STORAGE_FULL.
+
+ Errors when a matrix is read: DS_STATUS_BAD_ARGUMENT (unknown format, index_type
+ or storage, base not 0 or 1), DS_STATUS_BAD_INDEX (last pointer below base, index
+ out of range, pointers not monotone), DS_STATUS_BAD_SIZE (negative nrows, ncols or
+ COO nnz), DS_STATUS_NULL_POINTER (p, i or x NULL for a non-empty array),
+ DS_STATUS_NOT_FINITE (NaN or infinity in x).
+ */
+typedef struct DsMatrix {
+  /*
+   A DsFormat value: DS_FORMAT_CSR, DS_FORMAT_CSC or DS_FORMAT_COO.
+   */
+  int32_t format;
+  /*
+   A DsIndexType value: p and i point to int32_t (DS_INDEX_TYPE_I32) or int64_t
+   (DS_INDEX_TYPE_I64).
+   */
+  int32_t index_type;
+  /*
+   Index base of p and i alike: 0 (C) or 1 (Fortran).
+   */
+  int32_t base;
+  /*
+   A DsStorage value; only K may be DS_STORAGE_UPPER or DS_STORAGE_LOWER.
+   */
+  int32_t storage;
+  /*
+   Number of rows, >= 0.
+   */
+  int64_t nrows;
+  /*
+   Number of columns, >= 0.
+   */
+  int64_t ncols;
+  /*
+   COO: number of triplets (>= 0). CSR/CSC: ignored; the number of entries is
+   `p[last] - base`.
+   */
+  int64_t nnz;
+  /*
+   CSC: ncols+1 column pointers; CSR: nrows+1 row pointers; COO: nnz column
+   indices. Never NULL for CSR/CSC.
+   */
+  const void *p;
+  /*
+   CSC: row indices; CSR: column indices; COO: row indices. NULL allowed when
+   there are no entries.
+   */
+  const void *i;
+  /*
+   Values, one per entry. NULL allowed when there are no entries.
+   */
+  const double *x;
+} DsMatrix;
+
+/*
  Options of ds_solve / ds_step. Fill with ds_options_init(&opts, sizeof opts)
  (or the ds_options_default macro, which does the same), then change fields.
  Passing NULL instead of a DsOptions uses the defaults.
@@ -295,8 +356,8 @@ typedef struct DsProblem DsProblem;
  The struct grows at its end from version to version; struct_size says which
  version the caller was compiled against, and the library reads no byte past
  it: 32 (version 0.1: up to max_inner), 40 (0.2: up to dual_form), 64 (0.3: up
- to stall_factor) and 72 (0.4) are accepted, the fields an older struct lacks
- take their defaults.
+ to stall_factor), 72 (0.4: up to ordering) and 80 (0.5) are accepted, the
+ fields an older struct lacks take their defaults.
 
  Errors when read: DS_STATUS_BAD_ARGUMENT if struct_size is not one of those
  sizes, method is not a DsMethod, tol is not finite and positive, max_outer is
@@ -375,68 +436,110 @@ typedef struct DsOptions {
    keeps the analysis; ds_solve and ds_step ignore it). Added in version 0.4.
    */
   int32_t ordering;
+  /*
+   The most bytes the library's large allocations (the copies of K, N and T,
+   K's factor, the condensed dual, the dense work space of the method, the
+   solve's vectors) may take at once; 0 (default) for no limit of the
+   caller's: the limit is then this process's address-space limit
+   (RLIMIT_AS) or the machine's physical memory, the smaller. The need is
+   predicted from the sizes known after K's symbolic analysis (see
+   ds_analyse and DsInfo), before the work that allocates it:
+   ds_problem_new_opts refuses a problem whose setup would exceed it, and
+   ds_solve / ds_step a solve whose method would, with
+   DS_STATUS_OUT_OF_MEMORY and a message naming the need and a route that
+   fits (the handle stays usable). With DS_DUAL_FORM_AUTO the problem is
+   created matrix-free where the dense dual does not fit. Read by
+   ds_problem_new_opts, ds_solve and ds_step. Added in version 0.5.
+   */
+  uint64_t max_memory;
 } DsOptions;
 
 /*
- A sparse matrix borrowed from the caller, with CSparse naming. The library reads
- it during the call only; it never frees or keeps the arrays.
+ What the analysis of a contact problem tells before any numeric work (as
+ MUMPS's analysis phase, JOB = 1): sizes, the factor's size and cost, the route
+ the options lead to and its predicted memory. Filled by ds_analyse (no handle
+ is made, nothing is factored) and ds_problem_info (for a handle).
 
- A CSparse `cs` or a packed `cholmod_sparse` maps field by field: format CSC (or
- COO for a `cs` triplet matrix, nz >= 0, with nnz = nz), p, i, x; CHOLMOD stype 1
- is DS_STORAGE_UPPER, -1 DS_STORAGE_LOWER, 0 DS_STORAGE_FULL.
-
- Errors when a matrix is read: DS_STATUS_BAD_ARGUMENT (unknown format, index_type
- or storage, base not 0 or 1), DS_STATUS_BAD_INDEX (last pointer below base, index
- out of range, pointers not monotone), DS_STATUS_BAD_SIZE (negative nrows, ncols or
- COO nnz), DS_STATUS_NULL_POINTER (p, i or x NULL for a non-empty array),
- DS_STATUS_NOT_FINITE (NaN or infinity in x).
+ Set struct_size = sizeof(DsInfo) before the call: the struct grows at its end
+ from version to version, and the library writes no byte past struct_size
+ (fields a newer library has and the caller's struct lacks are left out).
+ Added in version 0.5 (112 bytes).
  */
-typedef struct DsMatrix {
+typedef struct DsInfo {
   /*
-   A DsFormat value: DS_FORMAT_CSR, DS_FORMAT_CSC or DS_FORMAT_COO.
+   sizeof(DsInfo) as the caller sees it; set by the caller, at least 8.
    */
-  int32_t format;
+  uint32_t struct_size;
   /*
-   A DsIndexType value: p and i point to int32_t (DS_INDEX_TYPE_I32) or int64_t
-   (DS_INDEX_TYPE_I64).
+   Contact dimension (2 or 3).
    */
-  int32_t index_type;
+  int32_t d;
   /*
-   Index base of p and i alike: 0 (C) or 1 (Fortran).
+   DOFs (rows of K).
    */
-  int32_t base;
+  int64_t n;
   /*
-   A DsStorage value; only K may be DS_STORAGE_UPPER or DS_STORAGE_LOWER.
+   Contacts (rows of N).
    */
-  int32_t storage;
+  int64_t m;
   /*
-   Number of rows, >= 0.
+   Dual unknowns c = d m.
    */
-  int64_t nrows;
+  int64_t c;
   /*
-   Number of columns, >= 0.
+   Stored entries of K, both triangles.
    */
-  int64_t ncols;
+  int64_t nnz_k;
   /*
-   COO: number of triplets (>= 0). CSR/CSC: ignored; the number of entries is
-   `p[last] - base`.
+   Entries of the Cholesky factor L (dense supernodal blocks included).
    */
-  int64_t nnz;
+  int64_t factor_nnz;
   /*
-   CSC: ncols+1 column pointers; CSR: nrows+1 row pointers; COO: nnz column
-   indices. Never NULL for CSR/CSC.
+   Flops of one numeric factorisation of K.
    */
-  const void *p;
+  double factor_flops;
   /*
-   CSC: row indices; CSR: column indices; COO: row indices. NULL allowed when
-   there are no entries.
+   The DsOrdering chosen: DS_ORDERING_AMD or DS_ORDERING_METIS.
    */
-  const void *i;
+  int32_t ordering;
   /*
-   Values, one per entry. NULL allowed when there are no entries.
+   The DsDualForm the handle is (or would be) created with:
+   DS_DUAL_FORM_DENSE (A formed) or DS_DUAL_FORM_MATRIX_FREE.
    */
-  const double *x;
-} DsMatrix;
+  int32_t setup_form;
+  /*
+   The DsMethod of the options passed (the default: DS_METHOD_SPLIT).
+   */
+  int32_t method;
+  /*
+   The DsDualForm a solve with that method uses (DS_DUAL_FORM_DENSE for every
+   method that reads entries of A).
+   */
+  int32_t solve_form;
+  /*
+   Predicted peak bytes of the library's large allocations while the handle
+   is created (factorisation, then condensation).
+   */
+  uint64_t setup_bytes;
+  /*
+   Predicted bytes the handle holds between calls.
+   */
+  uint64_t resident_bytes;
+  /*
+   Predicted peak bytes during one solve with that method (its largest case).
+   */
+  uint64_t solve_bytes;
+  /*
+   The memory limit the predictions are checked against, bytes
+   (DsOptions.max_memory, else this process's address-space limit or the
+   machine's physical memory; 0 when none is known).
+   */
+  uint64_t memory_limit;
+  /*
+   Seconds of the ordering and the symbolic factorisation.
+   */
+  double analyse_seconds;
+} DsInfo;
 
 /*
  What the monitor callback receives after every outer iteration.
@@ -498,8 +601,9 @@ typedef void (*DsLogFn)(int32_t level, const char *message, void *user_data);
  header a program was built with; with opts = NULL, the fields of version 0.1),
  so a program's DsReport is never written past its end. Versions 0.1 to 0.3 have
  the same 88-byte report; 0.4 appends ordering, threads, factor_nnz,
- factor_flops and analyse_seconds (120 bytes), written when the caller's DsOptions is of version 0.4
- (struct_size 72) or later.
+ factor_flops and analyse_seconds (120 bytes), written when the caller's
+ DsOptions is of version 0.4 (struct_size 72); 0.5 appends memory_predicted and
+ memory_peak (136 bytes), written when it is of version 0.5 (struct_size 80).
  */
 typedef struct DsReport {
   /*
@@ -582,11 +686,66 @@ typedef struct DsReport {
    handle was created. Added in version 0.4.
    */
   double analyse_seconds;
+  /*
+   The predicted peak of the library's large allocations during this solve,
+   bytes: what the handle holds, the solve's vectors and the method's dense
+   work space in its largest case (see DsOptions.max_memory and DsInfo).
+   Added in version 0.5.
+   */
+  uint64_t memory_predicted;
+  /*
+   The measured peak of the same allocations during this solve, bytes,
+   counted by the library as it allocates (not read from the operating
+   system). Added in version 0.5.
+   */
+  uint64_t memory_peak;
 } DsReport;
 
 #ifdef __cplusplus
 extern "C" {
 #endif // __cplusplus
+
+/*
+ The analysis alone: validates K, N, T and the options, orders K and computes
+ its symbolic factorisation, decides the route the options lead to and
+ predicts its memory, and fills *info; no handle is made and nothing is
+ factored (the cost is that of the ordering, well under the factorisation's).
+ opts = NULL: the defaults. The memory limit (DsOptions.max_memory) is not
+ enforced here: compare setup_bytes and solve_bytes with memory_limit.
+
+ Returns DS_STATUS_OK, or what ds_problem_new_opts returns before it factors:
+ DS_STATUS_NULL_POINTER, DS_STATUS_BAD_ARGUMENT (also info->struct_size below
+ 8), DS_STATUS_BAD_SIZE, DS_STATUS_BAD_INDEX, DS_STATUS_NOT_FINITE,
+ DS_STATUS_NOT_SYMMETRIC, DS_STATUS_OUT_OF_MEMORY (the analysis itself does not
+ fit). *info is written only on DS_STATUS_OK.
+
+ # Safety
+ As ds_problem_new_opts; info must point to a writable DsInfo of at least
+ info->struct_size bytes.
+ */
+enum DsStatus ds_analyse(int32_t d,
+                         const struct DsMatrix *k,
+                         const struct DsMatrix *n,
+                         const struct DsMatrix *t,
+                         const struct DsOptions *opts,
+                         struct DsInfo *info);
+
+/*
+ The analysis of a handle as it is now (see DsInfo), with the solve memory
+ predicted for opts->method and opts->dual_form (opts = NULL: the defaults).
+
+ Returns DS_STATUS_OK, DS_STATUS_NULL_POINTER or DS_STATUS_BAD_ARGUMENT
+ (invalid options, info->struct_size below 8). *info is written only on
+ DS_STATUS_OK.
+
+ # Safety
+ problem must be NULL or a live handle; opts NULL or a DsOptions initialised
+ with ds_options_init; info a writable DsInfo of at least info->struct_size
+ bytes.
+ */
+enum DsStatus ds_problem_info(const struct DsProblem *problem,
+                              const struct DsOptions *opts,
+                              struct DsInfo *info);
 
 /*
  The message of the last error on the calling thread, NUL-terminated, e.g.
@@ -601,13 +760,14 @@ const char *ds_last_error_message(void);
  Fills the first `size` bytes of *opts with the defaults of the DsOptions of
  that size: struct_size = size, method DS_METHOD_SPLIT, tol 1e-10, max_outer
  10000, max_inner 1000, dual_form DS_DUAL_FORM_AUTO, max_seconds 0 (none),
- stall_window 100, stall_factor 0.9. Pass sizeof(DsOptions) as the caller sees
+ stall_window 100, stall_factor 0.9, threads 0 (all cores), ordering
+ DS_ORDERING_AUTO, max_memory 0 (the machine's limit). Pass sizeof(DsOptions) as the caller sees
  it (the ds_options_default macro does): a program compiled against an older
  header then gets its older struct filled, and nothing is written past it.
 
  Returns DS_STATUS_OK, DS_STATUS_NULL_POINTER (opts NULL) or
  DS_STATUS_BAD_ARGUMENT (size is not the size of a DsOptions of any version: 32,
- 40 or 64; opts misaligned); nothing is written on error.
+ 40, 64, 72 or 80; opts misaligned); nothing is written on error.
 
  # Safety
  `opts` must be NULL or point to `size` writable bytes.
@@ -892,7 +1052,7 @@ const char *ds_version(void);
 /* The version of dualsplit this header belongs to (ds_version() gives the one a
  * program runs against; tests/header.rs checks these against Cargo.toml). */
 #define DS_VERSION_MAJOR 0
-#define DS_VERSION_MINOR 4
+#define DS_VERSION_MINOR 5
 #define DS_VERSION_PATCH 0
 
 #ifndef DS_NO_OPTIONS_DEFAULT_MACRO

@@ -5,6 +5,7 @@
 
 use crate::error::{ErrorKind, Result, fail};
 use crate::factor::Factor;
+use crate::memory::{Claim, F64, Ledger};
 use crate::options::{DENSE_MAX, DualForm};
 use crate::sparse::Csc;
 use crate::threads::{PARALLEL_MIN_ENTRIES, Threads};
@@ -18,7 +19,7 @@ use std::sync::Arc;
 use std::time::Instant;
 
 /// Number of right-hand sides solved together while forming A.
-const BLOCK: usize = 32;
+pub(crate) const BLOCK: usize = 32;
 
 /// The dense condensed dual operator of one set of contact matrices.
 pub struct Dual {
@@ -45,6 +46,10 @@ pub struct Dual {
     pub(crate) condensation: Condensation,
     /// The problem's threads (those of the factor it was built from).
     pub(crate) threads: Arc<Threads>,
+    /// The problem's count of its large allocations (the factor's).
+    pub(crate) ledger: Arc<Ledger>,
+    /// The bytes of A (or of the matrix-free form) on that ledger.
+    _claim: Claim,
 }
 
 /// How the condensed dual operator was formed.
@@ -57,6 +62,23 @@ pub enum Condensation {
     Solves,
     /// A is not formed: products through L_CC (see [`crate::DualForm::MatrixFree`]).
     MatrixFree,
+}
+
+impl Condensation {
+    /// How [`Dual::build`] forms a dual of `c` unknowns in the form asked for,
+    /// `trailing` when every contact DOF is among the factor's trailing DOFs.
+    pub(crate) fn of(trailing: bool, form: DualForm, c: usize) -> Condensation {
+        let free = match form {
+            DualForm::Dense => false,
+            DualForm::MatrixFree => true,
+            DualForm::Auto => c > DENSE_MAX,
+        };
+        match (trailing, free) {
+            (false, _) => Condensation::Solves,
+            (true, false) => Condensation::TrailingBlock,
+            (true, true) => Condensation::MatrixFree,
+        }
+    }
 }
 
 /// The DOFs (columns of B) that B touches, in increasing order.
@@ -133,17 +155,7 @@ impl Dual {
     pub fn build(factor: &Factor, n: &Csc, t: &Csc, d: usize, form: DualForm) -> Result<Dual> {
         check_shapes(factor.n(), d, n, t)?;
         let trailing = Self::trailing_available(factor, n, t);
-        let c = d * n.nrows;
-        let free = match form {
-            DualForm::Dense => false,
-            DualForm::MatrixFree => true,
-            DualForm::Auto => c > DENSE_MAX,
-        };
-        let how = match (trailing, free) {
-            (false, _) => Condensation::Solves,
-            (true, false) => Condensation::TrailingBlock,
-            (true, true) => Condensation::MatrixFree,
-        };
+        let how = Condensation::of(trailing, form, d * n.nrows);
         Self::build_with(factor, n, t, d, how)
     }
 
@@ -209,11 +221,15 @@ impl Dual {
         check_shapes(factor.n(), d, n, t)?;
         let b = stack_rows(n, t);
         let c = b.nrows;
+        let ledger = factor.ledger();
         if how == Condensation::MatrixFree {
             let free = FreeOp::new(factor, &b)?;
             let diag = free.diag.clone();
             let rho = rho_of(m, d, |j| diag[j]);
+            let nc = free.l.nrows();
             return Ok(Dual {
+                _claim: ledger.claim_f64(nc * nc),
+                ledger: ledger.clone(),
                 d,
                 m,
                 c,
@@ -227,6 +243,7 @@ impl Dual {
             });
         }
         let mut a = alloc_zeroed(c, c, "condensed dual")?;
+        let claim = ledger.claim_f64(c * c);
         match how {
             Condensation::Solves => a_by_solves(factor, &b, &mut a),
             Condensation::TrailingBlock => a_from_trailing_block(factor, &b, &mut a),
@@ -241,6 +258,8 @@ impl Dual {
         }
         let rho = rho_of(m, d, |j| a[j + j * c]);
         Ok(Dual {
+            _claim: claim,
+            ledger: ledger.clone(),
             d,
             m,
             c,
@@ -365,7 +384,11 @@ impl FreeOp {
         let last = factor.last();
         let nc = last.len();
         // Probe the allocation first: trailing_block() would abort on failure.
-        drop(alloc_zeroed(nc, nc, "trailing block L_CC")?);
+        {
+            let _probe = factor.ledger().claim_f64(nc * nc);
+            drop(alloc_zeroed(nc, nc, "trailing block L_CC")?);
+        }
+        let _lcc = factor.ledger().claim_f64(nc * nc);
         let l = factor.trailing_block();
         let mut pos = vec![usize::MAX; factor.n()];
         for (q, &j) in last.iter().enumerate() {
@@ -464,6 +487,9 @@ fn a_by_solves(factor: &Factor, b: &Csc, a: &mut [f64]) {
     let (ndof, c) = (factor.n(), b.nrows);
     let bt = b.transpose();
     let width = BLOCK.min(c.max(1));
+    let _work = factor
+        .ledger()
+        .claim(ndof * width * F64 + factor.solve_scratch(width).size_bytes());
     let mut rhs = faer::Mat::<f64>::zeros(ndof, width);
     let mut mem = MemBuffer::new(factor.solve_scratch(width));
     let mut col = vec![0.0; c];
@@ -506,7 +532,9 @@ fn a_from_trailing_block(factor: &Factor, b: &Csc, a: &mut [f64]) {
     for (q, &j) in last.iter().enumerate() {
         pos[j] = q;
     }
+    let l_claim = factor.ledger().claim_f64(nc * nc);
     let l = factor.trailing_block();
+    let _x_claim = factor.ledger().claim_f64(nc * nc);
     let mut x = Mat::<f64>::zeros(nc, nc);
     {
         // On the problem's threads: the inverse is dense c^3/3 work (the sparse
@@ -519,6 +547,7 @@ fn a_from_trailing_block(factor: &Factor, b: &Csc, a: &mut [f64]) {
             });
     }
     drop(l);
+    drop(l_claim);
     // Only the lower triangle of X = S_CC^-1 is written: mirror it, by tiles so
     // that both the reads and the writes stay in cache.
     const TILE: usize = 64;

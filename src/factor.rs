@@ -3,6 +3,7 @@
 //! factorisation once per set of values, and each solve reuses both.
 
 use crate::error::{ErrorKind, Result, fail};
+use crate::memory::{Claim, Ledger};
 use crate::options::Ordering;
 use crate::sparse::Csc;
 use crate::threads::Threads;
@@ -43,6 +44,7 @@ const METIS_FLOPS_PER_ENTRY: f64 = 500.0;
 /// The numeric part of a factorisation, as handed back by [`Factor::refactor`].
 pub struct NumericFactor {
     l_values: Vec<f64>,
+    l_claim: Option<Claim>,
     factor_seconds: f64,
 }
 
@@ -51,6 +53,10 @@ pub struct NumericFactor {
 pub struct Factor {
     symbolic: SymbolicCholesky<usize>,
     l_values: Vec<f64>,
+    /// The bytes of `l_values` on the ledger.
+    l_claim: Option<Claim>,
+    /// The problem's count of its large allocations.
+    ledger: Arc<Ledger>,
     col_ptr: Vec<usize>,
     row_idx: Vec<usize>,
     /// The DOFs ordered last, in this order (empty for a plain AMD ordering).
@@ -135,11 +141,31 @@ impl Factor {
     /// solves may use (they run sequentially where the fronts are small).
     ///
     /// Errors: as [`Factor::new`].
+    #[cfg(any(test, feature = "internals"))]
     pub fn with_last(
         k: &Csc,
         last: &[usize],
         ordering: Ordering,
         threads: Arc<Threads>,
+    ) -> Result<Factor> {
+        let mut f = Self::analyse(k, last, ordering, threads, Ledger::new())?;
+        f.refactor(k)?;
+        Ok(f)
+    }
+
+    /// The analysis of [`Factor::with_last`] alone (ordering and symbolic
+    /// factorisation, no numeric work): the factor's size is known
+    /// ([`Factor::nnz_and_flops`], [`Factor::factor_scratch_bytes`]) and
+    /// [`Factor::refactor`] computes its values. Allocations of the numeric
+    /// factor and its workspace are counted on `ledger`.
+    ///
+    /// Errors: `OutOfMemory` (the ordering or the symbolic analysis).
+    pub(crate) fn analyse(
+        k: &Csc,
+        last: &[usize],
+        ordering: Ordering,
+        threads: Arc<Threads>,
+        ledger: Arc<Ledger>,
     ) -> Result<Factor> {
         let n = k.nrows;
         let start = Instant::now();
@@ -180,6 +206,8 @@ impl Factor {
         let analyse_seconds = start.elapsed().as_secs_f64();
         let mut f = Factor {
             l_values: Vec::new(),
+            l_claim: None,
+            ledger,
             symbolic,
             col_ptr: k.col_ptr.clone(),
             row_idx: k.row_idx.clone(),
@@ -194,8 +222,27 @@ impl Factor {
         let (nnz, flops) = f.nnz_and_flops();
         f.parallel = flops > PARALLEL_FLOPS_PER_ENTRY * nnz as f64;
         debug_assert_eq!(f.n(), n);
-        f.refactor(k)?;
         Ok(f)
+    }
+
+    /// The problem's count of its large allocations.
+    pub(crate) fn ledger(&self) -> &Arc<Ledger> {
+        &self.ledger
+    }
+
+    /// The parallelism of the factorisation and the solves.
+    fn par(&self) -> Par {
+        match self.parallel {
+            true => Par::rayon(self.threads.count()),
+            false => Par::Seq,
+        }
+    }
+
+    /// Bytes of the numeric factorisation's workspace.
+    pub(crate) fn factor_scratch_bytes(&self) -> usize {
+        self.symbolic
+            .factorize_numeric_llt_scratch::<f64>(self.par(), Default::default())
+            .size_bytes()
     }
 
     /// The threads the factorisation and the solves use.
@@ -323,6 +370,8 @@ impl Factor {
             &k.values,
         );
         let symbolic = &self.symbolic;
+        let scratch_claim = self.ledger.claim(self.factor_scratch_bytes());
+        let values_claim = self.ledger.claim_f64(symbolic.len_val());
         let result = self.threads.run(self.parallel, |par| {
             let req = symbolic.factorize_numeric_llt_scratch::<f64>(par, Default::default());
             let mut mem = MemBuffer::try_new(req).map_err(|_| {
@@ -346,6 +395,7 @@ impl Factor {
             Ok((values, result))
         });
         let (values, result) = result?;
+        drop(scratch_claim);
         if let Err(e) = result {
             return fail(
                 ErrorKind::NotPositiveDefinite,
@@ -370,6 +420,7 @@ impl Factor {
         }
         let previous = NumericFactor {
             l_values: std::mem::replace(&mut self.l_values, values),
+            l_claim: self.l_claim.replace(values_claim),
             factor_seconds: self.factor_seconds,
         };
         self.factor_seconds = start.elapsed().as_secs_f64();
@@ -379,16 +430,14 @@ impl Factor {
     /// Puts back a numeric factor returned by [`Factor::refactor`].
     pub fn restore(&mut self, previous: NumericFactor) {
         self.l_values = previous.l_values;
+        self.l_claim = previous.l_claim;
         self.factor_seconds = previous.factor_seconds;
     }
 
     /// Workspace needed by [`Factor::solve_in_place`] for `ncols` right-hand sides.
     pub fn solve_scratch(&self, ncols: usize) -> StackReq {
-        let par = match self.parallel {
-            true => Par::rayon(self.threads.count()),
-            false => Par::Seq,
-        };
-        self.symbolic.solve_in_place_scratch::<f64>(ncols, par)
+        self.symbolic
+            .solve_in_place_scratch::<f64>(ncols, self.par())
     }
 
     /// Overwrites `rhs` (n x k) with K^-1 rhs, using `stack` as workspace (at least

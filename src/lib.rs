@@ -12,6 +12,8 @@ mod error;
 mod factor;
 pub mod ffi;
 mod friction;
+mod info;
+mod memory;
 mod methods;
 pub mod mtx;
 mod options;
@@ -23,6 +25,7 @@ mod threads;
 
 pub use error::{Error, ErrorKind, Result};
 pub use friction::Friction;
+pub use info::Info;
 pub use methods::{Monitor, Progress};
 pub use options::{DENSE_MAX, DualForm, Method, Options, Ordering, STALL_FACTOR, STALL_WINDOW};
 pub use problem::{ContactProblem, Solution};

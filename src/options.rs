@@ -127,6 +127,17 @@ pub struct Options {
     /// system refuses the threads, the work runs on the calling thread). Results
     /// with 1 thread are bit-identical from run to run.
     pub threads: usize,
+    /// The most bytes the problem's large allocations may take at once, 0 for no
+    /// limit of the caller's (default 0: then the limit is this process's
+    /// address-space limit, RLIMIT_AS, or the machine's physical memory, the
+    /// smaller). The need of the factor, the condensed dual and the method's
+    /// dense work space is predicted from the sizes known after the symbolic
+    /// analysis, before the work that allocates them: a creation (or a solve)
+    /// whose prediction exceeds the limit ends with `OutOfMemory` and a message
+    /// that names the need; `DualForm::Auto` picks the matrix-free form where the
+    /// dense one does not fit. Read by `ContactProblem::with_options` and by every
+    /// `solve` and `step` (a refused solve leaves the problem usable).
+    pub max_memory: usize,
 }
 
 /// Default window of the stagnation test, in outer iterations.
@@ -153,6 +164,7 @@ impl Default for Options {
             stall_factor: STALL_FACTOR,
             ordering: Ordering::Auto,
             threads: 0,
+            max_memory: 0,
         }
     }
 }

@@ -2,12 +2,14 @@
 //! dual, and the history of a quasistatic simulation. This is the safe Rust API that
 //! the C boundary wraps.
 
-use crate::dual::{Condensation, Dual, check_shapes, contact_dofs, stack_rows};
+use crate::dual::{BLOCK, Condensation, Dual, check_shapes, contact_dofs, stack_rows};
 use crate::error::{ErrorKind, Result, fail};
 use crate::factor::Factor;
 use crate::friction::Friction;
+use crate::info::Info;
+use crate::memory::{self, Claim, F64, Ledger, Sizes};
 use crate::methods::{self, DualProblem, End, Monitor, Progress};
-use crate::options::{DualForm, Options};
+use crate::options::{DENSE_MAX, DualForm, Method, Options};
 use crate::report::Report;
 use crate::report::{SolveStatus, contact_states, natural_map_error};
 use crate::sparse::{Csc, MatrixView};
@@ -37,9 +39,20 @@ pub struct ContactProblem {
     t: Csc,
     factor: Factor,
     dual: Dual,
+    /// The sizes memory predictions are made from.
+    sizes: Sizes,
+    /// The bytes of K, N and T on the problem's ledger (the factor's).
+    inputs: Claim,
     /// History: u_k, and the last converged multipliers [lambda_N; lambda_T].
     u_hist: Vec<f64>,
     lam_hist: Vec<f64>,
+}
+
+/// The route of a new problem, decided after K's analysis.
+struct Plan {
+    sizes: Sizes,
+    /// `Dense` or `MatrixFree`.
+    form: DualForm,
 }
 
 /// The largest `Options::threads` accepted (a guard against garbage values).
@@ -123,20 +136,10 @@ impl ContactProblem {
 
     /// As [`ContactProblem::with_options`], from matrices in internal form.
     pub fn from_csc_with(d: usize, k: Csc, n: Csc, t: Csc, opts: &Options) -> Result<Self> {
-        check_d(d)?;
-        Self::check_options(opts)?;
-        if k.nrows != k.ncols {
-            return fail(
-                ErrorKind::BadSize,
-                format!("K is {} x {}, not square", k.nrows, k.ncols),
-            );
-        }
-        check_shapes(k.nrows, d, &n, &t)?;
-        // Contact DOFs last, so that the factor's trailing block condenses K onto them.
-        let threads = Arc::new(Threads::new(opts.threads));
-        let last = contact_dofs(&stack_rows(&n, &t));
-        let factor = Factor::with_last(&k, &last, opts.ordering, threads)?;
-        let dual = Dual::build(&factor, &n, &t, d, DualForm::Auto)?;
+        let (mut factor, plan) = Self::analysed(d, &k, &n, &t, opts)?;
+        let inputs = factor.ledger().claim(plan.sizes.inputs);
+        factor.refactor(&k)?;
+        let dual = Dual::build(&factor, &n, &t, d, plan.form)?;
         let ndof = k.nrows;
         let c = dual.c;
         Ok(ContactProblem {
@@ -146,9 +149,209 @@ impl ContactProblem {
             t,
             factor,
             dual,
+            sizes: plan.sizes,
+            inputs,
             u_hist: vec![0.0; ndof],
             lam_hist: vec![0.0; c],
         })
+    }
+
+    /// The analysis of a problem with these matrices and options, without any
+    /// numeric work: validation, the ordering and the symbolic factorisation of
+    /// K, the route `opts` leads to and its predicted memory (MUMPS's JOB = 1).
+    /// `opts.method` is the method whose solve memory is predicted.
+    ///
+    /// Errors: as [`ContactProblem::with_options`] before the factorisation
+    /// (`BadArgument`, `BadSize`, `BadIndex`, `NotFinite`, `NotSymmetric`, and
+    /// `OutOfMemory` when the analysis itself does not fit). A route that does
+    /// not fit the memory limit is not an error here: compare the predictions
+    /// with `Info::memory_limit`.
+    pub fn analyse(
+        d: usize,
+        k: &MatrixView<'_>,
+        n: &MatrixView<'_>,
+        t: &MatrixView<'_>,
+        opts: &Options,
+    ) -> Result<Info> {
+        check_d(d)?;
+        let k = Csc::symmetric_from_view(k, "K")?;
+        let n = Csc::from_view(n, "N")?;
+        let t = Csc::from_view(t, "T")?;
+        Self::analyse_csc(d, &k, &n, &t, opts)
+    }
+
+    /// As [`ContactProblem::analyse`], from matrices in internal form (`k` holds
+    /// both triangles).
+    pub fn analyse_csc(d: usize, k: &Csc, n: &Csc, t: &Csc, opts: &Options) -> Result<Info> {
+        let (factor, plan, limit) = Self::plan(d, k, n, t, opts)?;
+        let now = Condensation::of(true, plan.form, plan.sizes.c);
+        Ok(Self::info_of(
+            d,
+            k,
+            n,
+            &factor,
+            &plan.sizes,
+            now,
+            true,
+            opts,
+            limit,
+        ))
+    }
+
+    /// The analysis of this problem as it is now ([`ContactProblem::analyse`]),
+    /// with the solve memory predicted for `opts.method` and `opts.dual_form`.
+    pub fn info(&self, opts: &Options) -> Info {
+        let limit = memory::limit(opts.max_memory);
+        let now = self.dual.condensation;
+        let trailing = Dual::trailing_available(&self.factor, &self.n, &self.t);
+        Self::info_of(
+            self.d,
+            &self.k,
+            &self.n,
+            &self.factor,
+            &self.sizes,
+            now,
+            trailing,
+            opts,
+            limit,
+        )
+    }
+
+    #[allow(clippy::too_many_arguments)]
+    fn info_of(
+        d: usize,
+        k: &Csc,
+        n: &Csc,
+        factor: &Factor,
+        sizes: &Sizes,
+        now: Condensation,
+        trailing: bool,
+        opts: &Options,
+        limit: Option<usize>,
+    ) -> Info {
+        let next = Self::solve_condensation(now, trailing, opts);
+        let (factor_nnz, factor_flops) = factor.nnz_and_flops();
+        let form_of = |how| match how {
+            Condensation::MatrixFree => DualForm::MatrixFree,
+            _ => DualForm::Dense,
+        };
+        Info {
+            d,
+            n: k.nrows,
+            m: n.nrows,
+            c: sizes.c,
+            nnz_k: k.nnz(),
+            ordering: factor.ordering(),
+            factor_nnz,
+            factor_flops,
+            setup_form: form_of(now),
+            method: opts.method,
+            solve_form: form_of(next),
+            setup_bytes: sizes.setup(now),
+            resident_bytes: sizes.resident(now),
+            solve_bytes: sizes.solve(now, next, opts.method.workspace(n.nrows, sizes.c)),
+            memory_limit: limit.unwrap_or(0),
+            analyse_seconds: factor.analyse_seconds,
+        }
+    }
+
+    /// The sizes of a problem's memory predictions, after K's analysis.
+    fn sizes_of(k: &Csc, n: &Csc, t: &Csc, d: usize, factor: &Factor) -> Sizes {
+        Sizes {
+            n: k.nrows,
+            c: d * n.nrows,
+            nc: factor.last().len(),
+            inputs: k.bytes() + n.bytes() + t.bytes(),
+            factor: factor.nnz_and_flops().0 * F64,
+            factor_scratch: factor.factor_scratch_bytes(),
+            solve_scratch: factor.solve_scratch(BLOCK).size_bytes(),
+        }
+    }
+
+    /// The form a problem is created with: the dense A up to [`DENSE_MAX`]
+    /// unknowns where it fits the memory limit, matrix-free otherwise.
+    fn setup_form(sizes: &Sizes, limit: Option<usize>) -> DualForm {
+        let dense = Condensation::of(true, DualForm::Dense, sizes.c);
+        if sizes.c <= DENSE_MAX && limit.is_none_or(|l| sizes.setup(dense) <= l) {
+            DualForm::Dense
+        } else {
+            DualForm::MatrixFree
+        }
+    }
+
+    /// How a solve with `opts` needs the dual, held as `now` (see `prepare_dual`).
+    fn solve_condensation(now: Condensation, trailing: bool, opts: &Options) -> Condensation {
+        let free_now = now == Condensation::MatrixFree;
+        let want_free = match opts.dual_form {
+            DualForm::Dense => false,
+            DualForm::MatrixFree => true,
+            DualForm::Auto => free_now && !opts.method.needs_entries(),
+        };
+        match (want_free, free_now) {
+            (true, true) | (false, false) => now,
+            (true, false) => Condensation::MatrixFree,
+            (false, true) => Condensation::of(trailing, DualForm::Dense, 0),
+        }
+    }
+
+    /// Validation, K's analysis and the route of a new problem, and the memory
+    /// limit.
+    fn plan(
+        d: usize,
+        k: &Csc,
+        n: &Csc,
+        t: &Csc,
+        opts: &Options,
+    ) -> Result<(Factor, Plan, Option<usize>)> {
+        check_d(d)?;
+        Self::check_options(opts)?;
+        if k.nrows != k.ncols {
+            return fail(
+                ErrorKind::BadSize,
+                format!("K is {} x {}, not square", k.nrows, k.ncols),
+            );
+        }
+        check_shapes(k.nrows, d, n, t)?;
+        // Contact DOFs last, so that the factor's trailing block condenses K onto them.
+        let threads = Arc::new(Threads::new(opts.threads));
+        let last = contact_dofs(&stack_rows(n, t));
+        let factor = Factor::analyse(k, &last, opts.ordering, threads, Ledger::new())?;
+        let sizes = Self::sizes_of(k, n, t, d, &factor);
+        let limit = memory::limit(opts.max_memory);
+        let form = Self::setup_form(&sizes, limit);
+        Ok((factor, Plan { sizes, form }, limit))
+    }
+
+    /// [`ContactProblem::plan`], refused with `OutOfMemory` before any numeric
+    /// work when the route's predicted setup exceeds the memory limit.
+    fn analysed(d: usize, k: &Csc, n: &Csc, t: &Csc, opts: &Options) -> Result<(Factor, Plan)> {
+        let (factor, plan, limit) = Self::plan(d, k, n, t, opts)?;
+        let (sizes, form) = (plan.sizes, plan.form);
+        let how = Condensation::of(true, form, sizes.c);
+        let need = sizes.setup(how);
+        let free = Condensation::MatrixFree;
+        let hint = if how != free && sizes.setup(free) < need {
+            format!(
+                "the matrix-free dual (dual_form = matrix-free, method mprgp) would need \
+                 about {}",
+                memory::human(sizes.setup(free))
+            )
+        } else {
+            format!(
+                "K's factor alone takes {} (nnz(L) = {}); a larger max_memory or a \
+                 machine with more memory is needed",
+                memory::human(sizes.factor),
+                sizes.factor / F64
+            )
+        };
+        let what = format!(
+            "creating the problem (n = {}, c = {}, {} dual)",
+            sizes.n,
+            sizes.c,
+            form.name()
+        );
+        memory::check(need, limit, opts.max_memory, &what, &hint)?;
+        Ok((factor, Plan { sizes, form }))
     }
 
     /// Refactors K with new values and the same sparsity pattern (same storage);
@@ -188,6 +391,9 @@ impl ContactProblem {
         if dual.c != self.dual.c {
             self.lam_hist = vec![0.0; dual.c];
         }
+        self.sizes.c = dual.c;
+        self.sizes.inputs = self.k.bytes() + n.bytes() + t.bytes();
+        self.inputs.resize(self.sizes.inputs);
         self.dual = dual;
         self.n = n;
         self.t = t;
@@ -223,9 +429,13 @@ impl ContactProblem {
     /// rebuilding it from the factor when the form changes; the new form is kept
     /// for later solves. On error the problem is unchanged.
     ///
+    /// Checks the solve's predicted memory against the limit first, and starts
+    /// a new peak on the ledger; returns the prediction (bytes).
+    ///
     /// Errors: `BadArgument` (`MatrixFree` with a method that reads entries of A),
-    /// `OutOfMemory` (A does not fit).
-    fn prepare_dual(&mut self, opts: &Options) -> Result<()> {
+    /// `OutOfMemory` (the solve's predicted need exceeds the memory limit, or A
+    /// does not fit).
+    fn prepare_dual(&mut self, opts: &Options) -> Result<usize> {
         let free_now = self.dual.is_matrix_free();
         let want_free = match opts.dual_form {
             DualForm::Dense => false,
@@ -244,13 +454,36 @@ impl ContactProblem {
             }
             DualForm::Auto => free_now && !opts.method.needs_entries(),
         };
-        if want_free && !Dual::trailing_available(&self.factor, &self.n, &self.t) {
+        let trailing = Dual::trailing_available(&self.factor, &self.n, &self.t);
+        if want_free && !trailing {
             return fail(
                 ErrorKind::BadArgument,
                 "the matrix-free dual needs every contact DOF among the DOFs K's factor \
                  orders last; contacts set later on other DOFs are condensed densely",
             );
         }
+        let now = self.dual.condensation;
+        let next = Self::solve_condensation(now, trailing, opts);
+        let (m, c) = (self.n_contacts(), self.dual.c);
+        let need = self.sizes.solve(now, next, opts.method.workspace(m, c));
+        let hint = if opts.method.needs_entries() {
+            let free = Condensation::MatrixFree;
+            let free_need = self.sizes.solve(now, free, Method::Mprgp.workspace(m, c));
+            format!(
+                "method mprgp on the matrix-free dual would need about {}",
+                memory::human(free_need)
+            )
+        } else {
+            "a larger max_memory or a machine with more memory is needed".to_string()
+        };
+        memory::check(
+            need,
+            memory::limit(opts.max_memory),
+            opts.max_memory,
+            &format!("a solve with method {}", opts.method.name()),
+            &hint,
+        )?;
+        self.factor.ledger().reset_peak();
         if want_free != free_now {
             let form = if want_free {
                 DualForm::MatrixFree
@@ -259,7 +492,7 @@ impl ContactProblem {
             };
             self.dual = Dual::build(&self.factor, &self.n, &self.t, self.d, form)?;
         }
-        Ok(())
+        Ok(need)
     }
 
     /// The number of threads the problem's pool has (1: no pool, the calling
@@ -335,9 +568,9 @@ impl ContactProblem {
         check_vec("g", g, self.n_contacts())?;
         self.check_friction(friction)?;
         Self::check_options(opts)?;
-        self.prepare_dual(opts)?;
+        let predicted = self.prepare_dual(opts)?;
         let mut lam = vec![0.0; self.dual.c];
-        self.solve_from(f, g, friction, opts, &mut lam, monitor)
+        self.solve_from(f, g, friction, opts, &mut lam, monitor, predicted)
     }
 
     /// u := K^-1 (f - B^T lambda) given y_f = L^-1 P f (the forward half of the
@@ -366,7 +599,9 @@ impl ContactProblem {
         self.factor.backward(&mut y, u);
     }
 
-    /// The increment solve, starting from the multipliers in `lam`.
+    /// The increment solve, starting from the multipliers in `lam`; `predicted`
+    /// is the solve's memory prediction (from `prepare_dual`), for the report.
+    #[allow(clippy::too_many_arguments)]
     fn solve_from(
         &self,
         f: &[f64],
@@ -375,9 +610,12 @@ impl ContactProblem {
         opts: &Options,
         lam: &mut [f64],
         mut monitor: Option<Monitor<'_>>,
+        predicted: usize,
     ) -> Result<Solution> {
         let start = Instant::now();
         let (ndof, m, c) = (self.n_dofs(), self.n_contacts(), self.dual.c);
+        // y_f, K^-1 f, u, B^T lambda, K u and the residual below.
+        let _vectors = self.factor.ledger().claim_f64(6 * ndof);
         check_vec("f", f, ndof)?;
         check_vec("g", g, m)?;
         self.check_friction(friction)?;
@@ -508,6 +746,8 @@ impl ContactProblem {
                 factor_flops,
                 threads: self.threads(),
                 analyse_seconds: self.factor.analyse_seconds,
+                memory_predicted: predicted,
+                memory_peak: self.factor.ledger().peak(),
             },
         })
     }
@@ -545,7 +785,9 @@ impl ContactProblem {
         check_vec("g0", g0, m)?;
         self.check_friction(friction)?;
         Self::check_options(opts)?;
-        self.prepare_dual(opts)?;
+        let predicted = self.prepare_dual(opts)?;
+        // The effective f and K u_k.
+        let _vectors = self.factor.ledger().claim_f64(2 * ndof);
         let mut ku = vec![0.0; ndof];
         self.k.mul_vec(&self.u_hist, &mut ku);
         let f: Vec<f64> = (0..ndof).map(|i| f_total[i] - ku[i]).collect();
@@ -553,7 +795,7 @@ impl ContactProblem {
         self.n.mul_vec(&self.u_hist, &mut nu);
         let g: Vec<f64> = (0..m).map(|i| g0[i] - nu[i]).collect();
         let mut lam = self.lam_hist.clone();
-        let mut sol = self.solve_from(&f, &g, friction, opts, &mut lam, monitor)?;
+        let mut sol = self.solve_from(&f, &g, friction, opts, &mut lam, monitor, predicted)?;
         for (ui, uh) in sol.u.iter_mut().zip(&self.u_hist) {
             *ui += uh;
         }

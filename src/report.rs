@@ -94,6 +94,13 @@ pub struct Report {
     /// Seconds of K's analysis (ordering and symbolic factorisation) when the
     /// problem was created.
     pub analyse_seconds: f64,
+    /// The predicted peak of the library's large allocations during this solve,
+    /// bytes (what the problem holds, the solve's vectors, the method's dense
+    /// work space in its largest case; see `Options::max_memory`).
+    pub memory_predicted: usize,
+    /// The measured peak of the same allocations during this solve, bytes
+    /// (counted as they are made, not read from the operating system).
+    pub memory_peak: usize,
 }
 
 /// The natural-map error of docs/design.md section 5 for the dual unknowns

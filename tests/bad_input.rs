@@ -181,6 +181,8 @@ fn solve(h: *mut DsProblem, sc: &Scene, friction: DsFriction, bound: &[f64]) -> 
             factor_nnz: 0,
             factor_flops: 0.0,
             analyse_seconds: 0.0,
+            memory_predicted: 0,
+            memory_peak: 0,
         },
     };
     // SAFETY: arrays sized for the problem.

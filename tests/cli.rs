@@ -530,6 +530,70 @@ fn no_contacts_is_one_linear_solve() {
 }
 
 #[test]
+fn info_and_max_memory_from_the_command_line() {
+    let dir = TempDir::new("memory");
+    let prob = dir.path().join("problem");
+    write(&prob, &problem(3, 4), true);
+    let p = prob.to_str().unwrap();
+    // The analysis alone: sizes, ordering, factor, forms and predicted memory.
+    let o = run(&["info", p, "--threads", "1"]);
+    assert_eq!(o.status.code(), Some(0), "{}", text(&o.stderr));
+    let shown = text(&o.stdout);
+    for needle in [
+        "m = 4",
+        "d = 3",
+        "c = 12",
+        "nnz(L)",
+        "dual form: dense",
+        "split",
+        "predicted memory",
+    ] {
+        assert!(shown.contains(needle), "info lacks \"{needle}\":\n{shown}");
+    }
+    // A limit too small: info says so (exit 5), solve refuses (exit 3,
+    // status out-of-memory, no solution files).
+    let o = run(&["info", p, "--max-memory", "1K"]);
+    assert_eq!(o.status.code(), Some(5), "{}", text(&o.stdout));
+    assert!(text(&o.stdout).contains("does not fit"));
+    let out = dir.path().join("out-small");
+    let o = run(&[
+        "solve",
+        p,
+        "--out",
+        out.to_str().unwrap(),
+        "--max-memory",
+        "1K",
+        "--quiet",
+    ]);
+    assert_eq!(o.status.code(), Some(3), "{}", text(&o.stderr));
+    let r = report(&out);
+    assert_eq!(string(&r, "status"), "out-of-memory");
+    assert!(string(&r, "message").contains("max_memory"));
+    assert!(!out.join("u.txt").exists());
+    // A limit that fits: the report carries the predicted and counted peaks.
+    let out = dir.path().join("out-fits");
+    let o = run(&[
+        "solve",
+        p,
+        "--out",
+        out.to_str().unwrap(),
+        "--max-memory",
+        "1G",
+        "--quiet",
+    ]);
+    assert_eq!(o.status.code(), Some(0), "{}", text(&o.stderr));
+    let r = report(&out);
+    let (predicted, peak) = (num(&r, "memory_predicted"), num(&r, "memory_peak"));
+    assert!(peak > 0.0 && peak <= predicted, "{predicted} {peak}");
+    // Options of solve only, and bad values.
+    let o = run(&["info", p, "--tol", "1e-8"]);
+    assert_eq!(o.status.code(), Some(2));
+    let o = run(&["info", p, "--max-memory", "lots"]);
+    assert_eq!(o.status.code(), Some(2));
+    assert!(text(&o.stderr).contains("--max-memory"));
+}
+
+#[test]
 fn help_documents_everything() {
     for flag in ["--help", "-h", "help"] {
         let o = run(&[flag]);
@@ -538,7 +602,10 @@ fn help_documents_everything() {
         for needle in [
             "dualsplit solve DIR --out OUTDIR [--method NAME] [--tol X] [--max-iter N] \
              [--max-seconds S] [--stall-window N] [--stall-factor X] [--dual-form F] \
-             [--ordering O] [--threads N] [--verbose]",
+             [--ordering O] [--threads N] [--max-memory B] [--verbose]",
+            "dualsplit info DIR",
+            "--max-memory",
+            "memory_predicted",
             "--ordering",
             "metis",
             "--threads",

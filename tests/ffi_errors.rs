@@ -166,6 +166,8 @@ fn sentinel_report() -> DsReport {
         factor_nnz: -99,
         factor_flops: SENTINEL,
         analyse_seconds: SENTINEL,
+        memory_predicted: 99,
+        memory_peak: 99,
     }
 }
 

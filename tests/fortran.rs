@@ -247,7 +247,7 @@ fn module_matches_the_header() {
 
     // structs
     let structs = c_structs(&header);
-    for want in ["DsMatrix", "DsOptions", "DsReport", "DsProgress"] {
+    for want in ["DsMatrix", "DsOptions", "DsReport", "DsProgress", "DsInfo"] {
         assert!(structs.contains_key(want), "no struct {want} parsed");
     }
     for (name, fields) in &structs {
@@ -424,6 +424,7 @@ const LAYOUT_F90: &str = r#"program layout
    type(DsOptions), target :: o
    type(DsReport), target :: r
    type(DsProgress), target :: g
+   type(DsInfo), target :: i
    write (*, '(a,99(1x,i0))') 'DsMatrix', c_sizeof(m), off(c_loc(m), c_loc(m%format)), &
       off(c_loc(m), c_loc(m%index_type)), off(c_loc(m), c_loc(m%base)), &
       off(c_loc(m), c_loc(m%storage)), off(c_loc(m), c_loc(m%nrows)), &
@@ -434,7 +435,8 @@ const LAYOUT_F90: &str = r#"program layout
       off(c_loc(o), c_loc(o%max_outer)), off(c_loc(o), c_loc(o%max_inner)), &
       off(c_loc(o), c_loc(o%dual_form)), off(c_loc(o), c_loc(o%max_seconds)), &
       off(c_loc(o), c_loc(o%stall_window)), off(c_loc(o), c_loc(o%stall_factor)), &
-      off(c_loc(o), c_loc(o%threads)), off(c_loc(o), c_loc(o%ordering))
+      off(c_loc(o), c_loc(o%threads)), off(c_loc(o), c_loc(o%ordering)), &
+      off(c_loc(o), c_loc(o%max_memory))
    write (*, '(a,99(1x,i0))') 'DS_OPTIONS_SIZE', DS_OPTIONS_SIZE
    write (*, '(a,99(1x,i0))') 'DsReport', c_sizeof(r), off(c_loc(r), c_loc(r%status)), &
       off(c_loc(r), c_loc(r%method)), off(c_loc(r), c_loc(r%err)), &
@@ -444,11 +446,22 @@ const LAYOUT_F90: &str = r#"program layout
       off(c_loc(r), c_loc(r%factor_seconds)), off(c_loc(r), c_loc(r%condense_seconds)), &
       off(c_loc(r), c_loc(r%solve_seconds)), off(c_loc(r), c_loc(r%ordering)), &
       off(c_loc(r), c_loc(r%threads)), off(c_loc(r), c_loc(r%factor_nnz)), &
-      off(c_loc(r), c_loc(r%factor_flops)), off(c_loc(r), c_loc(r%analyse_seconds))
+      off(c_loc(r), c_loc(r%factor_flops)), off(c_loc(r), c_loc(r%analyse_seconds)), &
+      off(c_loc(r), c_loc(r%memory_predicted)), off(c_loc(r), c_loc(r%memory_peak))
    write (*, '(a,99(1x,i0))') 'DsProgress', c_sizeof(g), off(c_loc(g), c_loc(g%iteration)), &
       off(c_loc(g), c_loc(g%err)), off(c_loc(g), c_loc(g%n_open)), &
       off(c_loc(g), c_loc(g%n_stick)), off(c_loc(g), c_loc(g%n_slip)), &
       off(c_loc(g), c_loc(g%elapsed_seconds))
+   write (*, '(a,99(1x,i0))') 'DsInfo', c_sizeof(i), off(c_loc(i), c_loc(i%struct_size)), &
+      off(c_loc(i), c_loc(i%d)), off(c_loc(i), c_loc(i%n)), off(c_loc(i), c_loc(i%m)), &
+      off(c_loc(i), c_loc(i%c)), off(c_loc(i), c_loc(i%nnz_k)), &
+      off(c_loc(i), c_loc(i%factor_nnz)), off(c_loc(i), c_loc(i%factor_flops)), &
+      off(c_loc(i), c_loc(i%ordering)), off(c_loc(i), c_loc(i%setup_form)), &
+      off(c_loc(i), c_loc(i%method)), off(c_loc(i), c_loc(i%solve_form)), &
+      off(c_loc(i), c_loc(i%setup_bytes)), off(c_loc(i), c_loc(i%resident_bytes)), &
+      off(c_loc(i), c_loc(i%solve_bytes)), off(c_loc(i), c_loc(i%memory_limit)), &
+      off(c_loc(i), c_loc(i%analyse_seconds))
+   write (*, '(a,99(1x,i0))') 'DS_INFO_SIZE', DS_INFO_SIZE
 contains
    integer function off(base, field)
       type(c_ptr), intent(in) :: base, field
@@ -467,22 +480,30 @@ int main(void)
            O(DsMatrix, format), O(DsMatrix, index_type), O(DsMatrix, base), O(DsMatrix, storage),
            O(DsMatrix, nrows), O(DsMatrix, ncols), O(DsMatrix, nnz), O(DsMatrix, p),
            O(DsMatrix, i), O(DsMatrix, x));
-    printf("DsOptions %d %d %d %d %d %d %d %d %d %d %d %d\n", (int)sizeof(DsOptions),
+    printf("DsOptions %d %d %d %d %d %d %d %d %d %d %d %d %d\n", (int)sizeof(DsOptions),
            O(DsOptions, struct_size), O(DsOptions, method), O(DsOptions, tol),
            O(DsOptions, max_outer), O(DsOptions, max_inner), O(DsOptions, dual_form),
            O(DsOptions, max_seconds), O(DsOptions, stall_window), O(DsOptions, stall_factor),
-           O(DsOptions, threads), O(DsOptions, ordering));
+           O(DsOptions, threads), O(DsOptions, ordering), O(DsOptions, max_memory));
     printf("DS_OPTIONS_SIZE %d\n", (int)sizeof(DsOptions));
-    printf("DsReport %d %d %d %d %d %d %d %d %d %d %d %d %d %d %d %d %d %d\n", (int)sizeof(DsReport),
+    printf("DsReport %d %d %d %d %d %d %d %d %d %d %d %d %d %d %d %d %d %d %d %d\n", (int)sizeof(DsReport),
            O(DsReport, status), O(DsReport, method), O(DsReport, err),
            O(DsReport, equilibrium_residual), O(DsReport, outer_iterations),
            O(DsReport, inner_iterations), O(DsReport, n_open), O(DsReport, n_stick),
            O(DsReport, n_slip), O(DsReport, factor_seconds), O(DsReport, condense_seconds),
            O(DsReport, solve_seconds), O(DsReport, ordering), O(DsReport, threads),
-           O(DsReport, factor_nnz), O(DsReport, factor_flops), O(DsReport, analyse_seconds));
+           O(DsReport, factor_nnz), O(DsReport, factor_flops), O(DsReport, analyse_seconds),
+           O(DsReport, memory_predicted), O(DsReport, memory_peak));
     printf("DsProgress %d %d %d %d %d %d %d\n", (int)sizeof(DsProgress),
            O(DsProgress, iteration), O(DsProgress, err), O(DsProgress, n_open),
            O(DsProgress, n_stick), O(DsProgress, n_slip), O(DsProgress, elapsed_seconds));
+    printf("DsInfo %d %d %d %d %d %d %d %d %d %d %d %d %d %d %d %d %d %d\n", (int)sizeof(DsInfo),
+           O(DsInfo, struct_size), O(DsInfo, d), O(DsInfo, n), O(DsInfo, m), O(DsInfo, c),
+           O(DsInfo, nnz_k), O(DsInfo, factor_nnz), O(DsInfo, factor_flops),
+           O(DsInfo, ordering), O(DsInfo, setup_form), O(DsInfo, method),
+           O(DsInfo, solve_form), O(DsInfo, setup_bytes), O(DsInfo, resident_bytes),
+           O(DsInfo, solve_bytes), O(DsInfo, memory_limit), O(DsInfo, analyse_seconds));
+    printf("DS_INFO_SIZE %d\n", (int)sizeof(DsInfo));
     return 0;
 }
 "#;
@@ -503,6 +524,9 @@ fn minimal_example_runs() {
     println!("{stdout}");
     assert!(stdout.contains("minimal_f: ok"), "{stdout}");
     assert!(stdout.lines().any(|l| l == "SIZES 2 1 2"), "{stdout}");
+    // ds_analyse and ds_problem_info through the module; the report's memory.
+    assert!(stdout.lines().any(|l| l == "INFO 2 2 1"), "{stdout}");
+    assert!(stdout.lines().any(|l| l == "MEMORY 1"), "{stdout}");
     let result: Vec<f64> = stdout
         .lines()
         .find_map(|l| l.strip_prefix("RESULT"))

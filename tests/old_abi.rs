@@ -117,10 +117,11 @@ fn number_after(text: &str, key: &str) -> f64 {
 
 #[test]
 fn programs_built_against_the_0_1_and_0_2_headers_run_and_keep_their_memory() {
-    // The report of 0.1 to 0.3 is the first 88 bytes of this one: 0.4 appended its
-    // fields, which a caller with older options never gets.
+    // The report of 0.1 to 0.3 is the first 88 bytes of this one: 0.4 and 0.5
+    // appended their fields, which a caller with older options never gets.
     assert_eq!(std::mem::offset_of!(DsReport, ordering), 88);
-    assert_eq!(std::mem::size_of::<DsReport>(), 120);
+    assert_eq!(std::mem::offset_of!(DsReport, memory_predicted), 120);
+    assert_eq!(std::mem::size_of::<DsReport>(), 136);
     for size in [32, 40] {
         let out = run_old_program(size);
         println!("{size}: {out}");

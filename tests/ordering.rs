@@ -173,7 +173,7 @@ fn the_c_report_carries_the_ordering_for_new_callers_only() {
     let solve = |opts: *const DsOptions, u: &mut [f64], ln: &mut [f64], lt: &mut [f64]| {
         // All bytes 0xA5: what the library does not write stays so.
         // SAFETY: DsReport is plain old data; any bit pattern is a value.
-        let mut report: DsReport = unsafe { std::mem::transmute([0xA5u8; 120]) };
+        let mut report: DsReport = unsafe { std::mem::transmute([0xA5u8; 136]) };
         // SAFETY: the handle is live and every array is sized for the problem.
         let st = unsafe {
             ds_solve(
@@ -192,16 +192,33 @@ fn the_c_report_carries_the_ordering_for_new_callers_only() {
         assert_eq!(st, DsStatus::Ok);
         report
     };
-    // A 0.4 caller gets the new fields.
-    let r = solve(&opts, &mut u, &mut ln, &mut lt);
+    // A 0.4 caller (DsOptions of 72 bytes) gets the 0.4 fields, nothing past
+    // its 120-byte report.
+    let v04 = DsOptions {
+        struct_size: 72,
+        ..opts
+    };
+    let r = solve(&v04, &mut u, &mut ln, &mut lt);
     assert_eq!(r.ordering, DsOrdering::Metis as i32);
     assert_eq!(r.threads, 1);
     assert!(r.factor_nnz > 0 && r.factor_flops > 0.0);
+    // SAFETY: DsReport is plain old data.
+    let bytes: [u8; 136] = unsafe { std::mem::transmute(r) };
+    assert!(
+        bytes[120..].iter().all(|&b| b == 0xA5),
+        "wrote past 120 bytes"
+    );
+    // A 0.5 caller gets the memory fields too.
+    let r = solve(&opts, &mut u, &mut ln, &mut lt);
+    assert!(
+        r.memory_peak > 0 && r.memory_peak <= r.memory_predicted,
+        "{r:?}"
+    );
     // NULL options (an old caller's way): the 0.1-0.3 report, nothing past it.
     let r = solve(null(), &mut u, &mut ln, &mut lt);
     assert_eq!(r.status, DsStatus::Ok as i32);
     // SAFETY: DsReport is plain old data.
-    let bytes: [u8; 120] = unsafe { std::mem::transmute(r) };
+    let bytes: [u8; 136] = unsafe { std::mem::transmute(r) };
     assert!(
         bytes[88..].iter().all(|&b| b == 0xA5),
         "wrote past 88 bytes"

@@ -16,13 +16,22 @@ const HELP: &str = "\
 dualsplit: frictional contact solver (Signorini + Tresca or Coulomb friction)
 
 USAGE:
-    dualsplit solve DIR --out OUTDIR [--method NAME] [--tol X] [--max-iter N] [--max-seconds S] [--stall-window N] [--stall-factor X] [--dual-form F] [--ordering O] [--threads N] [--verbose] [--quiet]
+    dualsplit solve DIR --out OUTDIR [--method NAME] [--tol X] [--max-iter N] [--max-seconds S] [--stall-window N] [--stall-factor X] [--dual-form F] [--ordering O] [--threads N] [--max-memory B] [--verbose] [--quiet]
+    dualsplit info DIR [--method NAME] [--dual-form F] [--ordering O] [--threads N] [--max-memory B]
     dualsplit --help
     dualsplit --version
 
     Reads the problem folder DIR, solves it through the same code path as the C API
     (ds_problem_new + ds_solve: one increment, exactly as given, no history) and
     writes the solution and a report into OUTDIR (created if needed).
+
+    `info` reads DIR and prints what the analysis alone tells (ds_analyse: K's
+    ordering and symbolic factorisation, no numeric work): n, m, c, nnz(K), the
+    ordering chosen, nnz(L) and the flops of the factorisation, the dual form the
+    problem would be created with and the one a solve with the method uses, and
+    the predicted peak memory of the setup, of what the problem holds and of one
+    solve, against the memory limit. Exit status 0, or 3 when the problem is
+    rejected, or 5 when the setup or the solve would exceed the limit.
 
 PROBLEM FOLDER (DIR):
     K.mtx    K, n x n, symmetric positive definite (Matrix Market)
@@ -66,6 +75,13 @@ OPTIONS:
                       (auto keeps whichever needs fewer flops)
     --threads N       threads for the factorisation and the dense kernels: 0 for all
                       cores (default), 1 for this thread only
+    --max-memory B    the most bytes the library's large allocations may take (K's
+                      factor, the condensed dual, the method's dense work space);
+                      0 (default) for the limit of this process or machine. A
+                      number of bytes, or with a suffix K, M or G (2^10, 2^20,
+                      2^30). A setup or solve predicted to need more is refused
+                      before the work (status \"out-of-memory\", exit 3); the dual
+                      form auto then creates the matrix-free dual where it fits
     --verbose         print the problem sizes and the timings of every stage
     --quiet           print nothing but errors (no progress, no summary)
     -h, --help        print this help
@@ -102,6 +118,9 @@ OUTPUT (OUTDIR):
                             factorisation
         threads             threads the solve could use
         analyse_seconds     time of K's analysis (ordering, symbolic factor)
+        memory_predicted, memory_peak
+                            the solve's predicted and counted peak bytes of the
+                            library's large allocations
     Numbers are written with full precision (shortest round-trip form). The four
     files left in OUTDIR by an earlier run are removed first; on an error only
     report.json is written (when OUTDIR can be written).
@@ -115,6 +134,7 @@ EXIT STATUS:
     3   the problem could not be read or was rejected (missing or malformed file,
         K not symmetric or not positive definite, negative friction, ...)
     4   the outputs could not be written
+    5   (info) the setup or a solve would exceed the memory limit
 ";
 
 /// What each method is, for --help (by name, so that a method added to the
@@ -154,6 +174,7 @@ const EXIT_NOT_CONVERGED: u8 = 1;
 const EXIT_USAGE: u8 = 2;
 const EXIT_PROBLEM: u8 = 3;
 const EXIT_OUTPUT: u8 = 4;
+const EXIT_TOO_BIG: u8 = 5;
 
 /// The parsed `solve` command.
 struct SolveArgs {
@@ -168,6 +189,8 @@ enum Command {
     Help,
     Version,
     Solve(SolveArgs),
+    /// `info DIR`: the analysis alone (`out` unused).
+    Info(SolveArgs),
 }
 
 fn parse_args(args: &[String]) -> Result<Command, String> {
@@ -177,9 +200,10 @@ fn parse_args(args: &[String]) -> Result<Command, String> {
     match first.as_str() {
         "-h" | "--help" | "help" => return Ok(Command::Help),
         "-V" | "--version" => return Ok(Command::Version),
-        "solve" => {}
+        "solve" | "info" => {}
         other => return Err(format!("unknown command \"{other}\"")),
     }
+    let info = first == "info";
     let mut dir: Option<PathBuf> = None;
     let mut out: Option<PathBuf> = None;
     let mut opts = Options::default();
@@ -231,8 +255,17 @@ fn parse_args(args: &[String]) -> Result<Command, String> {
                 | "--dual-form"
                 | "--ordering"
                 | "--threads"
+                | "--max-memory"
         ) {
             return Err(format!("unknown option \"{name}\""));
+        }
+        if info
+            && !matches!(
+                name,
+                "--method" | "--dual-form" | "--ordering" | "--threads" | "--max-memory"
+            )
+        {
+            return Err(format!("info: option \"{name}\" applies to solve only"));
         }
         let value = match inline {
             Some(v) => v,
@@ -268,6 +301,14 @@ fn parse_args(args: &[String]) -> Result<Command, String> {
                     .ok_or_else(|| {
                         format!("--threads \"{value}\": expected an integer from 0 to 4096")
                     })?;
+            }
+            "--max-memory" => {
+                opts.max_memory = parse_bytes(&value).ok_or_else(|| {
+                    format!(
+                        "--max-memory \"{value}\": expected a number of bytes, optionally \
+                         with a suffix K, M or G"
+                    )
+                })?;
             }
             "--dual-form" => {
                 opts.dual_form = DualForm::from_name(&value).ok_or_else(|| {
@@ -322,8 +363,17 @@ fn parse_args(args: &[String]) -> Result<Command, String> {
         }
     }
     let Some(dir) = dir else {
-        return Err("solve: the problem folder DIR is missing".into());
+        return Err(format!("{first}: the problem folder DIR is missing"));
     };
+    if info {
+        return Ok(Command::Info(SolveArgs {
+            dir,
+            out: PathBuf::new(),
+            opts,
+            verbose: false,
+            quiet: false,
+        }));
+    }
     let Some(out) = out else {
         return Err("solve: --out OUTDIR is missing".into());
     };
@@ -334,6 +384,17 @@ fn parse_args(args: &[String]) -> Result<Command, String> {
         verbose: verbose && !quiet,
         quiet,
     }))
+}
+
+/// A byte count: digits, optionally followed by K, M or G (2^10, 2^20, 2^30).
+fn parse_bytes(text: &str) -> Option<usize> {
+    let (digits, shift) = match text.as_bytes().last()? {
+        b'K' | b'k' => (&text[..text.len() - 1], 10),
+        b'M' | b'm' => (&text[..text.len() - 1], 20),
+        b'G' | b'g' => (&text[..text.len() - 1], 30),
+        _ => (text, 0),
+    };
+    digits.parse::<usize>().ok()?.checked_mul(1 << shift)
 }
 
 /// A JSON object written by hand, keys in insertion order.
@@ -481,6 +542,8 @@ fn success_report(args: &SolveArgs, pf: &Sizes, r: &Report, read_s: f64) -> Stri
     j.number("factor_flops", r.factor_flops);
     j.integer("threads", r.threads);
     j.number("analyse_seconds", r.analyse_seconds);
+    j.integer("memory_predicted", r.memory_predicted);
+    j.integer("memory_peak", r.memory_peak);
     j.finish()
 }
 
@@ -618,6 +681,61 @@ fn solve(args: &SolveArgs) -> ExitCode {
     exit_code(r)
 }
 
+/// `info DIR`: the analysis alone, printed.
+fn info(args: &SolveArgs) -> ExitCode {
+    let pf = match mtx::read_problem(&args.dir) {
+        Ok(pf) => pf,
+        Err(e) => {
+            eprintln!("dualsplit: error: {}", e.message);
+            return ExitCode::from(EXIT_PROBLEM);
+        }
+    };
+    let i = match ContactProblem::analyse_csc(pf.d, &pf.k, &pf.n, &pf.t, &args.opts) {
+        Ok(i) => i,
+        Err(e) => {
+            eprintln!("dualsplit: error: {}", e.message);
+            return ExitCode::from(EXIT_PROBLEM);
+        }
+    };
+    let mb = |b: usize| format!("{:.1} MB", b as f64 / 1e6);
+    println!("{}", args.dir.display());
+    println!(
+        "  n = {}, m = {}, d = {}, c = {} dual unknowns, nnz(K) = {}",
+        i.n, i.m, i.d, i.c, i.nnz_k
+    );
+    println!(
+        "  ordering {}: nnz(L) = {}, {:.3e} flops per factorisation (analysed in {:.3} s)",
+        i.ordering.name(),
+        i.factor_nnz,
+        i.factor_flops,
+        i.analyse_seconds
+    );
+    println!(
+        "  dual form: {} at setup; method {} solves on the {} dual",
+        i.setup_form.name(),
+        i.method.name(),
+        i.solve_form.name()
+    );
+    let limit = if i.memory_limit > 0 {
+        mb(i.memory_limit)
+    } else {
+        "unknown".to_string()
+    };
+    println!(
+        "  predicted memory: setup {}, held {}, one solve {} (limit {limit})",
+        mb(i.setup_bytes),
+        mb(i.resident_bytes),
+        mb(i.solve_bytes)
+    );
+    let fits = |b: usize| i.memory_limit == 0 || b <= i.memory_limit;
+    if fits(i.setup_bytes) && fits(i.solve_bytes) {
+        ExitCode::SUCCESS
+    } else {
+        println!("  does not fit the memory limit: see --max-memory, --dual-form, --method");
+        ExitCode::from(EXIT_TOO_BIG)
+    }
+}
+
 /// Exit code of a finished solve: 0 only when converged.
 fn exit_code(r: &dualsplit::Report) -> ExitCode {
     if r.status == SolveStatus::Converged {
@@ -746,10 +864,14 @@ fn main() -> ExitCode {
             ExitCode::SUCCESS
         }
         Ok(Command::Solve(a)) => solve(&a),
+        Ok(Command::Info(a)) => info(&a),
         Err(msg) => {
             eprintln!("dualsplit: error: {msg}");
             eprintln!(
-                "usage: dualsplit solve DIR --out OUTDIR [--method NAME] [--tol X] [--max-iter N] [--max-seconds S] [--stall-window N] [--stall-factor X] [--dual-form F] [--ordering O] [--threads N] [--verbose] [--quiet]"
+                "usage: dualsplit solve DIR --out OUTDIR [--method NAME] [--tol X] [--max-iter N] [--max-seconds S] [--stall-window N] [--stall-factor X] [--dual-form F] [--ordering O] [--threads N] [--max-memory B] [--verbose] [--quiet]"
+            );
+            eprintln!(
+                "       dualsplit info DIR [--method NAME] [--dual-form F] [--ordering O] [--threads N] [--max-memory B]"
             );
             eprintln!("       dualsplit --help");
             ExitCode::from(EXIT_USAGE)

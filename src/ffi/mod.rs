@@ -18,6 +18,7 @@
 //! - caller memory is only borrowed for the duration of the call.
 
 mod boundary;
+mod info;
 mod last_error;
 mod matrix;
 mod monitor;
@@ -29,6 +30,7 @@ mod status;
 mod types;
 mod version;
 
+pub use info::{DsInfo, ds_analyse, ds_problem_info};
 pub use last_error::ds_last_error_message;
 pub use matrix::DsMatrix;
 pub use monitor::{DsLogFn, DsMonitorFn, DsProgress};

@@ -15,8 +15,8 @@ use std::panic::{AssertUnwindSafe, catch_unwind};
 /// The struct grows at its end from version to version; struct_size says which
 /// version the caller was compiled against, and the library reads no byte past
 /// it: 32 (version 0.1: up to max_inner), 40 (0.2: up to dual_form), 64 (0.3: up
-/// to stall_factor) and 72 (0.4) are accepted, the fields an older struct lacks
-/// take their defaults.
+/// to stall_factor), 72 (0.4: up to ordering) and 80 (0.5) are accepted, the
+/// fields an older struct lacks take their defaults.
 ///
 /// Errors when read: DS_STATUS_BAD_ARGUMENT if struct_size is not one of those
 /// sizes, method is not a DsMethod, tol is not finite and positive, max_outer is
@@ -74,6 +74,20 @@ pub struct DsOptions {
     /// of K, used when K is analysed, by ds_problem_new_opts (ds_problem_refactor
     /// keeps the analysis; ds_solve and ds_step ignore it). Added in version 0.4.
     pub ordering: i32,
+    /// The most bytes the library's large allocations (the copies of K, N and T,
+    /// K's factor, the condensed dual, the dense work space of the method, the
+    /// solve's vectors) may take at once; 0 (default) for no limit of the
+    /// caller's: the limit is then this process's address-space limit
+    /// (RLIMIT_AS) or the machine's physical memory, the smaller. The need is
+    /// predicted from the sizes known after K's symbolic analysis (see
+    /// ds_analyse and DsInfo), before the work that allocates it:
+    /// ds_problem_new_opts refuses a problem whose setup would exceed it, and
+    /// ds_solve / ds_step a solve whose method would, with
+    /// DS_STATUS_OUT_OF_MEMORY and a message naming the need and a route that
+    /// fits (the handle stays usable). With DS_DUAL_FORM_AUTO the problem is
+    /// created matrix-free where the dense dual does not fit. Read by
+    /// ds_problem_new_opts, ds_solve and ds_step. Added in version 0.5.
+    pub max_memory: u64,
 }
 
 /// sizeof(DsOptions) of version 0.1 (struct_size, method, tol, max_outer,
@@ -85,8 +99,13 @@ const V02_SIZE: usize = 40;
 const V03_SIZE: usize = 64;
 /// sizeof(DsOptions) of version 0.4 (and threads, ordering).
 pub(crate) const V04_SIZE: usize = 72;
+/// sizeof(DsOptions) of version 0.5 (and max_memory).
+pub(crate) const V05_SIZE: usize = 80;
 /// sizeof(DsOptions) now.
 const SIZE: usize = std::mem::size_of::<DsOptions>();
+/// Every accepted struct_size.
+const SIZES: [usize; 5] = [V01_SIZE, V02_SIZE, V03_SIZE, V04_SIZE, V05_SIZE];
+const _: () = assert!(SIZE == V05_SIZE);
 
 /// Copies the first `size` bytes of `from` to `to` (size at most sizeof(DsOptions)).
 ///
@@ -120,6 +139,7 @@ impl DsOptions {
             stall_factor: opts.stall_factor,
             threads: i32::try_from(opts.threads).unwrap_or(i32::MAX),
             ordering: DsOrdering::from(opts.ordering) as i32,
+            max_memory: u64::try_from(opts.max_memory).unwrap_or(u64::MAX),
         }
     }
 
@@ -167,6 +187,7 @@ impl DsOptions {
             stall_factor: self.stall_factor,
             threads: count(i64::from(self.threads), "threads", 0)?,
             ordering: ordering.into(),
+            max_memory: usize::try_from(self.max_memory).unwrap_or(usize::MAX),
         })
     }
 
@@ -205,13 +226,13 @@ impl DsOptions {
         // SAFETY: non-NULL and aligned; the first field is present whatever the
         // version of the caller's struct.
         let size = unsafe { std::ptr::addr_of!((*ptr).struct_size).read() } as usize;
-        if ![V01_SIZE, V02_SIZE, V03_SIZE, SIZE].contains(&size) {
+        if !SIZES.contains(&size) {
             return Err(Error::new(
                 ErrorKind::BadArgument,
                 format!(
                     "opts.struct_size = {size} is not the size of a DsOptions of any version \
-                     ({V01_SIZE}, {V02_SIZE}, {V03_SIZE} or {SIZE}): initialise the options with \
-                     ds_options_init(&opts, sizeof opts)"
+                     ({V01_SIZE}, {V02_SIZE}, {V03_SIZE}, {V04_SIZE} or {SIZE}): initialise \
+                     the options with ds_options_init(&opts, sizeof opts)"
                 ),
             ));
         }
@@ -244,13 +265,14 @@ impl Default for DsOptions {
 /// Fills the first `size` bytes of *opts with the defaults of the DsOptions of
 /// that size: struct_size = size, method DS_METHOD_SPLIT, tol 1e-10, max_outer
 /// 10000, max_inner 1000, dual_form DS_DUAL_FORM_AUTO, max_seconds 0 (none),
-/// stall_window 100, stall_factor 0.9. Pass sizeof(DsOptions) as the caller sees
+/// stall_window 100, stall_factor 0.9, threads 0 (all cores), ordering
+/// DS_ORDERING_AUTO, max_memory 0 (the machine's limit). Pass sizeof(DsOptions) as the caller sees
 /// it (the ds_options_default macro does): a program compiled against an older
 /// header then gets its older struct filled, and nothing is written past it.
 ///
 /// Returns DS_STATUS_OK, DS_STATUS_NULL_POINTER (opts NULL) or
 /// DS_STATUS_BAD_ARGUMENT (size is not the size of a DsOptions of any version: 32,
-/// 40 or 64; opts misaligned); nothing is written on error.
+/// 40, 64, 72 or 80; opts misaligned); nothing is written on error.
 ///
 /// # Safety
 /// `opts` must be NULL or point to `size` writable bytes.
@@ -266,12 +288,12 @@ pub unsafe extern "C" fn ds_options_init(opts: *mut DsOptions, size: usize) -> D
                 format!("argument opts = {opts:p} is not aligned"),
             ));
         }
-        if ![V01_SIZE, V02_SIZE, V03_SIZE, SIZE].contains(&size) {
+        if !SIZES.contains(&size) {
             return Err(Error::new(
                 ErrorKind::BadArgument,
                 format!(
                     "size = {size} is not the size of a DsOptions of any version \
-                     ({V01_SIZE}, {V02_SIZE}, {V03_SIZE} or {SIZE})"
+                     ({V01_SIZE}, {V02_SIZE}, {V03_SIZE}, {V04_SIZE} or {SIZE})"
                 ),
             ));
         }
@@ -349,7 +371,8 @@ mod tests {
         use std::mem::{offset_of, size_of};
         assert_eq!(size_of::<V01>(), V01_SIZE);
         assert_eq!(size_of::<V02>(), V02_SIZE);
-        assert_eq!(SIZE, 72);
+        assert_eq!(SIZE, 80);
+        assert_eq!(offset_of!(DsOptions, max_memory), V04_SIZE);
         assert_eq!(offset_of!(V01, tol), offset_of!(DsOptions, tol));
         assert_eq!(offset_of!(V01, max_inner), offset_of!(DsOptions, max_inner));
         assert_eq!(offset_of!(V02, dual_form), offset_of!(DsOptions, dual_form));
@@ -368,7 +391,7 @@ mod tests {
 
     #[test]
     fn init_fills_the_callers_size_and_nothing_past_it() {
-        for size in [V01_SIZE, V02_SIZE, V03_SIZE, SIZE] {
+        for size in SIZES {
             // A guard region after the caller's struct.
             let mut buf = [0xA5u8; 128];
             // An aligned start inside buf.

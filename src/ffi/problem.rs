@@ -27,7 +27,7 @@ pub struct DsProblem {
 }
 
 /// The contact dimension d as `usize`, or `BadArgument`.
-fn dimension(d: i32) -> Result<usize> {
+pub(super) fn dimension(d: i32) -> Result<usize> {
     match d {
         2 => Ok(2),
         3 => Ok(3),

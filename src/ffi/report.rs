@@ -15,8 +15,9 @@ use crate::report::{Report, SolveStatus};
 /// header a program was built with; with opts = NULL, the fields of version 0.1),
 /// so a program's DsReport is never written past its end. Versions 0.1 to 0.3 have
 /// the same 88-byte report; 0.4 appends ordering, threads, factor_nnz,
-/// factor_flops and analyse_seconds (120 bytes), written when the caller's DsOptions is of version 0.4
-/// (struct_size 72) or later.
+/// factor_flops and analyse_seconds (120 bytes), written when the caller's
+/// DsOptions is of version 0.4 (struct_size 72); 0.5 appends memory_predicted and
+/// memory_peak (136 bytes), written when it is of version 0.5 (struct_size 80).
 #[repr(C)]
 #[derive(Copy, Clone, Debug, PartialEq)]
 pub struct DsReport {
@@ -66,16 +67,29 @@ pub struct DsReport {
     /// Seconds of K's analysis (ordering and symbolic factorisation) when the
     /// handle was created. Added in version 0.4.
     pub analyse_seconds: f64,
+    /// The predicted peak of the library's large allocations during this solve,
+    /// bytes: what the handle holds, the solve's vectors and the method's dense
+    /// work space in its largest case (see DsOptions.max_memory and DsInfo).
+    /// Added in version 0.5.
+    pub memory_predicted: u64,
+    /// The measured peak of the same allocations during this solve, bytes,
+    /// counted by the library as it allocates (not read from the operating
+    /// system). Added in version 0.5.
+    pub memory_peak: u64,
 }
 
 /// sizeof(DsReport) of versions 0.1 to 0.3.
 pub(crate) const V03_SIZE: usize = 88;
+/// sizeof(DsReport) of version 0.4.
+pub(crate) const V04_SIZE: usize = 120;
 
 /// The bytes of DsReport the caller has room for, from the struct_size of the
 /// DsOptions it passed (0 for NULL): the report of the same version.
 pub(crate) fn caller_size(options_size: usize) -> usize {
-    if options_size >= super::options::V04_SIZE {
+    if options_size >= super::options::V05_SIZE {
         std::mem::size_of::<DsReport>()
+    } else if options_size >= super::options::V04_SIZE {
+        V04_SIZE
     } else {
         V03_SIZE
     }
@@ -112,6 +126,8 @@ impl From<&Report> for DsReport {
             factor_nnz: count(r.factor_nnz),
             factor_flops: r.factor_flops,
             analyse_seconds: r.analyse_seconds,
+            memory_predicted: u64::try_from(r.memory_predicted).unwrap_or(u64::MAX),
+            memory_peak: u64::try_from(r.memory_peak).unwrap_or(u64::MAX),
         }
     }
 }

@@ -27,6 +27,7 @@ pub use driver::{End, Outcome};
 
 use crate::dual::Dual;
 use crate::friction::Friction;
+
 use crate::options::Options;
 use crate::report::natural_map_error;
 use driver::OuterStep;
@@ -97,6 +98,9 @@ struct MethodSpec {
     name: &'static str,
     /// True when the method reads entries of A (and so needs it assembled).
     needs_entries: bool,
+    /// Bytes of the method's dense work space on a dual of m contacts and c
+    /// unknowns, in its largest case (vectors of length c left out).
+    workspace: fn(usize, usize) -> usize,
     /// The outer step for a problem and dual target, and the number of dual
     /// unknowns it iterates on (d m; m for a frictionless increment solved as the
     /// pure Signorini problem).
@@ -105,6 +109,11 @@ struct MethodSpec {
 
 /// A method's outer step and the number of dual unknowns it iterates on.
 type Built = (Box<dyn OuterStep>, usize);
+
+/// No dense work space (vectors of length c only).
+fn no_workspace(_m: usize, _c: usize) -> usize {
+    0
+}
 
 /// The sub-problem stopping rule of the methods that solve sub-problems: a tenth
 /// of the dual target, within `opts.max_inner` iterations.
@@ -174,6 +183,12 @@ impl Method {
     /// `Mprgp` runs on products alone.
     pub fn needs_entries(self) -> bool {
         self.spec().needs_entries
+    }
+
+    /// Bytes of the method's dense work space on a dual of `m` contacts and `c`
+    /// unknowns, in its largest case (see each method's documentation).
+    pub(crate) fn workspace(self, m: usize, c: usize) -> usize {
+        (self.spec().workspace)(m, c)
     }
 
     /// Parses a name as returned by [`Method::name`].

@@ -46,8 +46,10 @@ use super::pgs;
 use super::{DualProblem, MethodSpec};
 use crate::dense;
 use crate::friction::Friction;
+use crate::memory::{F64, Ledger};
 use crate::threads::{PARALLEL_MIN_ENTRIES, Threads};
 use faer::Mat;
+use std::sync::Arc;
 
 /// Gauss-Seidel sweeps taken when a Newton step is rejected.
 const FALLBACK_SWEEPS: usize = 5;
@@ -246,6 +248,7 @@ fn newton_step(
     dual.apply(step, ae0);
     // M = T^T A V + diag, column by column: column l is the sum over the entries of
     // dir_l of coef times T^T A[:, j], gathered from one column of A.
+    let _mat_claim = dual.ledger.claim_f64(k * k);
     let mut mat = Mat::<f64>::zeros(k, k);
     let mut rhs = Mat::<f64>::zeros(k, 1);
     for (l, u) in red.iter().enumerate() {
@@ -273,7 +276,7 @@ fn newton_step(
     let symmetric = red
         .iter()
         .all(|u| u.n_test == u.n_dir && u.test[..u.n_test] == u.dir[..u.n_dir]);
-    let Some(z) = solve_reduced(&mat, &rhs, symmetric, &dual.threads) else {
+    let Some(z) = solve_reduced(&mat, &rhs, symmetric, &dual.threads, &dual.ledger) else {
         return false;
     };
     for (l, u) in red.iter().enumerate() {
@@ -294,6 +297,7 @@ fn solve_reduced(
     rhs: &Mat<f64>,
     symmetric: bool,
     threads: &Threads,
+    ledger: &Arc<Ledger>,
 ) -> Option<Mat<f64>> {
     let max_abs = |a: faer::MatRef<'_, f64>| {
         let mut v = 0.0f64;
@@ -309,6 +313,9 @@ fn solve_reduced(
         |z: &Mat<f64>| z.as_ref().is_all_finite() && mn * max_abs(z.as_ref()) * RCOND <= rn;
     let big = mat.nrows() * mat.ncols() >= PARALLEL_MIN_ENTRIES;
     let (m, r) = (mat.as_ref(), rhs.as_ref());
+    // Each dense solver works on a copy of M (the SVD on two k x k factors too).
+    let k2 = mat.nrows() * mat.ncols();
+    let copy_claim = ledger.claim_f64(k2);
     if symmetric
         && let Some(z) = threads.run(big, |par| dense::llt_solve(m, r, par))
         && acceptable(&z)
@@ -319,6 +326,8 @@ fn solve_reduced(
     if acceptable(&z) {
         return Some(z);
     }
+    drop(copy_claim);
+    let _svd_claim = ledger.claim_f64(3 * k2);
     let (u, sv, v) = threads.run(big, |par| dense::thin_svd(m, par))?;
     let smax = sv.iter().fold(0.0f64, |a, &s| a.max(s));
     let mut z = Mat::<f64>::zeros(mat.ncols(), 1);
@@ -361,6 +370,7 @@ fn residual_norm(problem: &DualProblem<'_>, lam: &[f64], w: &[f64]) -> f64 {
 pub(super) const NEWTON: MethodSpec = MethodSpec {
     name: "newton",
     needs_entries: true,
+    workspace: |_m, c| 2 * c * c * F64,
     build: |problem, _opts, target| (Box::new(Newton::new(problem, target)), problem.dual.c),
 };
 
@@ -611,17 +621,17 @@ mod tests {
         let seq = Threads::sequential();
         // SPD: Cholesky; z solves M z = rhs.
         let spd = mat(&[&[4.0, 1.0], &[1.0, 3.0]]);
-        let z = solve_reduced(&spd, &rhs, true, &seq).unwrap();
+        let z = solve_reduced(&spd, &rhs, true, &seq, &Ledger::new()).unwrap();
         assert!((4.0 * z[(0, 0)] + z[(1, 0)] - 1.0).abs() < 1e-15);
         assert!((z[(0, 0)] + 3.0 * z[(1, 0)] - 2.0).abs() < 1e-15);
         // Symmetric but indefinite: Cholesky fails, LU solves it: z = (2, 1).
         let indef = mat(&[&[0.0, 1.0], &[1.0, 0.0]]);
-        let z = solve_reduced(&indef, &rhs, true, &seq).unwrap();
+        let z = solve_reduced(&indef, &rhs, true, &seq, &Ledger::new()).unwrap();
         assert!((z[(0, 0)] - 2.0).abs() < 1e-15 && (z[(1, 0)] - 1.0).abs() < 1e-15);
         // Singular: the minimum-norm least-squares solution of [1 1; 1 1] z = (1, 2)
         // is z = (0.75, 0.75).
         let sing = mat(&[&[1.0, 1.0], &[1.0, 1.0]]);
-        let z = solve_reduced(&sing, &rhs, true, &seq).unwrap();
+        let z = solve_reduced(&sing, &rhs, true, &seq, &Ledger::new()).unwrap();
         assert!((z[(0, 0)] - 0.75).abs() < 1e-12 && (z[(1, 0)] - 0.75).abs() < 1e-12);
     }
 }

@@ -15,6 +15,7 @@ use super::{DualProblem, MethodSpec};
 pub(super) const PGS: MethodSpec = MethodSpec {
     name: "pgs",
     needs_entries: true,
+    workspace: super::no_workspace,
     build: |problem, _opts, _target| (Box::new(Pgs::new(problem)), problem.dual.c),
 };
 

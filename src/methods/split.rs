@@ -32,6 +32,7 @@ use super::signorini::frictionless;
 use super::subproblem::{GaussSeidel, Mprgp, SubQp, SubSolver};
 use super::{Built, DualProblem, MethodSpec, Options, inner_rule};
 use crate::dense::llt_solve;
+use crate::memory::{Claim, F64};
 use crate::threads::PARALLEL_MIN_ENTRIES;
 use faer::linalg::matmul::matmul;
 use faer::{Accum, Mat};
@@ -40,6 +41,8 @@ use faer::{Accum, Mat};
 struct Schur {
     active: Vec<bool>,
     s: Vec<f64>,
+    /// The bytes of `s` on the problem's ledger.
+    _claim: Claim,
     /// b_T - A21[:,a] A11[a,a]^-1 b_N[a].
     q: Vec<f64>,
 }
@@ -52,6 +55,11 @@ fn schur(problem: &DualProblem<'_>, active: &[bool]) -> Option<Schur> {
     let ct = c - m;
     let idx: Vec<usize> = (0..m).filter(|&i| active[i]).collect();
     let na = idx.len();
+    let ledger = &dual.ledger;
+    // A11[a,a], [A12[a,:], b_N[a]] and X held to the end; the Cholesky factor of
+    // A11[a,a] while X is solved for.
+    let _held = ledger.claim_f64(na * na + 2 * na * (ct + 1));
+    let factor_claim = ledger.claim_f64(na * na);
     let a11 = Mat::from_fn(na, na, |r, s| dual.a[idx[r] + idx[s] * c]);
     // Columns: A12[a,:] (ct columns) then b_N[a].
     let rhs = Mat::from_fn(na, ct + 1, |r, s| {
@@ -72,7 +80,9 @@ fn schur(problem: &DualProblem<'_>, active: &[bool]) -> Option<Schur> {
     } else {
         rhs.clone()
     };
+    drop(factor_claim);
     // [S, b_T'] = [A22, b_T] - A21[:,a] [X, y] with one matrix product.
+    let _sq_claim = ledger.claim_f64(ct * (ct + 1));
     let mut sq = Mat::from_fn(ct, ct + 1, |i, j| {
         if j < ct {
             dual.a[(m + i) + (m + j) * c]
@@ -86,6 +96,7 @@ fn schur(problem: &DualProblem<'_>, active: &[bool]) -> Option<Schur> {
             matmul(sq.as_mut(), Accum::Add, lhs, x.as_ref(), -1.0, par);
         });
     }
+    let s_claim = ledger.claim_f64(ct * ct);
     let mut s = vec![0.0; ct * ct];
     for j in 0..ct {
         for i in 0..ct {
@@ -104,6 +115,7 @@ fn schur(problem: &DualProblem<'_>, active: &[bool]) -> Option<Schur> {
     Some(Schur {
         active: active.to_vec(),
         s,
+        _claim: s_claim,
         q,
     })
 }
@@ -112,6 +124,7 @@ fn schur(problem: &DualProblem<'_>, active: &[bool]) -> Option<Schur> {
 pub(super) const SPLIT: MethodSpec = MethodSpec {
     name: "split",
     needs_entries: true,
+    workspace: schur_workspace,
     build: |problem, opts, target| build(problem, opts, target, Variant::Schur, GaussSeidel::new),
 };
 
@@ -119,6 +132,7 @@ pub(super) const SPLIT: MethodSpec = MethodSpec {
 pub(super) const BLOCK_GS: MethodSpec = MethodSpec {
     name: "block-gs",
     needs_entries: true,
+    workspace: super::no_workspace,
     build: |problem, opts, target| build(problem, opts, target, Variant::Block, GaussSeidel::new),
 };
 
@@ -126,8 +140,20 @@ pub(super) const BLOCK_GS: MethodSpec = MethodSpec {
 pub(super) const SPLIT_MPRGP: MethodSpec = MethodSpec {
     name: "split-mprgp",
     needs_entries: true,
+    workspace: schur_workspace,
     build: |problem, opts, target| build(problem, opts, target, Variant::Schur, Mprgp::new),
 };
+
+/// Bytes of the Schur variant's dense work space on m contacts and c unknowns
+/// (ct = c - m tangential ones): the S of the previous contact set (ct x ct)
+/// while the next is formed from A11[a,a] (held with its Cholesky factor, then
+/// with S and [S, b_T']), [A12[a,:], b_N[a]] and its solve X, for a contact set
+/// a of up to m contacts (see [`schur`]).
+fn schur_workspace(m: usize, c: usize) -> usize {
+    let ct = c - m;
+    let held = m * m + 2 * m * (ct + 1);
+    F64 * (ct * ct + held + (m * m).max(ct * (ct + 1) + ct * ct))
+}
 
 /// The splitting `variant` with sub-problems by `solver(k, tol, max)`; a
 /// frictionless increment as the pure Signorini problem (m unknowns).

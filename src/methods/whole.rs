@@ -15,6 +15,7 @@ use super::{DualProblem, MethodSpec, inner_rule};
 pub(super) const MPRGP: MethodSpec = MethodSpec {
     name: "mprgp",
     needs_entries: false,
+    workspace: super::no_workspace,
     build: |problem, opts, target| {
         if let Some(signorini) = frictionless(problem, opts, target, Mprgp::new) {
             return signorini;

@@ -242,6 +242,12 @@ impl Csc {
         self.col_ptr[self.ncols]
     }
 
+    /// Bytes of the stored arrays (column pointers, row indices, values).
+    pub(crate) fn bytes(&self) -> usize {
+        let idx = std::mem::size_of::<usize>();
+        (self.ncols + 1) * idx + self.nnz() * (idx + std::mem::size_of::<f64>())
+    }
+
     /// y := A x (x has ncols entries, y has nrows; y is overwritten).
     ///
     /// Panics if `x` is shorter than `ncols` or `y` shorter than `nrows`.

@@ -1,0 +1,50 @@
+//! What the analysis of a contact problem tells before any numeric work (as
+//! MUMPS's JOB = 1 or CHOLMOD's analyze): its sizes, the factor's size and cost,
+//! the route the options lead to, and that route's predicted memory.
+
+use crate::options::{DualForm, Method, Ordering};
+
+/// The analysis of a contact problem: everything known after the ordering and
+/// the symbolic factorisation of K, before the numeric factorisation
+/// ([`crate::ContactProblem::analyse`], or [`crate::ContactProblem::info`] for a
+/// problem already created).
+#[derive(Clone, Debug, PartialEq)]
+pub struct Info {
+    /// Contact dimension (2 or 3).
+    pub d: usize,
+    /// DOFs (rows of K).
+    pub n: usize,
+    /// Contacts (rows of N).
+    pub m: usize,
+    /// Dual unknowns c = d m.
+    pub c: usize,
+    /// Stored entries of K, both triangles.
+    pub nnz_k: usize,
+    /// The fill-reducing ordering chosen (`Amd` or `Metis`).
+    pub ordering: Ordering,
+    /// Entries of the Cholesky factor L (dense supernodal blocks included).
+    pub factor_nnz: usize,
+    /// Flops of one numeric factorisation (sum over the columns of L of the
+    /// squared column counts).
+    pub factor_flops: f64,
+    /// The form of the condensed dual the problem is created with: `Dense` (A
+    /// formed) or `MatrixFree` (A applied by products).
+    pub setup_form: DualForm,
+    /// The method of the options, and the form its solves use (`Dense` for every
+    /// method that reads entries of A: a problem created matrix-free forms A at
+    /// its first such solve).
+    pub method: Method,
+    pub solve_form: DualForm,
+    /// Predicted peak bytes of the library's large allocations while the problem
+    /// is created (factorisation, then condensation), held between calls, and
+    /// during one solve with that method (its largest case).
+    pub setup_bytes: usize,
+    pub resident_bytes: usize,
+    pub solve_bytes: usize,
+    /// The memory limit the predictions were checked against, bytes
+    /// (`Options::max_memory`, else this process's address-space limit or the
+    /// machine's physical memory; 0 when none is known).
+    pub memory_limit: usize,
+    /// Seconds of the ordering and the symbolic factorisation.
+    pub analyse_seconds: f64,
+}

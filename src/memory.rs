@@ -1,0 +1,268 @@
+//! Memory: the library's own large allocations counted as they are made (a
+//! [`Ledger`] per problem, with its peak), what they will be predicted from the
+//! sizes known after the symbolic analysis ([`Sizes`]), and the limit a
+//! route must fit in before any work starts ([`limit`]).
+//!
+//! "Large" means every allocation whose size grows with the problem: the copies of
+//! K, N and T, the Cholesky factor and its workspace, the condensed dual A and the
+//! dense blocks it is formed from, the dense systems of the methods, and the
+//! vectors of length n of a solve. Index arrays of the analysis and O(c) vectors
+//! are not counted (they are small next to those).
+
+use crate::dual::Condensation;
+use crate::error::{Error, ErrorKind, Result};
+use std::sync::Arc;
+use std::sync::atomic::{AtomicUsize, Ordering};
+
+/// Bytes of one f64.
+pub(crate) const F64: usize = std::mem::size_of::<f64>();
+
+/// Live and peak bytes of a problem's large allocations.
+#[derive(Debug, Default)]
+pub(crate) struct Ledger {
+    live: AtomicUsize,
+    peak: AtomicUsize,
+}
+
+/// Bytes claimed on a [`Ledger`] while this value lives (held next to the
+/// allocation it counts, or for the scope of a temporary).
+#[derive(Debug)]
+pub(crate) struct Claim {
+    ledger: Arc<Ledger>,
+    bytes: usize,
+}
+
+impl Ledger {
+    /// A new, empty ledger.
+    pub fn new() -> Arc<Ledger> {
+        Arc::new(Ledger::default())
+    }
+
+    /// Counts `bytes` until the returned claim is dropped.
+    pub fn claim(self: &Arc<Self>, bytes: usize) -> Claim {
+        let live = self.live.fetch_add(bytes, Ordering::Relaxed) + bytes;
+        self.peak.fetch_max(live, Ordering::Relaxed);
+        Claim {
+            ledger: self.clone(),
+            bytes,
+        }
+    }
+
+    /// Counts `count` f64 values (see [`Ledger::claim`]).
+    pub fn claim_f64(self: &Arc<Self>, count: usize) -> Claim {
+        self.claim(count.saturating_mul(F64))
+    }
+
+    /// Bytes held now.
+    pub fn live(&self) -> usize {
+        self.live.load(Ordering::Relaxed)
+    }
+
+    /// The most bytes held at once since the last [`Ledger::reset_peak`].
+    pub fn peak(&self) -> usize {
+        self.peak.load(Ordering::Relaxed)
+    }
+
+    /// Starts a new peak from the bytes held now.
+    pub fn reset_peak(&self) {
+        self.peak.store(self.live(), Ordering::Relaxed);
+    }
+}
+
+impl Claim {
+    /// Changes the bytes of this claim (an allocation that grew or shrank).
+    pub fn resize(&mut self, bytes: usize) {
+        if bytes >= self.bytes {
+            let more = bytes - self.bytes;
+            let live = self.ledger.live.fetch_add(more, Ordering::Relaxed) + more;
+            self.ledger.peak.fetch_max(live, Ordering::Relaxed);
+        } else {
+            self.ledger
+                .live
+                .fetch_sub(self.bytes - bytes, Ordering::Relaxed);
+        }
+        self.bytes = bytes;
+    }
+}
+
+impl Drop for Claim {
+    fn drop(&mut self) {
+        self.ledger.live.fetch_sub(self.bytes, Ordering::Relaxed);
+    }
+}
+
+/// The sizes a prediction is made from, all known after the symbolic analysis.
+#[derive(Copy, Clone, Debug, Default, PartialEq)]
+pub(crate) struct Sizes {
+    /// DOFs (rows of K).
+    pub n: usize,
+    /// Dual unknowns (c = d m).
+    pub c: usize,
+    /// DOFs that N and T touch (the trailing DOFs of the factor).
+    pub nc: usize,
+    /// Bytes of K, N and T as the problem stores them.
+    pub inputs: usize,
+    /// Bytes of L's values.
+    pub factor: usize,
+    /// Bytes of the numeric factorisation's workspace.
+    pub factor_scratch: usize,
+    /// Bytes of one solve's workspace with [`crate::dual::BLOCK`] right-hand sides.
+    pub solve_scratch: usize,
+}
+
+/// Predicted bytes, what the counted allocations will reach.
+impl Sizes {
+    /// K, N, T and the factor.
+    fn base(&self) -> usize {
+        self.inputs + self.factor
+    }
+
+    /// Bytes above [`Sizes::base`] while the dual is formed in the way `how`, and
+    /// once it is formed.
+    fn forming(&self, how: Condensation) -> (usize, usize) {
+        let a = self.c * self.c * F64;
+        let lcc = self.nc * self.nc * F64;
+        match how {
+            // A, then L_CC and X = S_CC^-1 (L_CC dropped once X is formed).
+            Condensation::TrailingBlock => (a + 2 * lcc, a),
+            // A and one block of right-hand sides with the solve's workspace.
+            Condensation::Solves => (
+                a + crate::dual::BLOCK * self.n * F64 + self.solve_scratch,
+                a,
+            ),
+            // L_CC (its allocation probed first, then freed), and a block of 64
+            // columns for A's diagonal.
+            Condensation::MatrixFree => (lcc + 64 * self.nc * F64, lcc),
+        }
+    }
+
+    /// The peak of creating a problem whose dual is formed in the way `how`: the
+    /// numeric factorisation, then the condensation.
+    pub fn setup(&self, how: Condensation) -> usize {
+        (self.base() + self.factor_scratch).max(self.base() + self.forming(how).0)
+    }
+
+    /// What the problem holds between calls.
+    pub fn resident(&self, how: Condensation) -> usize {
+        self.base() + self.forming(how).1
+    }
+
+    /// The peak of one solve (or history step) on a problem whose dual is held as
+    /// `now` and is needed as `next` (rebuilt first when they differ), with a
+    /// method whose dense work space is `workspace` bytes: the vectors of length
+    /// n (f and its forward half, K^-1 f, u, B^T lambda, K u, the residual, and
+    /// a step's effective f and K u_k) and the method's work space on top of the
+    /// resident bytes.
+    pub fn solve(&self, now: Condensation, next: Condensation, workspace: usize) -> usize {
+        let working = self.resident(next) + 8 * self.n * F64 + workspace;
+        if now == next {
+            working
+        } else {
+            working.max(self.resident(now) + self.forming(next).0)
+        }
+    }
+}
+
+/// The memory limit the routes must fit in: `max_memory` when it is not 0, else
+/// what this process can have: the smaller of its address-space limit
+/// (RLIMIT_AS) and the machine's physical memory; None when neither is known.
+pub(crate) fn limit(max_memory: usize) -> Option<usize> {
+    if max_memory > 0 {
+        return Some(max_memory);
+    }
+    let mut lim = libc::rlimit {
+        rlim_cur: 0,
+        rlim_max: 0,
+    };
+    // SAFETY: getrlimit writes the struct it is given and nothing else.
+    let rc = unsafe { libc::getrlimit(libc::RLIMIT_AS, &mut lim) };
+    let address_space = (rc == 0 && lim.rlim_cur != libc::RLIM_INFINITY)
+        .then(|| usize::try_from(lim.rlim_cur).unwrap_or(usize::MAX));
+    // SAFETY: sysconf reads a system constant; it has no memory effects.
+    let (pages, page) = unsafe {
+        (
+            libc::sysconf(libc::_SC_PHYS_PAGES),
+            libc::sysconf(libc::_SC_PAGESIZE),
+        )
+    };
+    let physical = (pages > 0 && page > 0).then(|| (pages as usize).saturating_mul(page as usize));
+    match (address_space, physical) {
+        (Some(a), Some(p)) => Some(a.min(p)),
+        (a, p) => a.or(p),
+    }
+}
+
+/// `bytes` in the units a user reads (MB below 10 GB, else GB), for messages.
+pub(crate) fn human(bytes: usize) -> String {
+    let b = bytes as f64;
+    if b < 10e9 {
+        format!("{:.1} MB", b / 1e6)
+    } else {
+        format!("{:.1} GB", b / 1e9)
+    }
+}
+
+/// `OutOfMemory` when `need` exceeds `limit` (None: no check): "`what` needs
+/// about N bytes, more than the limit L (`source`); `hint`".
+pub(crate) fn check(
+    need: usize,
+    limit: Option<usize>,
+    max_memory: usize,
+    what: &str,
+    hint: &str,
+) -> Result<()> {
+    let Some(limit) = limit else {
+        return Ok(());
+    };
+    if need <= limit {
+        return Ok(());
+    }
+    let source = if max_memory > 0 {
+        "max_memory"
+    } else {
+        "this process's address-space limit or the machine's memory"
+    };
+    Err(Error::new(
+        ErrorKind::OutOfMemory,
+        format!(
+            "{what} needs about {} ({need} bytes, predicted after the analysis), more than \
+             the {} allowed by {source}; {hint}",
+            human(need),
+            human(limit)
+        ),
+    ))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn claims_count_live_and_peak_bytes() {
+        let l = Ledger::new();
+        let a = l.claim(100);
+        {
+            let mut b = l.claim_f64(10);
+            assert_eq!(l.live(), 180);
+            b.resize(100);
+            assert_eq!(l.live(), 200);
+        }
+        assert_eq!((l.live(), l.peak()), (100, 200));
+        l.reset_peak();
+        assert_eq!(l.peak(), 100);
+        drop(a);
+        assert_eq!(l.live(), 0);
+    }
+
+    #[test]
+    fn the_limit_is_max_memory_when_set() {
+        assert_eq!(limit(12345), Some(12345));
+        // The machine's own limit is positive where it is known.
+        assert!(limit(0).is_none_or(|b| b > 0));
+        let e = check(2000, Some(1000), 1000, "the dense dual", "try less").unwrap_err();
+        assert_eq!(e.kind, ErrorKind::OutOfMemory);
+        assert!(e.message.contains("2000 bytes") && e.message.contains("max_memory"));
+        assert!(check(1000, Some(1000), 0, "x", "y").is_ok());
+        assert!(check(usize::MAX, None, 0, "x", "y").is_ok());
+    }
+}

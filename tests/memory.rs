@@ -1,0 +1,392 @@
+//! Memory (issue 19): the prediction made after the analysis against what the
+//! library allocates, counted by a global allocator that wraps the system's (not
+//! read from the operating system); the limit `max_memory` refusing a creation
+//! before any numeric work and a solve before its method runs, with the problem
+//! still usable; the analysis alone (`ContactProblem::analyse`, `ds_analyse`)
+//! allocating no factor.
+
+mod common;
+
+use common::{Mesh, Scene};
+use dualsplit::ffi::*;
+use dualsplit::{ContactProblem, DualForm, ErrorKind, Friction, Method, Options};
+use std::alloc::{GlobalAlloc, Layout, System};
+use std::sync::Mutex;
+use std::sync::atomic::{AtomicUsize, Ordering};
+
+/// The system allocator, counting the bytes live and their peak.
+struct Counting;
+
+static LIVE: AtomicUsize = AtomicUsize::new(0);
+static PEAK: AtomicUsize = AtomicUsize::new(0);
+
+// SAFETY: every call is forwarded to the system allocator unchanged; the
+// counters have no effect on the memory handed out.
+unsafe impl GlobalAlloc for Counting {
+    unsafe fn alloc(&self, layout: Layout) -> *mut u8 {
+        // SAFETY: forwarded with the caller's layout (GlobalAlloc contract).
+        let p = unsafe { System.alloc(layout) };
+        if !p.is_null() {
+            let live = LIVE.fetch_add(layout.size(), Ordering::Relaxed) + layout.size();
+            PEAK.fetch_max(live, Ordering::Relaxed);
+        }
+        p
+    }
+
+    unsafe fn dealloc(&self, ptr: *mut u8, layout: Layout) {
+        LIVE.fetch_sub(layout.size(), Ordering::Relaxed);
+        // SAFETY: forwarded unchanged (GlobalAlloc contract).
+        unsafe { System.dealloc(ptr, layout) }
+    }
+
+    unsafe fn alloc_zeroed(&self, layout: Layout) -> *mut u8 {
+        // SAFETY: forwarded with the caller's layout (GlobalAlloc contract).
+        let p = unsafe { System.alloc_zeroed(layout) };
+        if !p.is_null() {
+            let live = LIVE.fetch_add(layout.size(), Ordering::Relaxed) + layout.size();
+            PEAK.fetch_max(live, Ordering::Relaxed);
+        }
+        p
+    }
+
+    unsafe fn realloc(&self, ptr: *mut u8, layout: Layout, new_size: usize) -> *mut u8 {
+        // SAFETY: forwarded unchanged (GlobalAlloc contract).
+        let p = unsafe { System.realloc(ptr, layout, new_size) };
+        if !p.is_null() {
+            LIVE.fetch_sub(layout.size(), Ordering::Relaxed);
+            let live = LIVE.fetch_add(new_size, Ordering::Relaxed) + new_size;
+            PEAK.fetch_max(live, Ordering::Relaxed);
+        }
+        p
+    }
+}
+
+#[global_allocator]
+static GLOBAL: Counting = Counting;
+
+/// The counters see every thread's allocations: one measuring test at a time.
+static SERIAL: Mutex<()> = Mutex::new(());
+
+/// faer's matrix products (private-gemm-x86) keep a 64 MiB packing buffer per
+/// thread, allocated by a thread's first product and kept for the thread's
+/// life: not the library's own. A first solve on a small scene allocates it for
+/// this thread (every test here runs with threads = 1: on the calling thread).
+fn warm_up() {
+    let sc = Scene::pressed_block(Mesh::grid2d(8, 4, 2.0, 1.0), &[0.004, -0.02], 0.002, &[1.0]);
+    let (k, n, t) = (sc.k.clone(), sc.n.clone(), sc.t.clone());
+    let mut pb = ContactProblem::from_csc_with(sc.d, k, n, t, &one_thread()).unwrap();
+    let p = vec![0.3; sc.m()];
+    pb.solve(&sc.f, &sc.g, Friction::Tresca(&p), &one_thread())
+        .unwrap();
+}
+
+/// Bytes allocated at the peak of `f` beyond what was live before it.
+fn peak_of<T>(f: impl FnOnce() -> T) -> (T, usize) {
+    let before = LIVE.load(Ordering::Relaxed);
+    PEAK.store(before, Ordering::Relaxed);
+    let out = f();
+    (out, PEAK.load(Ordering::Relaxed) - before)
+}
+
+fn block3d() -> Scene {
+    Scene::pressed_block(
+        Mesh::grid3d(12, 12, 6, 2.0, 2.0, 1.0),
+        &[0.004, 0.002, -0.03],
+        0.02,
+        &[1.0, 1.0],
+    )
+}
+
+fn strip2d() -> Scene {
+    Scene::pressed_block(
+        Mesh::grid2d(160, 8, 20.0, 1.0),
+        &[0.004, -0.02],
+        0.002,
+        &[10.0],
+    )
+}
+
+fn one_thread() -> Options {
+    Options {
+        threads: 1,
+        ..Options::default()
+    }
+}
+
+/// `got` within `rel` of `want`.
+fn assert_within(what: &str, got: usize, want: usize, rel: f64) {
+    let (g, w) = (got as f64, want as f64);
+    assert!(
+        (g - w).abs() <= rel * w,
+        "{what}: {got} bytes against {want} predicted ({:+.1} %)",
+        100.0 * (g - w) / w
+    );
+}
+
+/// The setup and the solve of a scene: the counted peaks within 25 % of the
+/// predictions, and the library's own count (the report's memory_peak) too.
+fn check_scene(name: &str, sc: &Scene) {
+    warm_up();
+    let opts = one_thread();
+    let info = ContactProblem::analyse_csc(sc.d, &sc.k, &sc.n, &sc.t, &opts).expect("analysis");
+    assert_eq!(info.setup_form, DualForm::Dense, "{name}: c = {}", info.c);
+    let (k, n, t) = (sc.k.clone(), sc.n.clone(), sc.t.clone());
+    let (pb, setup) =
+        peak_of(|| ContactProblem::from_csc_with(sc.d, k, n, t, &opts).expect("setup"));
+    eprintln!(
+        "{name}: setup {setup} bytes counted, {} predicted; resident {}",
+        info.setup_bytes, info.resident_bytes
+    );
+    assert_within(&format!("{name} setup"), setup, info.setup_bytes, 0.25);
+    let mut pb = pb;
+    let p: Vec<f64> = vec![0.3; sc.m()];
+    for method in [Method::Split, Method::Pgs] {
+        let o = Options { method, ..opts };
+        let before = pb.info(&o);
+        // The solve's peak, on top of what the problem holds.
+        let (sol, extra) = peak_of(|| pb.solve(&sc.f, &sc.g, Friction::Tresca(&p), &o).unwrap());
+        let r = &sol.report;
+        let counted = before.resident_bytes + extra;
+        eprintln!(
+            "{name} {}: solve {counted} bytes counted, {} by the library, {} predicted",
+            method.name(),
+            r.memory_peak,
+            r.memory_predicted
+        );
+        assert_eq!(r.memory_predicted, before.solve_bytes);
+        assert_within(
+            &format!("{name} {} solve", method.name()),
+            counted,
+            r.memory_predicted,
+            0.25,
+        );
+        assert!(r.memory_peak <= r.memory_predicted, "{name}: {r:?}");
+        assert_within(
+            &format!("{name} {} ledger", method.name()),
+            r.memory_peak,
+            r.memory_predicted,
+            0.25,
+        );
+    }
+}
+
+#[test]
+fn the_prediction_matches_the_counted_allocations_in_2d() {
+    let _serial = SERIAL.lock().unwrap_or_else(|e| e.into_inner());
+    check_scene("2d strip", &strip2d());
+}
+
+#[test]
+fn the_prediction_matches_the_counted_allocations_in_3d() {
+    let _serial = SERIAL.lock().unwrap_or_else(|e| e.into_inner());
+    check_scene("3d block", &block3d());
+}
+
+/// A `max_memory` below the setup's prediction: ds_problem_new_opts refuses with
+/// DS_STATUS_OUT_OF_MEMORY, a message that names the need, no handle, and no
+/// numeric work (the counted peak of the call stays below the factor's values);
+/// a limit the prediction fits in gives a handle.
+#[test]
+fn a_setup_over_max_memory_is_refused_before_the_factorisation() {
+    let _serial = SERIAL.lock().unwrap_or_else(|e| e.into_inner());
+    warm_up();
+    let sc = block3d();
+    let info = ContactProblem::analyse_csc(sc.d, &sc.k, &sc.n, &sc.t, &one_thread()).unwrap();
+    let (k, n, t) = (
+        common::Owned::of(&sc.k),
+        common::Owned::of(&sc.n),
+        common::Owned::of(&sc.t),
+    );
+    let (kd, nd, td) = (k.ds(), n.ds(), t.ds());
+    let mut opts = DsOptions {
+        threads: 1,
+        max_memory: (info.resident_bytes / 2) as u64,
+        ..DsOptions::default()
+    };
+    let mut out: *mut DsProblem = std::ptr::null_mut();
+    // SAFETY: valid matrices, options and out pointer.
+    let (st, peak) = peak_of(|| unsafe { ds_problem_new_opts(3, &kd, &nd, &td, &opts, &mut out) });
+    assert_eq!(st, DsStatus::OutOfMemory);
+    assert!(out.is_null(), "no handle on error");
+    // SAFETY: the message is a valid NUL-terminated string.
+    let msg = unsafe { std::ffi::CStr::from_ptr(ds_last_error_message()) };
+    let msg = msg.to_string_lossy();
+    // The need named is that of the route the limit leads to (AUTO: the
+    // matrix-free dual where the dense one does not fit).
+    let limited = Options {
+        max_memory: opts.max_memory as usize,
+        ..one_thread()
+    };
+    let route = ContactProblem::analyse_csc(sc.d, &sc.k, &sc.n, &sc.t, &limited).unwrap();
+    assert!(
+        msg.contains(&format!("{} bytes", route.setup_bytes)) && msg.contains("max_memory"),
+        "{msg}"
+    );
+    // Refused within the analysis: the call allocated no more than the analysis
+    // alone does, and a creation that goes through allocates at least the
+    // factor's values more.
+    let mut dsinfo = DsInfo {
+        struct_size: std::mem::size_of::<DsInfo>() as u32,
+        // SAFETY: DsInfo is plain old data; zero is a value.
+        ..unsafe { std::mem::zeroed() }
+    };
+    // SAFETY: valid matrices and options; a whole DsInfo.
+    let (st, analysis) = peak_of(|| unsafe { ds_analyse(3, &kd, &nd, &td, &opts, &mut dsinfo) });
+    assert_eq!(st, DsStatus::Ok);
+    assert!(
+        peak <= analysis + (64 << 10),
+        "the refused call allocated {peak} bytes, the analysis {analysis}"
+    );
+    // A limit that fits.
+    opts.max_memory = info.setup_bytes as u64 + (1 << 20);
+    // SAFETY: as above.
+    let (st, created) =
+        peak_of(|| unsafe { ds_problem_new_opts(3, &kd, &nd, &td, &opts, &mut out) });
+    assert_eq!(st, DsStatus::Ok);
+    let factor_bytes = 8 * info.factor_nnz;
+    assert!(
+        analysis + factor_bytes <= created,
+        "analysis {analysis} bytes, creation {created}, factor {factor_bytes}"
+    );
+    // SAFETY: a handle from ds_problem_new_opts, freed once.
+    unsafe { ds_problem_free(out) };
+}
+
+/// Where the dense dual does not fit and the matrix-free one does, the problem
+/// is created matrix-free; a solve whose method needs the dense A is refused
+/// (its message points to mprgp), the problem stays usable, and mprgp, which
+/// runs matrix-free, then solves it to the tolerance.
+#[test]
+fn auto_creates_the_matrix_free_dual_where_the_dense_one_does_not_fit() {
+    let _serial = SERIAL.lock().unwrap_or_else(|e| e.into_inner());
+    let sc = block3d();
+    let dense = ContactProblem::analyse_csc(sc.d, &sc.k, &sc.n, &sc.t, &one_thread()).unwrap();
+    // The matrix-free setup holds L_CC (nc^2 doubles) instead of A (c^2) and its
+    // forming block: below the dense setup's peak.
+    let c = dense.c;
+    let limit = dense.setup_bytes - 8 * c * c / 2;
+    let opts = Options {
+        max_memory: limit,
+        ..one_thread()
+    };
+    let info = ContactProblem::analyse_csc(sc.d, &sc.k, &sc.n, &sc.t, &opts).unwrap();
+    assert_eq!(info.setup_form, DualForm::MatrixFree);
+    assert!(info.setup_bytes <= limit, "{info:?}");
+    assert_eq!(info.memory_limit, limit);
+    warm_up();
+    let (k, n, t) = (sc.k.clone(), sc.n.clone(), sc.t.clone());
+    let (pb, setup) = peak_of(|| ContactProblem::from_csc_with(sc.d, k, n, t, &opts).unwrap());
+    let mut pb = pb;
+    assert!(pb.is_matrix_free());
+    assert_within("matrix-free setup", setup, info.setup_bytes, 0.25);
+    let mu = vec![0.3; sc.m()];
+    // The default method reads entries of A: refused, nothing changed.
+    let e = pb
+        .solve(&sc.f, &sc.g, Friction::Coulomb(&mu), &opts)
+        .unwrap_err();
+    assert_eq!(e.kind, ErrorKind::OutOfMemory);
+    assert!(e.message.contains("mprgp"), "{}", e.message);
+    assert!(pb.is_matrix_free());
+    let o = Options {
+        method: Method::Mprgp,
+        ..opts
+    };
+    let sol = pb.solve(&sc.f, &sc.g, Friction::Coulomb(&mu), &o).unwrap();
+    common::assert_converged("mprgp within max_memory", &sol);
+    assert!(sol.report.memory_peak <= limit, "{:?}", sol.report);
+    // The same problem with a larger limit: the default method forms A and runs.
+    let big = Options {
+        max_memory: 0,
+        ..opts
+    };
+    let sol = pb
+        .solve(&sc.f, &sc.g, Friction::Coulomb(&mu), &big)
+        .unwrap();
+    common::assert_converged("split after the limit was raised", &sol);
+    assert!(!pb.is_matrix_free());
+}
+
+/// ds_analyse fills DsInfo as the Rust analysis does, without a handle; an
+/// older (shorter) DsInfo is written up to its struct_size only; a struct_size
+/// left unset and a NULL info are refused; ds_problem_info describes a handle.
+#[test]
+fn ds_analyse_and_ds_problem_info_fill_a_size_checked_dsinfo() {
+    let sc = strip2d();
+    let opts = DsOptions {
+        threads: 1,
+        ..DsOptions::default()
+    };
+    let info = ContactProblem::analyse_csc(sc.d, &sc.k, &sc.n, &sc.t, &one_thread()).unwrap();
+    let (k, n, t) = (
+        common::Owned::of(&sc.k),
+        common::Owned::of(&sc.n),
+        common::Owned::of(&sc.t),
+    );
+    let (kd, nd, td) = (k.ds(), n.ds(), t.ds());
+    let size = std::mem::size_of::<DsInfo>();
+    // SAFETY: DsInfo is plain old data; any bit pattern is a value.
+    let mut out: DsInfo = unsafe { std::mem::transmute([0xA5u8; 112]) };
+    out.struct_size = size as u32;
+    // SAFETY: valid matrices and options; out is a whole DsInfo.
+    let st = unsafe { ds_analyse(2, &kd, &nd, &td, &opts, &mut out) };
+    assert_eq!(st, DsStatus::Ok);
+    assert_eq!(
+        (out.d, out.n, out.m, out.c),
+        (2, sc.k.nrows as i64, sc.m() as i64, 2 * sc.m() as i64)
+    );
+    assert_eq!(out.nnz_k, sc.k.nnz() as i64);
+    assert_eq!(out.factor_nnz, info.factor_nnz as i64);
+    assert_eq!(out.ordering, DsOrdering::Amd as i32);
+    assert_eq!(out.setup_form, DsDualForm::Dense as i32);
+    assert_eq!(
+        (out.method, out.solve_form),
+        (DsMethod::Split as i32, DsDualForm::Dense as i32)
+    );
+    assert_eq!(
+        (out.setup_bytes, out.resident_bytes, out.solve_bytes),
+        (
+            info.setup_bytes as u64,
+            info.resident_bytes as u64,
+            info.solve_bytes as u64
+        )
+    );
+    assert!(out.setup_bytes >= out.resident_bytes && out.solve_bytes > out.resident_bytes);
+    // An older caller's DsInfo of 56 bytes: nothing written past it.
+    let mut buf = [0xA5u8; 128];
+    let off = buf.as_ptr().align_offset(8);
+    let ptr = buf.as_mut_ptr().wrapping_add(off).cast::<DsInfo>();
+    // SAFETY: ptr is aligned with 120 writable bytes; struct_size is its first field.
+    unsafe { std::ptr::addr_of_mut!((*ptr).struct_size).write(56) };
+    // SAFETY: as above; the library writes at most 56 bytes.
+    let st = unsafe { ds_analyse(2, &kd, &nd, &td, &opts, ptr) };
+    assert_eq!(st, DsStatus::Ok);
+    assert!(buf[off + 56..].iter().all(|&b| b == 0xA5));
+    assert!(buf[off + 8..off + 16] != [0xA5; 8], "n was written");
+    // struct_size not set; NULL info.
+    let mut unset = out;
+    unset.struct_size = 0;
+    // SAFETY: as above.
+    let st = unsafe { ds_analyse(2, &kd, &nd, &td, &opts, &mut unset) };
+    assert_eq!(st, DsStatus::BadArgument);
+    // SAFETY: NULL info is refused before anything is read.
+    let st = unsafe { ds_analyse(2, &kd, &nd, &td, &opts, std::ptr::null_mut()) };
+    assert_eq!(st, DsStatus::NullPointer);
+    // The same for a handle.
+    let mut h: *mut DsProblem = std::ptr::null_mut();
+    // SAFETY: valid matrices, options and out pointer.
+    assert_eq!(
+        unsafe { ds_problem_new_opts(2, &kd, &nd, &td, &opts, &mut h) },
+        DsStatus::Ok
+    );
+    let mut of_handle = DsInfo {
+        struct_size: size as u32,
+        ..out
+    };
+    // SAFETY: a live handle, valid options, a whole DsInfo.
+    let st = unsafe { ds_problem_info(h, &opts, &mut of_handle) };
+    assert_eq!(st, DsStatus::Ok);
+    assert_eq!(of_handle.resident_bytes, out.resident_bytes);
+    assert_eq!(of_handle.factor_nnz, out.factor_nnz);
+    // SAFETY: a handle from ds_problem_new_opts, freed once.
+    unsafe { ds_problem_free(h) };
+}
