@@ -521,6 +521,54 @@ impl Factor {
         SupernodalLltRef::<usize, f64>::new(self.supernodal_symbolic(), &self.l_values)
     }
 
+    /// Flops of one sparse forward solve L^-1 P b_r per row b_r of `b` (c x n),
+    /// each through the supernodes on the elimination-tree paths from its
+    /// nonzeros to the root only (w^2 + 2 w r per supernode of width w with r rows
+    /// below): what the diagonal of B K^-1 B^T costs from this factor without
+    /// forming anything c x c (issue 17's measurement; `examples/dual_cost.rs`).
+    #[cfg(any(test, feature = "internals"))]
+    pub fn forward_flops_per_row(&self, b: &Csc) -> f64 {
+        let sym = self.supernodal_symbolic();
+        let ns = sym.n_supernodes();
+        let (begin, end) = (sym.supernode_begin(), sym.supernode_end());
+        let mut of_col = vec![0usize; self.n()];
+        let mut parent = vec![usize::MAX; ns];
+        let mut cost = vec![0.0; ns];
+        for s in 0..ns {
+            of_col[begin[s]..end[s]].fill(s);
+        }
+        for s in 0..ns {
+            let below = sym.supernode(s).pattern();
+            let w = (end[s] - begin[s]) as f64;
+            cost[s] = w * w + 2.0 * w * below.len() as f64;
+            if let Some(&first) = below.first() {
+                parent[s] = first;
+            }
+        }
+        // Parents as supernodes (pattern rows are columns of the factor).
+        for p in parent.iter_mut().filter(|p| **p != usize::MAX) {
+            *p = of_col[*p];
+        }
+        let mut inv = vec![0usize; self.n()];
+        for (new, &old) in self.fwd.iter().enumerate() {
+            inv[old] = new;
+        }
+        let bt = b.transpose();
+        let mut mark = vec![usize::MAX; ns];
+        let mut total = 0.0;
+        for r in 0..bt.ncols {
+            for k in bt.col_ptr[r]..bt.col_ptr[r + 1] {
+                let mut s = of_col[inv[bt.row_idx[k]]];
+                while s != usize::MAX && mark[s] != r {
+                    mark[s] = r;
+                    total += cost[s];
+                    s = parent[s];
+                }
+            }
+        }
+        total
+    }
+
     /// The symbolic factor: always supernodal (`with_last` forces it), since the
     /// pivots and the trailing block are read from the supernodes.
     fn supernodal_symbolic(&self) -> &SymbolicSupernodalCholesky<usize> {
@@ -570,6 +618,39 @@ mod tests {
         let scale = reference.iter().fold(0.0f64, |m, v| m.max(v.abs()));
         for (i, (a, b)) in x.iter().zip(reference).enumerate() {
             assert!((a - b).abs() <= rel * scale, "{i}: {a} vs {b}");
+        }
+    }
+
+    /// The supernodes on a row's elimination-tree paths are those where the
+    /// forward solve L^-1 P e_j has nonzeros (checked numerically).
+    #[test]
+    fn forward_flops_follow_the_nonzeros_of_the_forward_solve() {
+        let k = spd();
+        let n = k.nrows;
+        let f = Factor::with_last(
+            &k,
+            &[],
+            crate::Ordering::Amd,
+            std::sync::Arc::new(crate::threads::Threads::sequential()),
+        )
+        .unwrap();
+        let sym = f.supernodal_symbolic();
+        let (begin, end) = (sym.supernode_begin(), sym.supernode_end());
+        for j in [0, 17, 31, n - 1] {
+            let row = Csc::from_triplets(1, n, &[(0, j, 1.0)]);
+            let mut e = vec![0.0; n];
+            e[j] = 1.0;
+            let mut y = vec![0.0; n];
+            f.forward(&e, &mut y);
+            let mut want = 0.0;
+            for s in 0..sym.n_supernodes() {
+                if y[begin[s]..end[s]].iter().any(|&v| v != 0.0) {
+                    let w = (end[s] - begin[s]) as f64;
+                    let below = sym.supernode(s).pattern().len() as f64;
+                    want += w * w + 2.0 * w * below;
+                }
+            }
+            assert_eq!(f.forward_flops_per_row(&row), want, "DOF {j}");
         }
     }
 

@@ -260,6 +260,20 @@ fn main() {
             "ours" => child_ours(&cfg, spec),
             "ours-free" => child_free(&cfg, spec),
             "clarabel" => child_clarabel(&cfg, spec),
+            "info" => {
+                // The analysis alone (ds_analyse): sizes, ordering, predicted memory.
+                let sc = Scene::build(spec);
+                let opts = Options {
+                    threads: cfg.threads,
+                    ..Options::default()
+                };
+                let (info, t) = time(|| {
+                    ContactProblem::analyse_csc(sc.d, &sc.k, &sc.n, &sc.t, &opts)
+                        .expect("valid scene")
+                });
+                eprintln!("analysed in {t:.3} s: {info:#?}");
+                Vec::new()
+            }
             "profile-setup" => {
                 // Only the scene and the contact problem (for a profiler).
                 let sc = Scene::build(spec);
