@@ -96,6 +96,7 @@ module dualsplit
    integer(c_int32_t), parameter, public :: DS_METHOD_NEWTON = 3
    integer(c_int32_t), parameter, public :: DS_METHOD_SPLIT_MPRGP = 4
    integer(c_int32_t), parameter, public :: DS_METHOD_MPRGP = 5
+   integer(c_int32_t), parameter, public :: DS_METHOD_AUTO = 6
 
    !> DsDualForm: dense or matrix-free products with A (DsOptions%dual_form).
    integer(c_int32_t), parameter, public :: DS_DUAL_FORM_AUTO = 0

@@ -216,6 +216,14 @@ typedef enum DsMethod {
    outside.
    */
   DS_METHOD_MPRGP = 5,
+  /*
+   The library's choice: semismooth Newton on a dense dual (falling back to
+   DS_METHOD_SPLIT_MPRGP from Newton's best iterate when Newton stalls or
+   reaches max_outer), MPRGP on a matrix-free one. DsReport.method names the
+   method that gave the answer; the handle's log (level 1) says why. Added in
+   version 0.5.
+   */
+  DS_METHOD_AUTO = 6,
 } DsMethod;
 
 /*
@@ -612,7 +620,8 @@ typedef struct DsReport {
    */
   int32_t status;
   /*
-   The DsMethod that ran.
+   The DsMethod that gave the answer (for DS_METHOD_AUTO: the method it
+   chose, never DS_METHOD_AUTO itself).
    */
   int32_t method;
   /*

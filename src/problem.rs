@@ -249,7 +249,12 @@ impl ContactProblem {
             solve_form: form_of(next),
             setup_bytes: sizes.setup(now),
             resident_bytes: sizes.resident(now),
-            solve_bytes: sizes.solve(now, next, opts.method.workspace(n.nrows, sizes.c)),
+            solve_bytes: sizes.solve(
+                now,
+                next,
+                opts.method
+                    .workspace(n.nrows, sizes.c, next == Condensation::MatrixFree),
+            ),
             memory_limit: limit.unwrap_or(0),
             analyse_seconds: factor.analyse_seconds,
         }
@@ -465,10 +470,14 @@ impl ContactProblem {
         let now = self.dual.condensation;
         let next = Self::solve_condensation(now, trailing, opts);
         let (m, c) = (self.n_contacts(), self.dual.c);
-        let need = self.sizes.solve(now, next, opts.method.workspace(m, c));
+        let free = Condensation::MatrixFree;
+        let need = self
+            .sizes
+            .solve(now, next, opts.method.workspace(m, c, next == free));
         let hint = if opts.method.needs_entries() {
-            let free = Condensation::MatrixFree;
-            let free_need = self.sizes.solve(now, free, Method::Mprgp.workspace(m, c));
+            let free_need = self
+                .sizes
+                .solve(now, free, Method::Mprgp.workspace(m, c, true));
             format!(
                 "method mprgp on the matrix-free dual would need about {}",
                 memory::human(free_need)
@@ -656,6 +665,7 @@ impl ContactProblem {
         let mut outer = 0;
         let mut inner = 0;
         let mut unknowns = c;
+        let (mut method, mut choice) = (opts.method, "");
         let mut u = vec![0.0; ndof];
         let mut bt_lam = vec![0.0; ndof];
         let mut v = vec![0.0; c];
@@ -670,6 +680,8 @@ impl ContactProblem {
             outer += o.outer;
             inner += o.inner;
             unknowns = o.unknowns;
+            method = o.method.unwrap_or(method);
+            choice = o.choice;
             base.set(outer);
             end = o.end;
             // u = K^-1 (f - B^T lambda), and the error measured on it.
@@ -729,7 +741,8 @@ impl ContactProblem {
             lambda_t: lam[m..].to_vec(),
             report: Report {
                 status,
-                method: opts.method,
+                method,
+                choice: choice.to_string(),
                 err,
                 equilibrium_residual,
                 outer_iterations: outer,

@@ -44,8 +44,11 @@ impl SolveStatus {
 pub struct Report {
     /// Converged, or why not.
     pub status: SolveStatus,
-    /// The method that ran.
+    /// The method that gave the answer: `Options::method`, or for `Auto` the
+    /// method it chose (the last one it ran).
     pub method: Method,
+    /// For `Method::Auto`: why it chose `method`, one line; empty otherwise.
+    pub choice: String,
     /// |r| / max(|lambda|, |b+| / trace(A)), the natural-map error of
     /// docs/design.md section 5 (dimensionless). Infinite when the contact constraints
     /// admit no displacement (no u with N u <= g): a penetrating contact without

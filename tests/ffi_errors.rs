@@ -1062,7 +1062,7 @@ fn bad_argument() {
                 ..good
             },
         ),
-        ("method", DsOptions { method: 6, ..good }),
+        ("method", DsOptions { method: 7, ..good }),
         ("method", DsOptions { method: -1, ..good }),
         ("tol", DsOptions { tol: -1e-8, ..good }),
         (

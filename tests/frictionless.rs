@@ -63,7 +63,8 @@ fn solve(s: &Scene, fr: Friction<'_>, method: Method, form: DualForm) -> Solutio
         "{what}: open and closed contacts"
     );
     // Which branch ran: the Signorini problem in m unknowns, or the whole dual.
-    let whole = matches!(method, Method::Newton | Method::Pgs);
+    // auto runs Newton on the dense dual.
+    let whole = matches!(method, Method::Newton | Method::Pgs | Method::Auto);
     let want = if whole { s.d * s.m() } else { s.m() };
     assert_eq!(r.dual_unknowns, want, "{what}: dual unknowns");
     sol

@@ -118,6 +118,8 @@ OUTPUT (OUTDIR):
                             factorisation
         threads             threads the solve could use
         analyse_seconds     time of K's analysis (ordering, symbolic factor)
+        method_run, choice  the method that gave the answer and, for --method
+                            auto, why it was chosen (empty otherwise)
         memory_predicted, memory_peak
                             the solve's predicted and counted peak bytes of the
                             library's large allocations
@@ -145,6 +147,9 @@ fn method_description(name: &str) -> &'static str {
         "block-gs" => "block Gauss-Seidel on (lambda_n, lambda_t)",
         "pgs" => "projected Gauss-Seidel on the whole dual (Siconos NSGS)",
         "newton" => "semismooth Newton (primal-dual active set) on the dual",
+        "auto" => {
+            "the library's choice: newton on a dense dual (split-mprgp where it stalls), mprgp matrix-free"
+        }
         _ => "",
     }
 }
@@ -542,6 +547,8 @@ fn success_report(args: &SolveArgs, pf: &Sizes, r: &Report, read_s: f64) -> Stri
     j.number("factor_flops", r.factor_flops);
     j.integer("threads", r.threads);
     j.number("analyse_seconds", r.analyse_seconds);
+    j.string("method_run", r.method.name());
+    j.string("choice", &r.choice);
     j.integer("memory_predicted", r.memory_predicted);
     j.integer("memory_peak", r.memory_peak);
     j.finish()
@@ -778,6 +785,9 @@ fn print_summary(args: &SolveArgs, sizes: &Sizes, r: &dualsplit::Report, read_s:
         println!("  {:<22}{read_s:.3e}", "read seconds");
     }
     println!("  {:<22}{}", "method", r.method.name());
+    if !r.choice.is_empty() {
+        println!("  {:<22}{}", "chosen by auto", r.choice);
+    }
     println!("  {:<22}{:.3e} (tol {:e})", "err", r.err, args.opts.tol);
     println!(
         "  {:<22}{:.3e}",

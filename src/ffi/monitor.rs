@@ -127,6 +127,12 @@ impl Watch {
                 SolveStatus::Stalled => "NOT converged (stalled)",
                 SolveStatus::TimeLimit => "NOT converged (time limit)",
             };
+            if !r.choice.is_empty() {
+                self.log(
+                    LOG_SUMMARY,
+                    &format!("auto chose {}: {}", r.method.name(), r.choice),
+                );
+            }
             self.log(
                 LOG_SUMMARY,
                 &format!(

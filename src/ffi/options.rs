@@ -546,7 +546,7 @@ mod tests {
                 },
                 "struct_size = 8",
             ),
-            (DsOptions { method: 6, ..o }, "opts.method = 6"),
+            (DsOptions { method: 7, ..o }, "opts.method = 7"),
             (DsOptions { tol: -1.0, ..o }, "opts.tol"),
             (
                 DsOptions {

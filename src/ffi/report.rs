@@ -24,7 +24,8 @@ pub struct DsReport {
     /// A DsStatus value: DS_STATUS_OK, DS_STATUS_NOT_CONVERGED, DS_STATUS_STOPPED,
     /// DS_STATUS_STALLED or DS_STATUS_TIME_LIMIT (the status ds_solve returned).
     pub status: i32,
-    /// The DsMethod that ran.
+    /// The DsMethod that gave the answer (for DS_METHOD_AUTO: the method it
+    /// chose, never DS_METHOD_AUTO itself).
     pub method: i32,
     /// Relative KKT error |r| / max(|lambda|, |b+| / trace(A)) of the natural map
     /// with rho_i = d / trace(A_ii) (dimensionless, invariant under scaling K and f;

@@ -69,6 +69,12 @@ pub enum DsMethod {
     /// MPRGP / MPGP on the whole dual; for Coulomb, the fixed point p = mu lambda_N
     /// outside.
     Mprgp = 5,
+    /// The library's choice: semismooth Newton on a dense dual (falling back to
+    /// DS_METHOD_SPLIT_MPRGP from Newton's best iterate when Newton stalls or
+    /// reaches max_outer), MPRGP on a matrix-free one. DsReport.method names the
+    /// method that gave the answer; the handle's log (level 1) says why. Added in
+    /// version 0.5.
+    Auto = 6,
 }
 
 /// How the products with the condensed dual A = B K^-1 B^T are formed (DsOptions
@@ -186,6 +192,7 @@ impl CEnum for DsMethod {
         (DsMethod::Newton, "DS_METHOD_NEWTON"),
         (DsMethod::SplitMprgp, "DS_METHOD_SPLIT_MPRGP"),
         (DsMethod::Mprgp, "DS_METHOD_MPRGP"),
+        (DsMethod::Auto, "DS_METHOD_AUTO"),
     ];
 }
 

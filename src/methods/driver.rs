@@ -43,6 +43,11 @@ pub struct Outcome {
     /// The dual unknowns the method iterated on (m for a frictionless increment
     /// solved as the pure Signorini problem, d m otherwise).
     pub unknowns: usize,
+    /// The method that gave the returned iterate (never `Auto`; None before a
+    /// run).
+    pub method: Option<crate::options::Method>,
+    /// Why `Auto` chose it (empty for a method given by the options).
+    pub choice: &'static str,
 }
 
 /// What a step leaves in w.

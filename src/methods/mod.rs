@@ -13,6 +13,7 @@
 //! [`subproblem::SubSolver`]: projected Gauss-Seidel or MPRGP. Projections onto
 //! the friction sets and the small local problems live in `projection`.
 
+mod auto;
 mod driver;
 mod mprgp;
 mod newton;
@@ -99,8 +100,9 @@ struct MethodSpec {
     /// True when the method reads entries of A (and so needs it assembled).
     needs_entries: bool,
     /// Bytes of the method's dense work space on a dual of m contacts and c
-    /// unknowns, in its largest case (vectors of length c left out).
-    workspace: fn(usize, usize) -> usize,
+    /// unknowns, dense (false) or matrix-free (true), in its largest case
+    /// (vectors of length c left out).
+    workspace: fn(usize, usize, bool) -> usize,
     /// The outer step for a problem and dual target, and the number of dual
     /// unknowns it iterates on (d m; m for a frictionless increment solved as the
     /// pure Signorini problem).
@@ -111,7 +113,7 @@ struct MethodSpec {
 type Built = (Box<dyn OuterStep>, usize);
 
 /// No dense work space (vectors of length c only).
-fn no_workspace(_m: usize, _c: usize) -> usize {
+fn no_workspace(_m: usize, _c: usize, _matrix_free: bool) -> usize {
     0
 }
 
@@ -170,6 +172,12 @@ methods! {
     /// MPRGP / MPGP (Dostal) on the whole dual; for Coulomb, the fixed point
     /// p = mu lambda_N outside (one outer iteration per Tresca solve).
     Mprgp => whole::MPRGP,
+    /// The library's choice for the problem at hand (see `methods/auto.rs`):
+    /// `Newton` on a dense dual, falling back to `SplitMprgp` from Newton's best
+    /// iterate when Newton stalls or reaches its iteration limit; `Mprgp` on a
+    /// matrix-free dual. `Report::method` names the method that gave the
+    /// answer and `Report::choice` says why.
+    Auto => auto::AUTO,
 }
 
 impl Method {
@@ -186,9 +194,10 @@ impl Method {
     }
 
     /// Bytes of the method's dense work space on a dual of `m` contacts and `c`
-    /// unknowns, in its largest case (see each method's documentation).
-    pub(crate) fn workspace(self, m: usize, c: usize) -> usize {
-        (self.spec().workspace)(m, c)
+    /// unknowns held dense or `matrix_free`, in its largest case (see each
+    /// method's documentation).
+    pub(crate) fn workspace(self, m: usize, c: usize, matrix_free: bool) -> usize {
+        (self.spec().workspace)(m, c, matrix_free)
     }
 
     /// Parses a name as returned by [`Method::name`].
@@ -201,8 +210,17 @@ impl Method {
 /// zeros) until the dual error is at most `target` or another stop test fires
 /// (see [`End`]).
 pub fn run(problem: &DualProblem<'_>, lam: &mut [f64], opts: &Options, target: f64) -> Outcome {
+    if opts.method == Method::Auto {
+        return auto::run(problem, lam, opts, target);
+    }
+    run_one(problem, lam, opts, target)
+}
+
+/// Runs `opts.method` (not `Auto`).
+fn run_one(problem: &DualProblem<'_>, lam: &mut [f64], opts: &Options, target: f64) -> Outcome {
     let (mut method, unknowns) = (opts.method.spec().build)(problem, opts, target);
     let mut out = driver::drive(problem, lam, opts, target, method.as_mut());
     out.unknowns = unknowns;
+    out.method = Some(opts.method);
     out
 }

@@ -370,7 +370,7 @@ fn residual_norm(problem: &DualProblem<'_>, lam: &[f64], w: &[f64]) -> f64 {
 pub(super) const NEWTON: MethodSpec = MethodSpec {
     name: "newton",
     needs_entries: true,
-    workspace: |_m, c| 2 * c * c * F64,
+    workspace: |_m, c, _matrix_free| 2 * c * c * F64,
     build: |problem, _opts, target| (Box::new(Newton::new(problem, target)), problem.dual.c),
 };
 

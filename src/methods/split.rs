@@ -149,7 +149,7 @@ pub(super) const SPLIT_MPRGP: MethodSpec = MethodSpec {
 /// while the next is formed from A11[a,a] (held with its Cholesky factor, then
 /// with S and [S, b_T']), [A12[a,:], b_N[a]] and its solve X, for a contact set
 /// a of up to m contacts (see [`schur`]).
-fn schur_workspace(m: usize, c: usize) -> usize {
+fn schur_workspace(m: usize, c: usize, _matrix_free: bool) -> usize {
     let ct = c - m;
     let held = m * m + 2 * m * (ct + 1);
     F64 * (ct * ct + held + (m * m).max(ct * (ct + 1) + ct * ct))
