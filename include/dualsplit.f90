@@ -193,12 +193,13 @@ module dualsplit
       integer(c_int64_t) :: setup_bytes   !< predicted peak bytes of ds_problem_new
       integer(c_int64_t) :: resident_bytes !< predicted bytes a handle holds
       integer(c_int64_t) :: solve_bytes   !< predicted peak bytes of one solve
+      integer(c_int64_t) :: refactor_bytes !< predicted peak bytes of ds_problem_refactor
       integer(c_int64_t) :: memory_limit  !< the limit checked against, bytes (0: unknown)
       real(c_double)     :: analyse_seconds
    end type DsInfo
 
    !> sizeof(DsInfo) in C (tests/fortran.rs checks it).
-   integer(c_size_t), parameter, public :: DS_INFO_SIZE = 112
+   integer(c_size_t), parameter, public :: DS_INFO_SIZE = 120
 
    !> What the monitor callback receives after every outer iteration.
    type, bind(C), public :: DsProgress
@@ -582,7 +583,7 @@ contains
       type(DsInfo), intent(out) :: info
       info = DsInfo(int(DS_INFO_SIZE, c_int32_t), 0, 0_c_int64_t, 0_c_int64_t, 0_c_int64_t, &
          0_c_int64_t, 0_c_int64_t, 0.0_c_double, 0, 0, 0, 0, 0_c_int64_t, 0_c_int64_t, &
-         0_c_int64_t, 0_c_int64_t, 0.0_c_double)
+         0_c_int64_t, 0_c_int64_t, 0_c_int64_t, 0.0_c_double)
    end subroutine ds_info_init
 
    !> The analysis alone (no handle, nothing factored): sizes, the factor's size

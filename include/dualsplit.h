@@ -457,7 +457,10 @@ typedef struct DsOptions {
    DS_STATUS_OUT_OF_MEMORY and a message naming the need and a route that
    fits (the handle stays usable). With DS_DUAL_FORM_AUTO the problem is
    created matrix-free where the dense dual does not fit. Read by
-   ds_problem_new_opts, ds_solve and ds_step. Added in version 0.5.
+   ds_problem_new_opts (the handle keeps it as the limit of
+   ds_problem_refactor, which holds the old and the new factor at once, and of
+   ds_problem_set_contacts; DsInfo.refactor_bytes is that need), ds_solve and
+   ds_step. Added in version 0.5.
    */
   uint64_t max_memory;
 } DsOptions;
@@ -471,7 +474,7 @@ typedef struct DsOptions {
  Set struct_size = sizeof(DsInfo) before the call: the struct grows at its end
  from version to version, and the library writes no byte past struct_size
  (fields a newer library has and the caller's struct lacks are left out).
- Added in version 0.5 (112 bytes).
+ Added in version 0.5 (120 bytes).
  */
 typedef struct DsInfo {
   /*
@@ -537,6 +540,11 @@ typedef struct DsInfo {
    Predicted peak bytes during one solve with that method (its largest case).
    */
   uint64_t solve_bytes;
+  /*
+   Predicted peak bytes of ds_problem_refactor (the old and the new factor
+   are held at once; max_memory must allow for it).
+   */
+  uint64_t refactor_bytes;
   /*
    The memory limit the predictions are checked against, bytes
    (DsOptions.max_memory, else this process's address-space limit or the

@@ -36,11 +36,13 @@ pub struct Info {
     pub method: Method,
     pub solve_form: DualForm,
     /// Predicted peak bytes of the library's large allocations while the problem
-    /// is created (factorisation, then condensation), held between calls, and
-    /// during one solve with that method (its largest case).
+    /// is created (factorisation, then condensation), held between calls, during
+    /// one solve with that method (its largest case), and during a refactorisation
+    /// with new values of K (the old and the new factor at once).
     pub setup_bytes: usize,
     pub resident_bytes: usize,
     pub solve_bytes: usize,
+    pub refactor_bytes: usize,
     /// The memory limit the predictions were checked against, bytes
     /// (`Options::max_memory`, else this process's address-space limit or the
     /// machine's physical memory; 0 when none is known).

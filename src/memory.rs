@@ -147,6 +147,27 @@ impl Sizes {
         self.base() + self.forming(how).1
     }
 
+    /// The peak of refactoring a problem whose dual is held as `how`: the new K
+    /// (`k_bytes`) beside the old one, the new factor beside the old (kept until
+    /// the dual is rebuilt, so that a failure restores it), and the larger of the
+    /// factorisation's workspace and the dual's rebuild.
+    pub fn refactor(&self, how: Condensation, k_bytes: usize) -> usize {
+        self.resident(how) + k_bytes + self.factor + self.factor_scratch.max(self.forming(how).0)
+    }
+
+    /// The peak of replacing N and T (new ones of `nt_bytes`, a dual described by
+    /// `next` and formed as `how`) on a problem whose dual is held as `now`: the
+    /// new matrices and the new dual are formed beside the old ones.
+    pub fn replace_contacts(
+        &self,
+        now: Condensation,
+        nt_bytes: usize,
+        next: &Sizes,
+        how: Condensation,
+    ) -> usize {
+        self.resident(now) + nt_bytes + next.forming(how).0
+    }
+
     /// The peak of one solve (or history step) on a problem whose dual is held as
     /// `now` and is needed as `next` (rebuilt first when they differ), with a
     /// method whose dense work space is `workspace` bytes: the vectors of length

@@ -135,8 +135,10 @@ pub struct Options {
     /// analysis, before the work that allocates them: a creation (or a solve)
     /// whose prediction exceeds the limit ends with `OutOfMemory` and a message
     /// that names the need; `DualForm::Auto` picks the matrix-free form where the
-    /// dense one does not fit. Read by `ContactProblem::with_options` and by every
-    /// `solve` and `step` (a refused solve leaves the problem usable).
+    /// dense one does not fit. Read by `ContactProblem::with_options` (the problem
+    /// keeps it as the limit of `refactor`, which holds the old and the new factor
+    /// at once, and of `set_contacts`) and by every `solve` and `step` (a refused
+    /// call leaves the problem as it was).
     pub max_memory: usize,
 }
 

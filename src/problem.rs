@@ -43,6 +43,9 @@ pub struct ContactProblem {
     sizes: Sizes,
     /// The bytes of K, N and T on the problem's ledger (the factor's).
     inputs: Claim,
+    /// `Options::max_memory` at creation: the limit of `refactor` and
+    /// `set_contacts`, which take no options.
+    max_memory: usize,
     /// History: u_k, and the last converged multipliers [lambda_N; lambda_T].
     u_hist: Vec<f64>,
     lam_hist: Vec<f64>,
@@ -151,6 +154,7 @@ impl ContactProblem {
             dual,
             sizes: plan.sizes,
             inputs,
+            max_memory: opts.max_memory,
             u_hist: vec![0.0; ndof],
             lam_hist: vec![0.0; c],
         })
@@ -249,6 +253,7 @@ impl ContactProblem {
             solve_form: form_of(next),
             setup_bytes: sizes.setup(now),
             resident_bytes: sizes.resident(now),
+            refactor_bytes: sizes.refactor(now, k.bytes()),
             solve_bytes: sizes.solve(
                 now,
                 next,
@@ -371,6 +376,14 @@ impl ContactProblem {
                 "K: the sparsity pattern differs from the one the problem was created with",
             );
         }
+        memory::check(
+            self.sizes.refactor(self.dual.condensation, k.bytes()),
+            memory::limit(self.max_memory),
+            self.max_memory,
+            "refactoring K (the old and the new factor are held at once)",
+            "the problem's max_memory (set at creation) must allow for it; see the \
+             refactor bytes of ds_problem_info",
+        )?;
         let previous = self.factor.refactor(&k)?;
         match Dual::build(&self.factor, &self.n, &self.t, self.d, self.current_form()) {
             Ok(dual) => {
@@ -391,7 +404,26 @@ impl ContactProblem {
     pub fn set_contacts(&mut self, n: &MatrixView<'_>, t: &MatrixView<'_>) -> Result<()> {
         let n = Csc::from_view(n, "N")?;
         let t = Csc::from_view(t, "T")?;
-        // Dual::build checks the shapes before it indexes anything.
+        check_shapes(self.factor.n(), self.d, &n, &t)?;
+        let next = Sizes {
+            c: self.d * n.nrows,
+            ..self.sizes
+        };
+        let how = Condensation::of(
+            Dual::trailing_available(&self.factor, &n, &t),
+            DualForm::Auto,
+            next.c,
+        );
+        let need =
+            self.sizes
+                .replace_contacts(self.dual.condensation, n.bytes() + t.bytes(), &next, how);
+        memory::check(
+            need,
+            memory::limit(self.max_memory),
+            self.max_memory,
+            "replacing N and T (the new dual is formed beside the old one)",
+            "the problem's max_memory (set at creation) must allow for it",
+        )?;
         let dual = Dual::build(&self.factor, &n, &t, self.d, DualForm::Auto)?;
         if dual.c != self.dual.c {
             self.lam_hist = vec![0.0; dual.c];

@@ -64,7 +64,8 @@ unsafe impl GlobalAlloc for Counting {
 #[global_allocator]
 static GLOBAL: Counting = Counting;
 
-/// The counters see every thread's allocations: one measuring test at a time.
+/// The counters see every thread's allocations: one test at a time (every test
+/// of this file takes the lock, measuring or not).
 static SERIAL: Mutex<()> = Mutex::new(());
 
 /// faer's matrix products (private-gemm-x86) keep a 64 MiB packing buffer per
@@ -311,6 +312,7 @@ fn auto_creates_the_matrix_free_dual_where_the_dense_one_does_not_fit() {
 /// left unset and a NULL info are refused; ds_problem_info describes a handle.
 #[test]
 fn ds_analyse_and_ds_problem_info_fill_a_size_checked_dsinfo() {
+    let _serial = SERIAL.lock().unwrap_or_else(|e| e.into_inner());
     let sc = strip2d();
     let opts = DsOptions {
         threads: 1,
@@ -325,7 +327,7 @@ fn ds_analyse_and_ds_problem_info_fill_a_size_checked_dsinfo() {
     let (kd, nd, td) = (k.ds(), n.ds(), t.ds());
     let size = std::mem::size_of::<DsInfo>();
     // SAFETY: DsInfo is plain old data; any bit pattern is a value.
-    let mut out: DsInfo = unsafe { std::mem::transmute([0xA5u8; 112]) };
+    let mut out: DsInfo = unsafe { std::mem::transmute([0xA5u8; 120]) };
     out.struct_size = size as u32;
     // SAFETY: valid matrices and options; out is a whole DsInfo.
     let st = unsafe { ds_analyse(2, &kd, &nd, &td, &opts, &mut out) };
@@ -389,4 +391,84 @@ fn ds_analyse_and_ds_problem_info_fill_a_size_checked_dsinfo() {
     assert_eq!(of_handle.factor_nnz, out.factor_nnz);
     // SAFETY: a handle from ds_problem_new_opts, freed once.
     unsafe { ds_problem_free(h) };
+}
+
+/// ds_problem_refactor holds the old and the new factor at once, and
+/// ds_problem_set_contacts forms the new dual beside the old one: both need more
+/// than the setup. Under the max_memory given at creation (enough for the setup,
+/// not for those) both are refused with DS_STATUS_OUT_OF_MEMORY and leave the
+/// handle as it was (it still solves); with room for the predicted
+/// refactor_bytes, refactoring works.
+#[test]
+fn refactor_and_new_contacts_respect_the_handles_max_memory() {
+    let _serial = SERIAL.lock().unwrap_or_else(|e| e.into_inner());
+    let sc = strip2d();
+    let info = ContactProblem::analyse_csc(sc.d, &sc.k, &sc.n, &sc.t, &one_thread()).unwrap();
+    assert!(info.refactor_bytes > info.setup_bytes, "{info:?}");
+    let (k, n, t) = (
+        common::Owned::of(&sc.k),
+        common::Owned::of(&sc.n),
+        common::Owned::of(&sc.t),
+    );
+    let (kd, nd, td) = (k.ds(), n.ds(), t.ds());
+    let create = |max_memory: usize| {
+        let opts = DsOptions {
+            threads: 1,
+            max_memory: max_memory as u64,
+            ..DsOptions::default()
+        };
+        let mut h: *mut DsProblem = std::ptr::null_mut();
+        // SAFETY: valid matrices, options and out pointer.
+        let st = unsafe { ds_problem_new_opts(2, &kd, &nd, &td, &opts, &mut h) };
+        assert_eq!(st, DsStatus::Ok);
+        h
+    };
+    let message = || {
+        // SAFETY: the message is a valid NUL-terminated string.
+        unsafe { std::ffi::CStr::from_ptr(ds_last_error_message()) }
+            .to_string_lossy()
+            .into_owned()
+    };
+    let tight = create(info.setup_bytes.max(info.solve_bytes) + (64 << 10));
+    // SAFETY: a live handle and a valid K of the same pattern.
+    assert_eq!(
+        unsafe { ds_problem_refactor(tight, &kd) },
+        DsStatus::OutOfMemory
+    );
+    assert!(message().contains("refactoring K"), "{}", message());
+    // SAFETY: a live handle and valid N, T.
+    assert_eq!(
+        unsafe { ds_problem_set_contacts(tight, &nd, &td) },
+        DsStatus::OutOfMemory
+    );
+    // The handle still solves.
+    let m = sc.m();
+    let p = vec![0.3; m];
+    let (mut u, mut ln, mut lt) = (vec![0.0; sc.k.nrows], vec![0.0; m], vec![0.0; m]);
+    // SAFETY: DsReport is plain old data; zero is a value.
+    let mut report: DsReport = unsafe { std::mem::zeroed() };
+    // SAFETY: a live handle; every array is sized for the problem.
+    let st = unsafe {
+        ds_solve(
+            tight,
+            std::ptr::null(),
+            DsFriction::Tresca as i32,
+            sc.f.as_ptr(),
+            sc.g.as_ptr(),
+            p.as_ptr(),
+            u.as_mut_ptr(),
+            ln.as_mut_ptr(),
+            lt.as_mut_ptr(),
+            &mut report,
+        )
+    };
+    assert_eq!(st, DsStatus::Ok);
+    let roomy = create(info.refactor_bytes + (64 << 10));
+    // SAFETY: a live handle and a valid K of the same pattern.
+    assert_eq!(unsafe { ds_problem_refactor(roomy, &kd) }, DsStatus::Ok);
+    // SAFETY: handles from ds_problem_new_opts, each freed once.
+    unsafe {
+        ds_problem_free(tight);
+        ds_problem_free(roomy);
+    }
 }

@@ -729,10 +729,11 @@ fn info(args: &SolveArgs) -> ExitCode {
         "unknown".to_string()
     };
     println!(
-        "  predicted memory: setup {}, held {}, one solve {} (limit {limit})",
+        "  predicted memory: setup {}, held {}, one solve {}, a refactorisation {} (limit {limit})",
         mb(i.setup_bytes),
         mb(i.resident_bytes),
-        mb(i.solve_bytes)
+        mb(i.solve_bytes),
+        mb(i.refactor_bytes)
     );
     let fits = |b: usize| i.memory_limit == 0 || b <= i.memory_limit;
     if fits(i.setup_bytes) && fits(i.solve_bytes) {

@@ -18,7 +18,7 @@ use crate::problem::ContactProblem;
 /// Set struct_size = sizeof(DsInfo) before the call: the struct grows at its end
 /// from version to version, and the library writes no byte past struct_size
 /// (fields a newer library has and the caller's struct lacks are left out).
-/// Added in version 0.5 (112 bytes).
+/// Added in version 0.5 (120 bytes).
 #[repr(C)]
 #[derive(Copy, Clone, Debug, PartialEq)]
 pub struct DsInfo {
@@ -55,6 +55,9 @@ pub struct DsInfo {
     pub resident_bytes: u64,
     /// Predicted peak bytes during one solve with that method (its largest case).
     pub solve_bytes: u64,
+    /// Predicted peak bytes of ds_problem_refactor (the old and the new factor
+    /// are held at once; max_memory must allow for it).
+    pub refactor_bytes: u64,
     /// The memory limit the predictions are checked against, bytes
     /// (DsOptions.max_memory, else this process's address-space limit or the
     /// machine's physical memory; 0 when none is known).
@@ -90,6 +93,7 @@ impl From<&Info> for DsInfo {
             setup_bytes: u64_of(i.setup_bytes),
             resident_bytes: u64_of(i.resident_bytes),
             solve_bytes: u64_of(i.solve_bytes),
+            refactor_bytes: u64_of(i.refactor_bytes),
             memory_limit: u64_of(i.memory_limit),
             analyse_seconds: i.analyse_seconds,
         }
@@ -217,10 +221,11 @@ mod tests {
 
     #[test]
     fn layout_of_version_0_5() {
-        assert_eq!(size_of::<DsInfo>(), 112);
+        assert_eq!(size_of::<DsInfo>(), 120);
         assert_eq!(offset_of!(DsInfo, n), 8);
         assert_eq!(offset_of!(DsInfo, ordering), 56);
         assert_eq!(offset_of!(DsInfo, setup_bytes), 72);
-        assert_eq!(offset_of!(DsInfo, analyse_seconds), 104);
+        assert_eq!(offset_of!(DsInfo, refactor_bytes), 96);
+        assert_eq!(offset_of!(DsInfo, analyse_seconds), 112);
     }
 }

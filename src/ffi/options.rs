@@ -86,7 +86,10 @@ pub struct DsOptions {
     /// DS_STATUS_OUT_OF_MEMORY and a message naming the need and a route that
     /// fits (the handle stays usable). With DS_DUAL_FORM_AUTO the problem is
     /// created matrix-free where the dense dual does not fit. Read by
-    /// ds_problem_new_opts, ds_solve and ds_step. Added in version 0.5.
+    /// ds_problem_new_opts (the handle keeps it as the limit of
+    /// ds_problem_refactor, which holds the old and the new factor at once, and of
+    /// ds_problem_set_contacts; DsInfo.refactor_bytes is that need), ds_solve and
+    /// ds_step. Added in version 0.5.
     pub max_memory: u64,
 }
 
