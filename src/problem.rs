@@ -92,6 +92,20 @@ fn check_vec(name: &str, x: &[f64], len: usize) -> Result<()> {
     Ok(())
 }
 
+/// d checked, then K (both triangles), N and T converted from the caller's views.
+fn internal_form(
+    d: usize,
+    k: &MatrixView<'_>,
+    n: &MatrixView<'_>,
+    t: &MatrixView<'_>,
+) -> Result<(Csc, Csc, Csc)> {
+    check_d(d)?;
+    let k = Csc::symmetric_from_view(k, "K")?;
+    let n = Csc::from_view(n, "N")?;
+    let t = Csc::from_view(t, "T")?;
+    Ok((k, n, t))
+}
+
 fn norm(x: &[f64]) -> f64 {
     x.iter().map(|v| v * v).sum::<f64>().sqrt()
 }
@@ -124,10 +138,7 @@ impl ContactProblem {
         t: &MatrixView<'_>,
         opts: &Options,
     ) -> Result<Self> {
-        check_d(d)?;
-        let k = Csc::symmetric_from_view(k, "K")?;
-        let n = Csc::from_view(n, "N")?;
-        let t = Csc::from_view(t, "T")?;
+        let (k, n, t) = internal_form(d, k, n, t)?;
         Self::from_csc_with(d, k, n, t, opts)
     }
 
@@ -177,10 +188,7 @@ impl ContactProblem {
         t: &MatrixView<'_>,
         opts: &Options,
     ) -> Result<Info> {
-        check_d(d)?;
-        let k = Csc::symmetric_from_view(k, "K")?;
-        let n = Csc::from_view(n, "N")?;
-        let t = Csc::from_view(t, "T")?;
+        let (k, n, t) = internal_form(d, k, n, t)?;
         Self::analyse_csc(d, &k, &n, &t, opts)
     }
 
@@ -424,7 +432,7 @@ impl ContactProblem {
             "replacing N and T (the new dual is formed beside the old one)",
             "the problem's max_memory (set at creation) must allow for it",
         )?;
-        let dual = Dual::build(&self.factor, &n, &t, self.d, DualForm::Auto)?;
+        let dual = Dual::build_with(&self.factor, &n, &t, self.d, how)?;
         if dual.c != self.dual.c {
             self.lam_hist = vec![0.0; dual.c];
         }
@@ -473,36 +481,28 @@ impl ContactProblem {
     /// `OutOfMemory` (the solve's predicted need exceeds the memory limit, or A
     /// does not fit).
     fn prepare_dual(&mut self, opts: &Options) -> Result<usize> {
-        let free_now = self.dual.is_matrix_free();
-        let want_free = match opts.dual_form {
-            DualForm::Dense => false,
-            DualForm::MatrixFree => {
-                if opts.method.needs_entries() {
-                    return fail(
-                        ErrorKind::BadArgument,
-                        format!(
-                            "method {} reads entries of the condensed dual A and cannot run \
-                             matrix-free: use mprgp, or the dense or auto dual form",
-                            opts.method.name()
-                        ),
-                    );
-                }
-                true
-            }
-            DualForm::Auto => free_now && !opts.method.needs_entries(),
-        };
+        if opts.dual_form == DualForm::MatrixFree && opts.method.needs_entries() {
+            return fail(
+                ErrorKind::BadArgument,
+                format!(
+                    "method {} reads entries of the condensed dual A and cannot run \
+                     matrix-free: use mprgp, or the dense or auto dual form",
+                    opts.method.name()
+                ),
+            );
+        }
         let trailing = Dual::trailing_available(&self.factor, &self.n, &self.t);
-        if want_free && !trailing {
+        let now = self.dual.condensation;
+        let next = Self::solve_condensation(now, trailing, opts);
+        let free = Condensation::MatrixFree;
+        if next == free && !trailing {
             return fail(
                 ErrorKind::BadArgument,
                 "the matrix-free dual needs every contact DOF among the DOFs K's factor \
                  orders last; contacts set later on other DOFs are condensed densely",
             );
         }
-        let now = self.dual.condensation;
-        let next = Self::solve_condensation(now, trailing, opts);
         let (m, c) = (self.n_contacts(), self.dual.c);
-        let free = Condensation::MatrixFree;
         let need = self
             .sizes
             .solve(now, next, opts.method.workspace(m, c, next == free));
@@ -525,13 +525,8 @@ impl ContactProblem {
             &hint,
         )?;
         self.factor.ledger().reset_peak();
-        if want_free != free_now {
-            let form = if want_free {
-                DualForm::MatrixFree
-            } else {
-                DualForm::Dense
-            };
-            self.dual = Dual::build(&self.factor, &self.n, &self.t, self.d, form)?;
+        if next != now {
+            self.dual = Dual::build_with(&self.factor, &self.n, &self.t, self.d, next)?;
         }
         Ok(need)
     }
