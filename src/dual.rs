@@ -11,9 +11,6 @@ use crate::sparse::Csc;
 use crate::threads::{PARALLEL_MIN_ENTRIES, Threads};
 use faer::dyn_stack::{MemBuffer, MemStack};
 use faer::linalg::cholesky::llt::inverse as llt_inverse;
-use faer::linalg::triangular_solve::{
-    solve_lower_triangular_in_place, solve_upper_triangular_in_place,
-};
 use faer::{Mat, MatMut};
 use std::sync::Arc;
 use std::time::Instant;
@@ -33,7 +30,7 @@ pub struct Dual {
     /// matrix-free (`condensation == Condensation::MatrixFree`).
     pub(crate) a: Vec<f64>,
     /// The products of the matrix-free form (None when A is assembled).
-    free: Option<FreeOp>,
+    free: Option<Operator>,
     /// Per contact: rho_i = d / trace of the contact's d x d diagonal block of A
     /// (0 when that block vanishes). Units: force / length.
     pub(crate) rho: Vec<f64>,
@@ -44,6 +41,9 @@ pub struct Dual {
     pub(crate) condense_seconds: f64,
     /// How A was formed.
     pub(crate) condensation: Condensation,
+    /// Whether every DOF B touches is among the factor's trailing DOFs (u is then
+    /// recovered through the trailing block: `ContactProblem::recover_u`).
+    pub(crate) trailing: bool,
     /// The problem's threads (those of the factor it was built from).
     pub(crate) threads: Arc<Threads>,
     /// The problem's count of its large allocations (the factor's).
@@ -60,7 +60,8 @@ pub enum Condensation {
     TrailingBlock,
     /// One forward and back solve with K's factor per dual unknown.
     Solves,
-    /// A is not formed: products through L_CC (see [`crate::DualForm::MatrixFree`]).
+    /// A is not formed: each product is one solve with K's factor, whatever its
+    /// ordering (see [`crate::DualForm::MatrixFree`]).
     MatrixFree,
 }
 
@@ -74,9 +75,9 @@ impl Condensation {
             DualForm::Auto => c > DENSE_MAX,
         };
         match (trailing, free) {
-            (false, _) => Condensation::Solves,
+            (_, true) => Condensation::MatrixFree,
+            (false, false) => Condensation::Solves,
             (true, false) => Condensation::TrailingBlock,
-            (true, true) => Condensation::MatrixFree,
         }
     }
 }
@@ -145,14 +146,19 @@ pub fn stack_rows(n: &Csc, t: &Csc) -> Csc {
 impl Dual {
     /// Builds the dual operator in the form asked for: `Dense` assembles A, from the
     /// trailing block of the factor when every DOF that B touches is among the DOFs
-    /// the factor ordered last, by solves otherwise; `MatrixFree` keeps the trailing
-    /// block for products (and falls back to the dense form by solves when the
-    /// contact DOFs are not all trailing ones); `Auto` is `Dense` up to
-    /// [`DENSE_MAX`] dual unknowns, `MatrixFree` beyond.
+    /// the factor ordered last, by solves otherwise; `MatrixFree` forms nothing
+    /// c x c (products by solves with the factor, whatever its ordering); `Auto`
+    /// is `Dense` up to [`DENSE_MAX`] dual unknowns, `MatrixFree` beyond.
     ///
     /// Errors: `BadSize` if the shapes of N and T do not match d and K,
-    /// `OutOfMemory` if A (or L_CC) does not fit.
-    pub fn build(factor: &Factor, n: &Csc, t: &Csc, d: usize, form: DualForm) -> Result<Dual> {
+    /// `OutOfMemory` if A does not fit.
+    pub fn build(
+        factor: &Arc<Factor>,
+        n: &Csc,
+        t: &Csc,
+        d: usize,
+        form: DualForm,
+    ) -> Result<Dual> {
         check_shapes(factor.n(), d, n, t)?;
         let trailing = Self::trailing_available(factor, n, t);
         let how = Condensation::of(trailing, form, d * n.nrows);
@@ -160,15 +166,9 @@ impl Dual {
     }
 
     /// True when every DOF that N or T touches is among the DOFs `factor` orders
-    /// last (the condition of `TrailingBlock` and `MatrixFree`).
+    /// last (the condition of `TrailingBlock`).
     pub fn trailing_available(factor: &Factor, n: &Csc, t: &Csc) -> bool {
-        !factor.last().is_empty() && {
-            let mut in_last = vec![false; factor.n()];
-            factor.last().iter().for_each(|&j| in_last[j] = true);
-            contact_dofs(&stack_rows(n, t))
-                .iter()
-                .all(|&j| j < in_last.len() && in_last[j])
-        }
+        Self::trailing_of(factor, &stack_rows(n, t))
     }
 
     /// A, c x c column-major, when it is formed (None when it is not: the
@@ -207,10 +207,10 @@ impl Dual {
         self.free.is_some()
     }
 
-    /// Forms A in the way asked for (`TrailingBlock` and `MatrixFree` require the
-    /// contact DOFs to be among the factor's trailing DOFs).
+    /// Forms A in the way asked for (`TrailingBlock` requires the contact DOFs to
+    /// be among the factor's trailing DOFs).
     pub fn build_with(
-        factor: &Factor,
+        factor: &Arc<Factor>,
         n: &Csc,
         t: &Csc,
         d: usize,
@@ -221,14 +221,13 @@ impl Dual {
         check_shapes(factor.n(), d, n, t)?;
         let b = stack_rows(n, t);
         let c = b.nrows;
+        let trailing = Self::trailing_of(factor, &b);
         let ledger = factor.ledger();
         if how == Condensation::MatrixFree {
-            let free = FreeOp::new(factor, &b)?;
-            let diag = free.diag.clone();
-            let rho = rho_of(m, d, |j| diag[j]);
-            let nc = free.l.nrows();
+            let free = Operator::new(factor, &b, m, d);
+            let rho = rho_of(m, d, |j| free.diag[j]);
             return Ok(Dual {
-                _claim: ledger.claim_f64(nc * nc),
+                _claim: ledger.claim_f64(d * c),
                 ledger: ledger.clone(),
                 d,
                 m,
@@ -239,6 +238,7 @@ impl Dual {
                 rows: b,
                 condense_seconds: start.elapsed().as_secs_f64(),
                 condensation: how,
+                trailing,
                 threads: factor.threads().clone(),
             });
         }
@@ -269,6 +269,7 @@ impl Dual {
             rows: b,
             condense_seconds: start.elapsed().as_secs_f64(),
             condensation: how,
+            trailing,
             threads: factor.threads().clone(),
         })
     }
@@ -286,6 +287,22 @@ impl Dual {
         match &self.free {
             Some(f) => f.diag[j],
             None => self.a[j + j * self.c],
+        }
+    }
+
+    /// Contact i's d x d diagonal block of A, row-major, when matrix-free (None
+    /// when A is assembled: read its entries).
+    pub(crate) fn contact_block(&self, i: usize) -> Option<&[f64]> {
+        let dd = self.d * self.d;
+        self.free.as_ref().map(|f| &f.blocks[i * dd..(i + 1) * dd])
+    }
+
+    /// True when every DOF B touches is among the DOFs `factor` orders last.
+    pub(crate) fn trailing_of(factor: &Factor, b: &Csc) -> bool {
+        !factor.last().is_empty() && {
+            let mut in_last = vec![false; factor.n()];
+            factor.last().iter().for_each(|&j| in_last[j] = true);
+            contact_dofs(b).iter().all(|&j| j < in_last.len() && in_last[j])
         }
     }
 
@@ -363,119 +380,64 @@ fn alloc_zeroed(rows: usize, cols: usize, what: &str) -> Result<Vec<f64>> {
     Ok(v)
 }
 
-/// The matrix-free form of A = B_C S_CC^-1 B_C^T, S_CC = L_CC L_CC^T.
-struct FreeOp {
-    /// L_CC, nc x nc lower triangular (rows and columns in the order of the
-    /// factor's trailing DOFs).
-    l: Mat<f64>,
-    /// B_C^T, nc x c: column r holds row r of B at the trailing positions.
-    bct: Csc,
+/// The matrix-free form of A = B K^-1 B^T: each product is one solve with K's
+/// factor (whatever its ordering); nothing c x c is formed. The contacts' d x d
+/// diagonal blocks of A are computed once (`contact_blocks`), for rho, the
+/// diagonal and Newton's preconditioner.
+struct Operator {
+    factor: Arc<Factor>,
+    /// B^T, n x c: column r holds row r of B.
+    bt: Csc,
     /// A_jj, j < c.
     diag: Vec<f64>,
-    /// Workspace of one product (nc).
-    z: std::cell::RefCell<Vec<f64>>,
-    /// The problem's threads.
-    threads: Arc<Threads>,
+    /// Per contact, its d x d diagonal block of A, row-major (see
+    /// [`crate::contact_blocks::contact_blocks`]).
+    blocks: Vec<f64>,
+    /// Workspace of one product: the n-vector and the solve's scratch.
+    work: std::cell::RefCell<(Vec<f64>, MemBuffer)>,
 }
 
-impl FreeOp {
-    /// Errors: `OutOfMemory` if L_CC does not fit.
-    fn new(factor: &Factor, b: &Csc) -> Result<FreeOp> {
-        let last = factor.last();
-        let nc = last.len();
-        // Probe the allocation first: trailing_block() would abort on failure.
-        {
-            let _probe = factor.ledger().claim_f64(nc * nc);
-            drop(alloc_zeroed(nc, nc, "trailing block L_CC")?);
-        }
-        let _lcc = factor.ledger().claim_f64(nc * nc);
-        let l = factor.trailing_block();
-        let mut pos = vec![usize::MAX; factor.n()];
-        for (q, &j) in last.iter().enumerate() {
-            pos[j] = q;
-        }
-        // B restricted to the trailing DOFs, renumbered, then transposed.
-        let mut triplets = Vec::with_capacity(b.nnz());
-        for (j, &q) in pos.iter().enumerate() {
-            for k in b.col_ptr[j]..b.col_ptr[j + 1] {
-                triplets.push((q, b.row_idx[k], b.values[k]));
+impl Operator {
+    fn new(factor: &Arc<Factor>, b: &Csc, m: usize, d: usize) -> Operator {
+        let blocks = crate::contact_blocks::contact_blocks(factor, b, m, d);
+        let mut diag = vec![0.0; b.nrows];
+        for i in 0..m {
+            diag[i] = blocks[i * d * d];
+            for s in 0..d - 1 {
+                diag[m + (d - 1) * i + s] = blocks[i * d * d + (s + 1) * (d + 1)];
             }
         }
-        let bct = Csc::from_triplets(nc, b.nrows, &triplets);
-        let mut op = FreeOp {
-            l,
-            bct,
-            diag: Vec::new(),
-            z: std::cell::RefCell::new(vec![0.0; nc]),
-            threads: factor.threads().clone(),
-        };
-        op.diag = op.compute_diagonal()?;
-        Ok(op)
+        Operator {
+            factor: factor.clone(),
+            bt: b.transpose(),
+            diag,
+            blocks,
+            work: std::cell::RefCell::new((
+                vec![0.0; factor.n()],
+                MemBuffer::new(factor.solve_scratch(1)),
+            )),
+        }
     }
 
-    /// A_jj = |L_CC^-1 B_C^T e_j|^2, by blocks of columns sorted by their first
-    /// trailing position q0: below q0 the solve only needs L_CC[q0.., q0..], so the
-    /// whole diagonal costs about nc^3 / 3 flops.
-    fn compute_diagonal(&self) -> Result<Vec<f64>> {
-        const WIDTH: usize = 64;
-        let (nc, c) = (self.l.nrows(), self.bct.ncols);
-        let first = |r: usize| {
-            self.bct.row_idx[self.bct.col_ptr[r]..self.bct.col_ptr[r + 1]]
-                .iter()
-                .copied()
-                .min()
-                .unwrap_or(nc)
-        };
-        let mut cols: Vec<usize> = (0..c).collect();
-        cols.sort_by_key(|&r| first(r));
-        let mut diag = vec![0.0; c];
-        let mut w = Mat::<f64>::zeros(nc, WIDTH.min(c.max(1)));
-        for block in cols.chunks(WIDTH) {
-            let q0 = first(block[0]);
-            if q0 >= nc {
-                continue; // empty rows of B: A_jj = 0
-            }
-            let mut wb = w.as_mut().submatrix_mut(q0, 0, nc - q0, block.len());
-            wb.fill(0.0);
-            for (s, &r) in block.iter().enumerate() {
-                for k in self.bct.col_ptr[r]..self.bct.col_ptr[r + 1] {
-                    wb[(self.bct.row_idx[k] - q0, s)] += self.bct.values[k];
-                }
-            }
-            let lb = self.l.as_ref().submatrix(q0, q0, nc - q0, nc - q0);
-            let big = (nc - q0) * (nc - q0) >= PARALLEL_MIN_ENTRIES;
-            self.threads.run(big, |par| {
-                solve_lower_triangular_in_place(lb, wb.as_mut(), par);
-            });
-            for (s, &r) in block.iter().enumerate() {
-                diag[r] = wb.as_ref().col(s).iter().map(|v| v * v).sum();
-            }
-        }
-        Ok(diag)
-    }
-
-    /// y := A x = B_C L_CC^-T L_CC^-1 B_C^T x.
+    /// y := A x (leading blocks for shorter x and y, as [`Dual::apply`]).
     fn apply(&self, x: &[f64], y: &mut [f64]) {
-        let mut z = self.z.borrow_mut();
-        let nc = z.len();
+        let mut work = self.work.borrow_mut();
+        let (z, mem) = &mut *work;
         z.iter_mut().for_each(|v| *v = 0.0);
         for (r, &xr) in x.iter().enumerate() {
             if xr != 0.0 {
-                for k in self.bct.col_ptr[r]..self.bct.col_ptr[r + 1] {
-                    z[self.bct.row_idx[k]] += self.bct.values[k] * xr;
+                for k in self.bt.col_ptr[r]..self.bt.col_ptr[r + 1] {
+                    z[self.bt.row_idx[k]] += self.bt.values[k] * xr;
                 }
             }
         }
-        let mut zm = MatMut::from_column_major_slice_mut(&mut z[..], nc, 1);
-        let l = self.l.as_ref();
-        self.threads.run(nc * nc >= PARALLEL_MIN_ENTRIES, |par| {
-            solve_lower_triangular_in_place(l, zm.as_mut(), par);
-            solve_upper_triangular_in_place(l.transpose(), zm.as_mut(), par);
-        });
+        let n = z.len();
+        let zm = MatMut::from_column_major_slice_mut(&mut z[..], n, 1);
+        self.factor.solve_in_place(zm, MemStack::new(mem));
         for (r, yr) in y.iter_mut().enumerate() {
             let mut s = 0.0;
-            for k in self.bct.col_ptr[r]..self.bct.col_ptr[r + 1] {
-                s += self.bct.values[k] * z[self.bct.row_idx[k]];
+            for k in self.bt.col_ptr[r]..self.bt.col_ptr[r + 1] {
+                s += self.bt.values[k] * z[self.bt.row_idx[k]];
             }
             *yr = s;
         }

@@ -41,17 +41,11 @@ const PARALLEL_FLOPS_PER_ENTRY: f64 = 500.0;
 /// (BENCHMARKS.md, "Orderings, threads and CHOLMOD").
 const METIS_FLOPS_PER_ENTRY: f64 = 500.0;
 
-/// The numeric part of a factorisation, as handed back by [`Factor::refactor`].
-pub struct NumericFactor {
-    l_values: Vec<f64>,
-    l_claim: Option<Claim>,
-    factor_seconds: f64,
-}
-
 /// The Cholesky factor L L^T = P K P^T of an SPD matrix K, with the pattern of K it
 /// was computed for.
 pub struct Factor {
-    symbolic: SymbolicCholesky<usize>,
+    /// The symbolic analysis, shared by the copies [`Factor::unfactored_copy`] makes.
+    symbolic: Arc<SymbolicCholesky<usize>>,
     l_values: Vec<f64>,
     /// The bytes of `l_values` on the ledger.
     l_claim: Option<Claim>,
@@ -208,7 +202,7 @@ impl Factor {
             l_values: Vec::new(),
             l_claim: None,
             ledger,
-            symbolic,
+            symbolic: Arc::new(symbolic),
             col_ptr: k.col_ptr.clone(),
             row_idx: k.row_idx.clone(),
             last: last.to_vec(),
@@ -351,12 +345,11 @@ impl Factor {
     }
 
     /// Numeric refactorisation with new values on the same pattern, reusing the
-    /// symbolic analysis. On error the previous factor is kept; on success the
-    /// previous numeric factor is returned so that the caller can [`Factor::restore`]
-    /// it if a later step fails.
+    /// symbolic analysis. On error the previous factor is kept (a caller that must
+    /// keep it whatever happens after refactors an [`Factor::unfactored_copy`]).
     ///
     /// Errors: `BadArgument` (pattern differs), `NotPositiveDefinite`, `OutOfMemory`.
-    pub fn refactor(&mut self, k: &Csc) -> Result<NumericFactor> {
+    pub fn refactor(&mut self, k: &Csc) -> Result<()> {
         if !self.same_pattern(k) {
             return fail(
                 ErrorKind::BadArgument,
@@ -418,20 +411,10 @@ impl Factor {
                 ),
             );
         }
-        let previous = NumericFactor {
-            l_values: std::mem::replace(&mut self.l_values, values),
-            l_claim: self.l_claim.replace(values_claim),
-            factor_seconds: self.factor_seconds,
-        };
+        self.l_values = values;
+        self.l_claim = Some(values_claim);
         self.factor_seconds = start.elapsed().as_secs_f64();
-        Ok(previous)
-    }
-
-    /// Puts back a numeric factor returned by [`Factor::refactor`].
-    pub fn restore(&mut self, previous: NumericFactor) {
-        self.l_values = previous.l_values;
-        self.l_claim = previous.l_claim;
-        self.factor_seconds = previous.factor_seconds;
+        Ok(())
     }
 
     /// Workspace needed by [`Factor::solve_in_place`] for `ncols` right-hand sides.
@@ -517,7 +500,38 @@ impl Factor {
         }
     }
 
-    fn supernodal(&self) -> SupernodalLltRef<'_, usize, f64> {
+    /// The analysis of this factor without its values (refactor it before use):
+    /// the symbolic factor is shared, so a new factorisation can be formed beside
+    /// this one and replace it only once everything built on it succeeded.
+    pub(crate) fn unfactored_copy(&self) -> Factor {
+        Factor {
+            symbolic: self.symbolic.clone(),
+            l_values: Vec::new(),
+            l_claim: None,
+            ledger: self.ledger.clone(),
+            col_ptr: self.col_ptr.clone(),
+            row_idx: self.row_idx.clone(),
+            last: self.last.clone(),
+            fwd: self.fwd.clone(),
+            ordering: self.ordering,
+            analyse_seconds: self.analyse_seconds,
+            factor_seconds: 0.0,
+            threads: self.threads.clone(),
+            parallel: self.parallel,
+        }
+    }
+
+    /// The inverse of the fill-reducing ordering: position in the factor of each
+    /// DOF (old -> new).
+    pub(crate) fn new_of_old(&self) -> Vec<usize> {
+        let mut inv = vec![0usize; self.n()];
+        for (new, &old) in self.fwd.iter().enumerate() {
+            inv[old] = new;
+        }
+        inv
+    }
+
+    pub(crate) fn supernodal(&self) -> SupernodalLltRef<'_, usize, f64> {
         SupernodalLltRef::<usize, f64>::new(self.supernodal_symbolic(), &self.l_values)
     }
 
@@ -571,7 +585,7 @@ impl Factor {
 
     /// The symbolic factor: always supernodal (`with_last` forces it), since the
     /// pivots and the trailing block are read from the supernodes.
-    fn supernodal_symbolic(&self) -> &SymbolicSupernodalCholesky<usize> {
+    pub(crate) fn supernodal_symbolic(&self) -> &SymbolicSupernodalCholesky<usize> {
         let SymbolicCholeskyRaw::Supernodal(sym) = self.symbolic.raw() else {
             unreachable!("the factorisation is always supernodal");
         };

@@ -6,6 +6,7 @@
 //! is the compressive normal force; the friction force on the body, -T^T lambda_T,
 //! opposes the slip T u.
 
+mod contact_blocks;
 mod dense;
 mod dual;
 mod error;

@@ -108,6 +108,8 @@ pub(crate) struct Sizes {
     pub factor_scratch: usize,
     /// Bytes of one solve's workspace with [`crate::dual::BLOCK`] right-hand sides.
     pub solve_scratch: usize,
+    /// The problem's threads.
+    pub threads: usize,
 }
 
 /// Predicted bytes, what the counted allocations will reach.
@@ -130,9 +132,14 @@ impl Sizes {
                 a + crate::dual::BLOCK * self.n * F64 + self.solve_scratch,
                 a,
             ),
-            // L_CC (its allocation probed first, then freed), and a block of 64
-            // columns for A's diagonal.
-            Condensation::MatrixFree => (lcc + 64 * self.nc * F64, lcc),
+            // The contacts' diagonal blocks (d c doubles at most) and, while
+            // they are formed, a block of their sparse forward solves per thread
+            // (at most 3 GROUP columns of n rows); then one product's n-vector
+            // and solve workspace.
+            Condensation::MatrixFree => {
+                let held = 3 * self.c * F64 + self.n * F64 + self.solve_scratch;
+                (held + self.threads * crate::contact_blocks::WORK_COLUMNS * self.n * F64, held)
+            }
         }
     }
 

@@ -37,7 +37,8 @@ pub struct ContactProblem {
     k: Csc,
     n: Csc,
     t: Csc,
-    factor: Factor,
+    /// K's factor, shared with a matrix-free dual (which solves with it).
+    factor: Arc<Factor>,
     dual: Dual,
     /// The sizes memory predictions are made from.
     sizes: Sizes,
@@ -153,6 +154,7 @@ impl ContactProblem {
         let (mut factor, plan) = Self::analysed(d, &k, &n, &t, opts)?;
         let inputs = factor.ledger().claim(plan.sizes.inputs);
         factor.refactor(&k)?;
+        let factor = Arc::new(factor);
         let dual = Dual::build(&factor, &n, &t, d, plan.form)?;
         let ndof = k.nrows;
         let c = dual.c;
@@ -283,17 +285,7 @@ impl ContactProblem {
             factor: factor.nnz_and_flops().0 * F64,
             factor_scratch: factor.factor_scratch_bytes(),
             solve_scratch: factor.solve_scratch(BLOCK).size_bytes(),
-        }
-    }
-
-    /// The form a problem is created with: the dense A up to [`DENSE_MAX`]
-    /// unknowns where it fits the memory limit, matrix-free otherwise.
-    fn setup_form(sizes: &Sizes, limit: Option<usize>) -> DualForm {
-        let dense = Condensation::of(true, DualForm::Dense, sizes.c);
-        if sizes.c <= DENSE_MAX && limit.is_none_or(|l| sizes.setup(dense) <= l) {
-            DualForm::Dense
-        } else {
-            DualForm::MatrixFree
+            threads: factor.threads().count(),
         }
     }
 
@@ -330,13 +322,31 @@ impl ContactProblem {
             );
         }
         check_shapes(k.nrows, d, n, t)?;
-        // Contact DOFs last, so that the factor's trailing block condenses K onto them.
         let threads = Arc::new(Threads::new(opts.threads));
-        let last = contact_dofs(&stack_rows(n, t));
-        let factor = Factor::analyse(k, &last, opts.ordering, threads, Ledger::new())?;
-        let sizes = Self::sizes_of(k, n, t, d, &factor);
         let limit = memory::limit(opts.max_memory);
-        let form = Self::setup_form(&sizes, limit);
+        let c = d * n.nrows;
+        let dense_first = match opts.dual_form {
+            DualForm::Dense => true,
+            DualForm::MatrixFree => false,
+            DualForm::Auto => c <= DENSE_MAX,
+        };
+        if dense_first {
+            // Contact DOFs last, so that the factor's trailing block condenses K
+            // onto them.
+            let last = contact_dofs(&stack_rows(n, t));
+            let factor =
+                Factor::analyse(k, &last, opts.ordering, threads.clone(), Ledger::new())?;
+            let sizes = Self::sizes_of(k, n, t, d, &factor);
+            let dense = Condensation::of(true, DualForm::Dense, sizes.c);
+            if limit.is_none_or(|l| sizes.setup(dense) <= l) {
+                let form = DualForm::Dense;
+                return Ok((factor, Plan { sizes, form }, limit));
+            }
+        }
+        // The matrix-free dual works with the best plain factor of K.
+        let factor = Factor::analyse(k, &[], opts.ordering, threads, Ledger::new())?;
+        let sizes = Self::sizes_of(k, n, t, d, &factor);
+        let form = DualForm::MatrixFree;
         Ok((factor, Plan { sizes, form }, limit))
     }
 
@@ -392,18 +402,15 @@ impl ContactProblem {
             "the problem's max_memory (set at creation) must allow for it; see the \
              refactor bytes of ds_problem_info",
         )?;
-        let previous = self.factor.refactor(&k)?;
-        match Dual::build(&self.factor, &self.n, &self.t, self.d, self.current_form()) {
-            Ok(dual) => {
-                self.dual = dual;
-                self.k = k;
-                Ok(())
-            }
-            Err(e) => {
-                self.factor.restore(previous);
-                Err(e)
-            }
-        }
+        // The new factor and dual are formed beside the old ones, which stay in
+        // place until both succeeded.
+        let mut fresh = self.factor.unfactored_copy();
+        fresh.refactor(&k)?;
+        let fresh = Arc::new(fresh);
+        self.dual = Dual::build(&fresh, &self.n, &self.t, self.d, self.current_form())?;
+        self.factor = fresh;
+        self.k = k;
+        Ok(())
     }
 
     /// Replaces N and T (m may change) without refactoring K; rebuilds the condensed
@@ -495,13 +502,6 @@ impl ContactProblem {
         let now = self.dual.condensation;
         let next = Self::solve_condensation(now, trailing, opts);
         let free = Condensation::MatrixFree;
-        if next == free && !trailing {
-            return fail(
-                ErrorKind::BadArgument,
-                "the matrix-free dual needs every contact DOF among the DOFs K's factor \
-                 orders last; contacts set later on other DOFs are condensed densely",
-            );
-        }
         let (m, c) = (self.n_contacts(), self.dual.c);
         let need = self
             .sizes
@@ -611,9 +611,9 @@ impl ContactProblem {
 
     /// u := K^-1 (f - B^T lambda) given y_f = L^-1 P f (the forward half of the
     /// solve for K^-1 f) and `bt_lam` = B^T lambda. When the contact DOFs are the
-    /// factor's trailing DOFs (every condensation but by solves), B^T lambda lives
-    /// on them, so its forward half touches only the trailing block and the whole
-    /// recovery costs about half a solve. The difference is taken between the
+    /// factor's trailing DOFs, B^T lambda lives on them, so its forward half
+    /// touches only the trailing block and the whole recovery costs about half a
+    /// solve (a matrix-free dual on a plain factor takes the whole forward half). The difference is taken between the
     /// forward halves, not between K^-1 f and K^-1 B^T lambda: those two nearly
     /// cancel where the contact carries the load, and on the slender beam of
     /// tests/hard_scenes.rs (cond(K) 1.6e9) their difference left an equilibrium
@@ -626,9 +626,13 @@ impl ContactProblem {
             self.factor.solve_vec(u);
             return;
         }
-        let r_last: Vec<f64> = self.factor.last().iter().map(|&j| bt_lam[j]).collect();
         let mut y = vec![0.0; u.len()];
-        self.factor.forward_from_last(&r_last, &mut y);
+        if self.dual.trailing {
+            let r_last: Vec<f64> = self.factor.last().iter().map(|&j| bt_lam[j]).collect();
+            self.factor.forward_from_last(&r_last, &mut y);
+        } else {
+            self.factor.forward(bt_lam, &mut y);
+        }
         for (yi, fi) in y.iter_mut().zip(y_f) {
             *yi = fi - *yi;
         }

@@ -1,9 +1,9 @@
-//! The matrix-free dual (`DualForm::MatrixFree`: products with A through the
-//! trailing block of K's factor, A never formed) against the dense one on finite
-//! element scenes: MPRGP must converge to the same answer (KKT checked
-//! independently), the methods that read entries of A must be refused with
-//! `BadArgument` without harming the problem, and `Auto` must assemble A when a
-//! method needs it.
+//! The matrix-free dual (`DualForm::MatrixFree`: each product with A one solve
+//! with K's factor, A never formed) against the dense one on finite element
+//! scenes: MPRGP and Newton (its steps by Krylov iterations) must converge to the
+//! same answer (KKT checked independently), the methods that read entries of A
+//! must be refused with `BadArgument` without harming the problem, and `Auto`
+//! must assemble A when a method needs it.
 
 mod common;
 
@@ -52,13 +52,27 @@ fn lambda(s: &Solution) -> Vec<f64> {
 }
 
 fn dense_and_free_agree(name: &str, scene: &Scene, friction: Friction<'_>) {
+    agree(name, scene, friction, Method::Mprgp, 1e-8);
+}
+
+fn with(method: Method, form: DualForm) -> Options {
+    Options {
+        method,
+        dual_form: form,
+        ..Options::default()
+    }
+}
+
+/// `method` on the dense and on the matrix-free dual of one problem: both
+/// converge, pass the KKT check, and agree to `rel` in lambda and u.
+fn agree(name: &str, scene: &Scene, friction: Friction<'_>, method: Method, rel: f64) {
     let mut pb = scene.problem();
     let dense = pb
-        .solve(&scene.f, &scene.g, friction, &mprgp(DualForm::Dense))
+        .solve(&scene.f, &scene.g, friction, &with(method, DualForm::Dense))
         .unwrap();
     assert!(!pb.dual().is_matrix_free());
     let free = pb
-        .solve(&scene.f, &scene.g, friction, &mprgp(DualForm::MatrixFree))
+        .solve(&scene.f, &scene.g, friction, &with(method, DualForm::MatrixFree))
         .unwrap();
     assert!(pb.dual().is_matrix_free(), "{name}: the form is kept");
     assert!(pb.dual().dense().is_none(), "{name}: A is not formed");
@@ -75,14 +89,65 @@ fn dense_and_free_agree(name: &str, scene: &Scene, friction: Friction<'_>) {
     let (l0, l1) = (lambda(&dense), lambda(&free));
     let dl = max_diff(&l0, &l1);
     assert!(
-        dl <= 1e-8 * norm_inf(&l0),
+        dl <= rel * norm_inf(&l0),
         "{name}: lambda differs by {dl:.2e}"
     );
     let du = max_diff(&dense.u, &free.u);
     assert!(
-        du <= 1e-8 * norm_inf(&dense.u),
+        du <= rel * norm_inf(&dense.u),
         "{name}: u differs by {du:.2e}"
     );
+}
+
+/// Semismooth Newton on the matrix-free dual (its steps by CG / GMRES on
+/// products with A) gives dense Newton's answer, 2D and 3D, Tresca and Coulomb.
+#[test]
+fn newton_matrix_free_matches_dense_newton() {
+    let s2 = scene_2d();
+    let mu2 = vec![0.3; s2.m()];
+    let p2 = vec![0.02; s2.m()];
+    agree("2D Coulomb newton", &s2, Friction::Coulomb(&mu2), Method::Newton, 1e-10);
+    agree("2D Tresca newton", &s2, Friction::Tresca(&p2), Method::Newton, 1e-10);
+    let s3 = scene_3d();
+    let p3 = vec![0.05; s3.m()];
+    let mu3 = vec![0.3; s3.m()];
+    agree("3D Tresca newton", &s3, Friction::Tresca(&p3), Method::Newton, 1e-10);
+    agree("3D Coulomb newton", &s3, Friction::Coulomb(&mu3), Method::Newton, 1e-10);
+}
+
+/// A problem created matrix-free factors the plain K (no contact DOFs ordered
+/// last) and solves on it with Newton, whose answer is the dense one's.
+#[test]
+fn a_problem_created_matrix_free_uses_the_plain_factor() {
+    let s = scene_3d();
+    let mu = vec![0.3; s.m()];
+    let fr = Friction::Coulomb(&mu);
+    let o = with(Method::Newton, DualForm::MatrixFree);
+    let mut free = dualsplit::ContactProblem::from_csc_with(
+        s.d,
+        s.k.clone(),
+        s.n.clone(),
+        s.t.clone(),
+        &o,
+    )
+    .unwrap();
+    assert!(free.dual().is_matrix_free());
+    assert!(free.factor().last().is_empty(), "the plain factor of K");
+    let a = free.solve(&s.f, &s.g, fr, &o).unwrap();
+    let b = s
+        .problem()
+        .solve(&s.f, &s.g, fr, &with(Method::Newton, DualForm::Dense))
+        .unwrap();
+    assert_converged("plain factor", &a);
+    kkt_of(&s, fr, &a).assert_ok("plain factor", 1e-8);
+    let dl = max_diff(&lambda(&a), &lambda(&b));
+    assert!(dl <= 1e-10 * norm_inf(&lambda(&b)), "lambda differs by {dl:.2e}");
+    let du = max_diff(&a.u, &b.u);
+    assert!(du <= 1e-10 * norm_inf(&b.u), "u differs by {du:.2e}");
+    // The err measure is the library's: rho from the same diagonal blocks.
+    for (x, y) in free.dual().rho().iter().zip(s.problem().dual().rho()) {
+        assert!((x - y).abs() <= 1e-12 * y.abs(), "rho {x} vs {y}");
+    }
 }
 
 #[test]
@@ -118,10 +183,16 @@ fn methods_that_read_entries_are_refused_matrix_free_and_auto_assembles() {
             ..Options::default()
         };
         match pb.solve(&s.f, &s.g, fr, &o) {
-            // auto runs mprgp on a matrix-free dual.
+            // newton and mprgp run on products alone; auto runs newton there.
             Ok(sol) => {
-                assert!(matches!(method, Method::Mprgp | Method::Auto));
-                assert_eq!(sol.report.method, Method::Mprgp);
+                assert!(!method.needs_entries(), "{}", method.name());
+                let ran = if method == Method::Auto {
+                    Method::Newton
+                } else {
+                    method
+                };
+                assert_eq!(sol.report.method, ran);
+                assert_converged(method.name(), &sol);
             }
             Err(e) => {
                 assert!(method.needs_entries(), "{}", method.name());
@@ -142,15 +213,15 @@ fn methods_that_read_entries_are_refused_matrix_free_and_auto_assembles() {
     assert_converged("auto mprgp", &auto);
     // ... and assembles A for a method that reads its entries.
     let o = Options {
-        method: Method::Newton,
+        method: Method::Split,
         dual_form: DualForm::Auto,
         ..Options::default()
     };
-    let newton = pb.solve(&s.f, &s.g, fr, &o).unwrap();
+    let split = pb.solve(&s.f, &s.g, fr, &o).unwrap();
     assert!(!pb.dual().is_matrix_free());
-    assert_converged("auto newton", &newton);
-    kkt_of(&s, fr, &newton).assert_ok("auto newton", 1e-8);
-    let dl = max_diff(&lambda(&reference), &lambda(&newton));
+    assert_converged("auto split", &split);
+    kkt_of(&s, fr, &split).assert_ok("auto split", 1e-8);
+    let dl = max_diff(&lambda(&reference), &lambda(&split));
     assert!(dl <= 1e-8 * norm_inf(&lambda(&reference)));
 }
 

@@ -7,8 +7,9 @@
 //! stalls (FCLib's spheres-in-a-box: redundant contacts, A singular; Newton's |F|
 //! stops falling) Pop's splitting with MPRGP sub-problems is the one method that
 //! converges, and it continues from Newton's best iterate. On a matrix-free dual
-//! (c above `DENSE_MAX`, or a dense A that does not fit `max_memory`) MPRGP is
-//! the one method that runs on products alone.
+//! (c above `DENSE_MAX`, or a dense A that does not fit `max_memory`) Newton
+//! solves its steps by Krylov iterations (one product with A each), and MPRGP,
+//! which also runs on products alone, takes over where it stalls.
 
 use super::driver::{End, Outcome};
 use super::{DualProblem, MethodSpec, run_one};
@@ -36,11 +37,18 @@ pub(super) const AUTO: MethodSpec = MethodSpec {
 /// where the one before ended stalled or at its iteration limit.
 pub(super) fn plan(matrix_free: bool) -> &'static [(Method, &'static str)] {
     if matrix_free {
-        &[(
-            Method::Mprgp,
-            "the dual is matrix-free (c above DENSE_MAX, or the dense A does not fit \
-             max_memory): mprgp runs on products with A alone",
-        )]
+        &[
+            (
+                Method::Newton,
+                "matrix-free dual (c above DENSE_MAX, or the dense A does not fit \
+                 max_memory): semismooth Newton with Krylov solves of its steps",
+            ),
+            (
+                Method::Mprgp,
+                "Newton stalled on the matrix-free dual: mprgp from Newton's best \
+                 iterate",
+            ),
+        ]
     } else {
         &[
             (

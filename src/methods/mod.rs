@@ -15,6 +15,7 @@
 
 mod auto;
 mod driver;
+mod krylov;
 mod mprgp;
 mod newton;
 mod pgs;

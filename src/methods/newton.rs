@@ -68,6 +68,9 @@ const PRESWEEP_CHUNK: usize = 10;
 /// Newton can reject every full step (the slender beam of tests/hard_scenes.rs).
 const BACKTRACKS: usize = 4;
 
+/// Most products with A in one reduced solve on a matrix-free dual.
+const KRYLOV_MAX_IT: usize = 500;
+
 /// Sufficient decrease for keeping a Newton step: |F(lam + d)| <= (1 - ARMIJO) |F(lam)|.
 const ARMIJO: f64 = 1e-4;
 
@@ -238,6 +241,7 @@ fn newton_step(
     f: &mut [f64],
     ae0: &mut [f64],
     cscale: f64,
+    krylov: &mut Krylov,
 ) -> bool {
     let dual = problem.dual;
     let red = linearise(problem, lam, w, step, f, cscale);
@@ -246,6 +250,9 @@ fn newton_step(
         return true;
     }
     dual.apply(step, ae0);
+    if dual.is_matrix_free() {
+        return krylov_step(problem, &red, step, ae0, krylov);
+    }
     // M = T^T A V + diag, column by column: column l is the sum over the entries of
     // dir_l of coef times T^T A[:, j], gathered from one column of A.
     let _mat_claim = dual.ledger.claim_f64(k * k);
@@ -282,6 +289,114 @@ fn newton_step(
     for (l, u) in red.iter().enumerate() {
         for &(j, coef) in &u.dir[..u.n_dir] {
             step[j] += coef * z[(l, 0)];
+        }
+    }
+    true
+}
+
+/// The Krylov solve of a Newton step on a matrix-free dual: its forcing term,
+/// its budget, its scratch (two vectors of length c) and the products it used.
+pub(super) struct Krylov {
+    /// Relative residual the reduced solve must reach.
+    pub eta: f64,
+    /// Most products with A per reduced solve.
+    pub max_it: usize,
+    /// Products used so far (inner iterations).
+    pub its: usize,
+    v: Vec<f64>,
+    av: Vec<f64>,
+}
+
+impl Krylov {
+    fn new(c: usize) -> Krylov {
+        Krylov {
+            eta: 0.1,
+            max_it: KRYLOV_MAX_IT,
+            its: 0,
+            v: vec![0.0; c],
+            av: vec![0.0; c],
+        }
+    }
+}
+
+/// Entry (ja, jb) of A where both lie in one contact's d x d diagonal block
+/// (every pair a reduced unknown couples), read from the matrix-free dual's blocks.
+fn block_entry(problem: &DualProblem<'_>, ja: usize, jb: usize) -> f64 {
+    let dual = problem.dual;
+    let (m, d) = (dual.m, dual.d);
+    let at = |j: usize| {
+        if j < m {
+            (j, 0)
+        } else {
+            ((j - m) / (d - 1), 1 + (j - m) % (d - 1))
+        }
+    };
+    let ((ia, la), (ib, lb)) = (at(ja), at(jb));
+    match dual.contact_block(ia) {
+        Some(block) if ia == ib => block[la * d + lb],
+        _ => 0.0,
+    }
+}
+
+/// The reduced system M z = rhs of a Newton step on a matrix-free dual, by
+/// preconditioned CG (symmetric M) or GMRES to the relative residual
+/// `krylov.eta`, each product M x one product with A; the preconditioner is
+/// M's diagonal, from the contacts' diagonal blocks of A. Adds V z to `step`.
+/// False when the Krylov iteration broke down.
+fn krylov_step(
+    problem: &DualProblem<'_>,
+    red: &[Reduced],
+    step: &mut [f64],
+    ae0: &[f64],
+    krylov: &mut Krylov,
+) -> bool {
+    let dual = problem.dual;
+    let k = red.len();
+    let rhs: Vec<f64> = red
+        .iter()
+        .map(|u| u.rhs - u.test[..u.n_test].iter().map(|&(j, c)| c * ae0[j]).sum::<f64>())
+        .collect();
+    let pre: Vec<f64> = red
+        .iter()
+        .map(|u| {
+            let mut mll = u.diag;
+            for &(ja, ca) in &u.test[..u.n_test] {
+                for &(jb, cb) in &u.dir[..u.n_dir] {
+                    mll += ca * cb * block_entry(problem, ja, jb);
+                }
+            }
+            if mll > 0.0 { 1.0 / mll } else { 1.0 }
+        })
+        .collect();
+    let symmetric = red
+        .iter()
+        .all(|u| u.n_test == u.n_dir && u.test[..u.n_test] == u.dir[..u.n_dir]);
+    let (v, av) = (&mut krylov.v, &mut krylov.av);
+    let mut op = |x: &[f64], y: &mut [f64]| {
+        v.iter_mut().for_each(|e| *e = 0.0);
+        for (u, &xl) in red.iter().zip(x) {
+            for &(j, c) in &u.dir[..u.n_dir] {
+                v[j] += c * xl;
+            }
+        }
+        dual.apply(v, av);
+        for ((u, &xl), yl) in red.iter().zip(x).zip(y.iter_mut()) {
+            *yl = u.diag * xl + u.test[..u.n_test].iter().map(|&(j, c)| c * av[j]).sum::<f64>();
+        }
+    };
+    let mut z = vec![0.0; k];
+    let solver = if symmetric {
+        super::krylov::pcg
+    } else {
+        super::krylov::gmres
+    };
+    let Some(its) = solver(&mut op, &rhs, &pre, krylov.eta, krylov.max_it, &mut z) else {
+        return false;
+    };
+    krylov.its += its;
+    for (u, &zl) in red.iter().zip(&z) {
+        for &(j, coef) in &u.dir[..u.n_dir] {
+            step[j] += coef * zl;
         }
     }
     true
@@ -369,8 +484,16 @@ fn residual_norm(problem: &DualProblem<'_>, lam: &[f64], w: &[f64]) -> f64 {
 /// increments as well (the unknowns at zero bounds leave its linear systems).
 pub(super) const NEWTON: MethodSpec = MethodSpec {
     name: "newton",
-    needs_entries: true,
-    workspace: |_m, c, _matrix_free| 2 * c * c * F64,
+    needs_entries: false,
+    // Dense: the reduced matrix and the copy its solver factors. Matrix-free: the
+    // Krylov vectors (GMRES's basis and a few more, length c at most).
+    workspace: |_m, c, matrix_free| {
+        if matrix_free {
+            (super::krylov::RESTART + 10) * c * F64
+        } else {
+            2 * c * c * F64
+        }
+    },
     build: |problem, _opts, target| (Box::new(Newton::new(problem, target)), problem.dual.c),
 };
 
@@ -390,6 +513,10 @@ pub(super) struct Newton {
     ae0: Vec<f64>,
     trial: Vec<f64>,
     wt: Vec<f64>,
+    /// The reduced solves' Krylov state on a matrix-free dual.
+    krylov: Krylov,
+    /// |F| at the start (the forcing terms' reference).
+    res0: f64,
     /// |F| at the current iterate, and the lowest |F| with the iteration it was met.
     res: f64,
     best: f64,
@@ -409,6 +536,8 @@ impl Newton {
             ae0: vec![0.0; c],
             trial: vec![0.0; c],
             wt: vec![0.0; c],
+            krylov: Krylov::new(c),
+            res0: 0.0,
             res: 0.0,
             best: 0.0,
             best_at: 0,
@@ -431,8 +560,14 @@ impl OuterStep for Newton {
         // The error's scratch: `f` and `ae0` are overwritten by every step.
         let (p, v) = (&mut self.f[..m], &mut self.ae0[..c]);
         let mut swept = 0;
-        while swept < self.presweeps && problem.error(lam, w, p, v) > self.target {
-            let n = PRESWEEP_CHUNK.min(self.presweeps - swept);
+        // Gauss-Seidel reads entries of A: no sweeps on a matrix-free dual.
+        let presweeps = if problem.dual.is_matrix_free() {
+            0
+        } else {
+            self.presweeps
+        };
+        while swept < presweeps && problem.error(lam, w, p, v) > self.target {
+            let n = PRESWEEP_CHUNK.min(presweeps - swept);
             *inner += pgs::sweeps(problem, lam, w, n);
             swept += n;
         }
@@ -441,6 +576,7 @@ impl OuterStep for Newton {
             problem.gradient(lam, w);
         }
         self.res = residual_norm(problem, lam, w);
+        self.res0 = self.res;
         (self.best, self.best_at) = (self.res, 0);
         Flow::Go(Gradient::Exact)
     }
@@ -469,7 +605,20 @@ impl OuterStep for Newton {
             1.0
         };
         let (step, trial, wt) = (&mut self.step, &mut self.trial, &mut self.wt);
-        if newton_step(problem, lam, w, step, &mut self.f, &mut self.ae0, cscale) {
+        self.krylov.eta = forcing(self.res, self.res0, self.target, norm(lam));
+        let before = self.krylov.its;
+        let solved = newton_step(
+            problem,
+            lam,
+            w,
+            step,
+            &mut self.f,
+            &mut self.ae0,
+            cscale,
+            &mut self.krylov,
+        );
+        *inner += self.krylov.its - before;
+        if solved {
             // Backtracking: the full step, then halves of it.
             let mut t = 1.0;
             for _ in 0..BACKTRACKS {
@@ -487,12 +636,64 @@ impl OuterStep for Newton {
                 t *= 0.5;
             }
         }
+        if problem.dual.is_matrix_free() {
+            return self.projected_step(problem, lam, w);
+        }
         // Fallback: a first-order step.
         *inner += pgs::sweeps(problem, lam, w, FALLBACK_SWEEPS);
         problem.gradient(lam, w);
         self.res = residual_norm(problem, lam, w);
         Flow::Go(Gradient::Exact)
     }
+}
+
+impl Newton {
+    /// The fallback on a matrix-free dual (no Gauss-Seidel without entries of A):
+    /// the projection step lam - t F(lam) = P(lam - t rho w) for t = 1, 1/2, 1/4,
+    /// 1/8, kept when it lowers |F|; `Stalled` when none does (`auto` then goes on
+    /// with MPRGP). `self.f` holds F(lam) from the rejected Newton step.
+    fn projected_step(
+        &mut self,
+        problem: &DualProblem<'_>,
+        lam: &mut [f64],
+        w: &mut [f64],
+    ) -> Flow {
+        let (trial, wt, f) = (&mut self.trial, &mut self.wt, &self.f);
+        let mut t = 1.0;
+        for _ in 0..BACKTRACKS {
+            for j in 0..lam.len() {
+                trial[j] = lam[j] - t * f[j];
+            }
+            problem.gradient(trial, wt);
+            let r = residual_norm(problem, trial, wt);
+            if r < self.res {
+                lam.copy_from_slice(trial);
+                w.copy_from_slice(wt);
+                self.res = r;
+                return Flow::Go(Gradient::Exact);
+            }
+            t *= 0.5;
+        }
+        Flow::Stalled
+    }
+}
+
+/// The forcing term of an inexact Newton step on a matrix-free dual: the
+/// reduced system is solved to the relative residual eta = |F| / |F_0| (capped
+/// at 0.1: superlinear convergence), but no tighter than a step whose error
+/// leaves |F| at a hundredth of the target (err's scale taken as |lambda|).
+fn forcing(res: f64, res0: f64, target: f64, lam_norm: f64) -> f64 {
+    let eta = if res0 > 0.0 { (res / res0).min(0.1) } else { 0.1 };
+    let enough = if res > 0.0 {
+        0.01 * target * lam_norm / res
+    } else {
+        0.1
+    };
+    eta.max(enough.min(0.1)).max(1e-14)
+}
+
+fn norm(x: &[f64]) -> f64 {
+    x.iter().map(|v| v * v).sum::<f64>().sqrt()
 }
 
 #[cfg(test)]

@@ -1,0 +1,315 @@
+//! The contacts' d x d diagonal blocks of A = B K^-1 B^T, from K's factor and
+//! without forming anything c x c: with L L^T = P K P^T and W_i = L^-1 P B_i^T
+//! (B_i: contact i's d rows of B), A_ii = W_i^T W_i. Each W_i is a sparse forward
+//! solve: its nonzeros lie in the supernodes on the elimination-tree paths from
+//! the supernodes of B_i's DOFs to the root, and only those are touched.
+//!
+//! Contacts are taken GROUP at a time, sorted by their first supernode so that a
+//! group's paths share most of their supernodes (the separators above a patch of
+//! the contact face); a group's forward solve runs on a dense block of the rows of
+//! the union of its paths, by dense triangular solves and products per supernode
+//! (BLAS-3), and groups run in parallel on the problem's threads.
+//!
+//! The matrix-free dual needs these blocks for rho (the error measure,
+//! docs/design.md section 5), for the diagonal of A and for Newton's
+//! preconditioner.
+
+use crate::factor::Factor;
+use crate::sparse::Csc;
+use faer::linalg::matmul::matmul;
+use faer::linalg::triangular_solve::solve_lower_triangular_in_place;
+use faer::{Accum, Mat, MatMut, Par};
+use rayon::prelude::*;
+
+/// Contacts solved together (d right-hand sides each).
+const GROUP: usize = 16;
+
+/// The most columns of one group's block (d <= 3), for memory predictions.
+pub(crate) const WORK_COLUMNS: usize = 3 * GROUP;
+
+/// The rows of B that belong to contact i of m (d rows: i, then the d-1 tangent
+/// rows m + (d-1) i ..).
+fn rows_of(i: usize, m: usize, d: usize) -> impl Iterator<Item = usize> {
+    std::iter::once(i).chain((0..d - 1).map(move |s| m + (d - 1) * i + s))
+}
+
+/// The supernodal tree of a factor: per column its supernode, per supernode its
+/// parent (usize::MAX at a root).
+struct Tree {
+    of_col: Vec<usize>,
+    parent: Vec<usize>,
+    begin: Vec<usize>,
+}
+
+impl Tree {
+    fn of(factor: &Factor) -> Tree {
+        let sym = factor.supernodal_symbolic();
+        let ns = sym.n_supernodes();
+        let (begin, end) = (sym.supernode_begin(), sym.supernode_end());
+        let mut of_col = vec![0usize; factor.n()];
+        for s in 0..ns {
+            of_col[begin[s]..end[s]].fill(s);
+        }
+        let parent = (0..ns)
+            .map(|s| {
+                sym.supernode(s)
+                    .pattern()
+                    .first()
+                    .map_or(usize::MAX, |&row| of_col[row])
+            })
+            .collect();
+        Tree {
+            of_col,
+            parent,
+            begin: begin[..ns].to_vec(),
+        }
+    }
+}
+
+/// One worker's scratch: the marks and local offsets of supernodes, the list of a
+/// group's supernodes, and the buffer of a product.
+struct Scratch {
+    mark: Vec<usize>,
+    offset: Vec<usize>,
+    list: Vec<usize>,
+    buf: Vec<f64>,
+}
+
+impl Scratch {
+    fn new(ns: usize) -> Scratch {
+        Scratch {
+            mark: vec![usize::MAX; ns],
+            offset: vec![0; ns],
+            list: Vec::new(),
+            buf: Vec::new(),
+        }
+    }
+}
+
+/// The d x d diagonal blocks of A = B K^-1 B^T for the m contacts of B (c x n,
+/// c = d m, rows ordered as in [`crate::dual`]): block i at
+/// `[i d^2 .. (i+1) d^2]`, row-major, its rows and columns contact i's rows of B
+/// (normal first). Contacts without entries in B get a zero block.
+pub(crate) fn contact_blocks(factor: &Factor, b: &Csc, m: usize, d: usize) -> Vec<f64> {
+    let bt = b.transpose();
+    let tree = Tree::of(factor);
+    let new_of = factor.new_of_old();
+    let ns = tree.parent.len();
+    // Contacts sorted by their first (deepest) supernode.
+    let first = |i: usize| {
+        rows_of(i, m, d)
+            .flat_map(|r| &bt.row_idx[bt.col_ptr[r]..bt.col_ptr[r + 1]])
+            .map(|&dof| tree.of_col[new_of[dof]])
+            .min()
+    };
+    let mut order: Vec<(usize, usize)> = (0..m).filter_map(|i| first(i).map(|s| (s, i))).collect();
+    order.sort_unstable();
+    let groups: Vec<&[(usize, usize)]> = order.chunks(GROUP).collect();
+    let solve_group = |group: &[(usize, usize)], ws: &mut Scratch| {
+        group_blocks(factor, &tree, &new_of, &bt, m, d, group, ws)
+    };
+    let (nnz, flops) = factor.nnz_and_flops();
+    let parallel = groups.len() > 1 && flops > 1e7 && nnz > 0;
+    let results: Vec<Vec<f64>> = factor.threads().run(parallel, |par| match par {
+        Par::Seq => {
+            let mut ws = Scratch::new(ns);
+            groups.iter().map(|g| solve_group(g, &mut ws)).collect()
+        }
+        _ => groups
+            .par_iter()
+            .map_init(|| Scratch::new(ns), |ws, g| solve_group(g, ws))
+            .collect(),
+    });
+    let dd = d * d;
+    let mut blocks = vec![0.0; m * dd];
+    for (group, res) in groups.iter().zip(&results) {
+        for (slot, &(_, i)) in group.iter().enumerate() {
+            blocks[i * dd..(i + 1) * dd].copy_from_slice(&res[slot * dd..(slot + 1) * dd]);
+        }
+    }
+    blocks
+}
+
+/// The blocks of one group of contacts ((first supernode, contact) pairs), in
+/// the group's order.
+#[allow(clippy::too_many_arguments)]
+fn group_blocks(
+    factor: &Factor,
+    tree: &Tree,
+    new_of: &[usize],
+    bt: &Csc,
+    m: usize,
+    d: usize,
+    group: &[(usize, usize)],
+    ws: &mut Scratch,
+) -> Vec<f64> {
+    let stamp = group[0].1;
+    let cols = || {
+        group
+            .iter()
+            .flat_map(move |&(_, i)| rows_of(i, m, d))
+            .enumerate()
+    };
+    // The union of the paths to the root, in elimination order.
+    ws.list.clear();
+    for (_, r) in cols() {
+        for &dof in &bt.row_idx[bt.col_ptr[r]..bt.col_ptr[r + 1]] {
+            let mut s = tree.of_col[new_of[dof]];
+            while s != usize::MAX && ws.mark[s] != stamp {
+                ws.mark[s] = stamp;
+                ws.list.push(s);
+                s = tree.parent[s];
+            }
+        }
+    }
+    ws.list.sort_unstable();
+    let llt = factor.supernodal();
+    let mut rows = 0;
+    for &s in &ws.list {
+        ws.offset[s] = rows;
+        rows += llt.supernode(s).val().ncols();
+    }
+    let local = |col: usize| {
+        let s = tree.of_col[col];
+        ws.offset[s] + col - tree.begin[s]
+    };
+    let k = group.len() * d;
+    let mut y = Mat::<f64>::zeros(rows, k);
+    for (t, r) in cols() {
+        for p in bt.col_ptr[r]..bt.col_ptr[r + 1] {
+            y[(local(new_of[bt.row_idx[p]]), t)] += bt.values[p];
+        }
+    }
+    for &s in &ws.list {
+        let node = llt.supernode(s);
+        let val = node.val();
+        let w = val.ncols();
+        let pattern = node.pattern();
+        let off = ws.offset[s];
+        solve_lower_triangular_in_place(
+            val.submatrix(0, 0, w, w),
+            y.as_mut().submatrix_mut(off, 0, w, k),
+            Par::Seq,
+        );
+        let below = pattern.len();
+        if below == 0 {
+            continue;
+        }
+        if ws.buf.len() < below * k {
+            ws.buf.resize(below * k, 0.0);
+        }
+        let mut tmp = MatMut::from_column_major_slice_mut(&mut ws.buf[..below * k], below, k);
+        matmul(
+            tmp.as_mut(),
+            Accum::Replace,
+            val.submatrix(w, 0, below, w),
+            y.as_ref().submatrix(off, 0, w, k),
+            1.0,
+            Par::Seq,
+        );
+        for t in 0..k {
+            for (q, &row) in pattern.iter().enumerate() {
+                let s2 = tree.of_col[row];
+                y[(ws.offset[s2] + row - tree.begin[s2], t)] -= tmp[(q, t)];
+            }
+        }
+    }
+    let dd = d * d;
+    let mut out = vec![0.0; group.len() * dd];
+    for slot in 0..group.len() {
+        for a in 0..d {
+            for b in 0..d {
+                let col = |t: usize| y.col(t).try_as_col_major().expect("contiguous").as_slice();
+                let (ca, cb) = (col(slot * d + a), col(slot * d + b));
+                out[slot * dd + a * d + b] = ca.iter().zip(cb).map(|(x, z)| x * z).sum();
+            }
+        }
+    }
+    out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::dual::stack_rows;
+    use crate::options::Ordering;
+    use crate::threads::Threads;
+    use std::sync::Arc;
+
+    /// A 2D grid Laplacian plus a shift (SPD), nx x ny nodes, one DOF each.
+    fn grid(nx: usize, ny: usize) -> Csc {
+        let id = |i: usize, j: usize| i + nx * j;
+        let mut t = Vec::new();
+        for j in 0..ny {
+            for i in 0..nx {
+                t.push((id(i, j), id(i, j), 4.05));
+                if i + 1 < nx {
+                    t.push((id(i, j), id(i + 1, j), -1.0));
+                    t.push((id(i + 1, j), id(i, j), -1.0));
+                }
+                if j + 1 < ny {
+                    t.push((id(i, j), id(i, j + 1), -1.0));
+                    t.push((id(i, j + 1), id(i, j), -1.0));
+                }
+            }
+        }
+        Csc::from_triplets(nx * ny, nx * ny, &t)
+    }
+
+    /// The blocks against B K^-1 B^T formed column by column with full solves,
+    /// for both orderings, 1 and 2 threads, d = 2 and 3, with a contact whose rows
+    /// are empty and contacts whose rows touch several DOFs.
+    #[test]
+    fn blocks_match_the_dense_a() {
+        let (nx, ny) = (23, 17);
+        let k = grid(nx, ny);
+        let n = nx * ny;
+        for d in [2, 3] {
+            let m = 40;
+            let (mut nt, mut tt) = (Vec::new(), Vec::new());
+            for i in 0..m - 1 {
+                let dof = (7 * i + 3) % n;
+                nt.push((i, dof, -1.0));
+                nt.push((i, (dof + 1) % n, 0.3));
+                for s in 0..d - 1 {
+                    tt.push(((d - 1) * i + s, (dof + s * nx) % n, 1.0 - 0.2 * s as f64));
+                    tt.push(((d - 1) * i + s, (dof + 2) % n, 0.1 * i as f64));
+                }
+            }
+            let nm = Csc::from_triplets(m, n, &nt);
+            let tm = Csc::from_triplets((d - 1) * m, n, &tt);
+            let b = stack_rows(&nm, &tm);
+            let c = d * m;
+            for (ordering, threads) in [(Ordering::Amd, 1), (Ordering::Metis, 2)] {
+                let f = Factor::with_last(&k, &[], ordering, Arc::new(Threads::new(threads)))
+                    .unwrap();
+                let blocks = contact_blocks(&f, &b, m, d);
+                let bt = b.transpose();
+                let mut dense = vec![0.0; c * c];
+                for r in 0..c {
+                    let mut x = vec![0.0; n];
+                    for p in bt.col_ptr[r]..bt.col_ptr[r + 1] {
+                        x[bt.row_idx[p]] = bt.values[p];
+                    }
+                    f.solve_vec(&mut x);
+                    b.mul_vec(&x, &mut dense[r * c..(r + 1) * c]);
+                }
+                for i in 0..m {
+                    let rows: Vec<usize> = rows_of(i, m, d).collect();
+                    for a in 0..d {
+                        for bb in 0..d {
+                            let want = dense[rows[a] + rows[bb] * c];
+                            let got = blocks[i * d * d + a * d + bb];
+                            assert!(
+                                (got - want).abs() <= 1e-13 * want.abs().max(1e-3),
+                                "d {d} contact {i} ({a},{bb}): {got} vs {want}"
+                            );
+                        }
+                    }
+                }
+                // The last contact has no entries: a zero block.
+                assert!(blocks[(m - 1) * d * d..].iter().all(|&v| v == 0.0));
+            }
+        }
+    }
+}

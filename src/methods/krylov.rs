@@ -1,0 +1,222 @@
+//! Krylov solvers for Newton's reduced systems on a matrix-free dual
+//! (`newton.rs`): preconditioned conjugate gradients where the system is
+//! symmetric (Tresca, and Coulomb contacts whose normal force does not drag a
+//! slip force), restarted GMRES with right preconditioning otherwise. Both take
+//! the operator as a closure (one product with A each) and a diagonal
+//! preconditioner, stop at |M z - rhs| <= eta |rhs| or after `max_it` products,
+//! and return the products used; None when the iteration broke down (a
+//! non-finite value, or CG meeting a direction of non-positive curvature).
+
+/// Restart length of GMRES.
+pub(super) const RESTART: usize = 40;
+
+/// z := approximately M^-1 rhs by preconditioned CG from z = 0 (`pre`: the
+/// inverse of M's diagonal).
+pub(super) fn pcg(
+    op: &mut dyn FnMut(&[f64], &mut [f64]),
+    rhs: &[f64],
+    pre: &[f64],
+    eta: f64,
+    max_it: usize,
+    z: &mut [f64],
+) -> Option<usize> {
+    let k = rhs.len();
+    z.iter_mut().for_each(|v| *v = 0.0);
+    let mut r = rhs.to_vec();
+    let stop = eta * norm(rhs);
+    let mut y: Vec<f64> = r.iter().zip(pre).map(|(a, b)| a * b).collect();
+    let mut p = y.clone();
+    let mut q = vec![0.0; k];
+    let mut ry = dot(&r, &y);
+    let mut its = 0;
+    while its < max_it && norm(&r) > stop {
+        op(&p, &mut q);
+        its += 1;
+        let pq = dot(&p, &q);
+        if !(pq > 0.0) {
+            return (its > 1 && z.iter().all(|v| v.is_finite())).then_some(its);
+        }
+        let alpha = ry / pq;
+        for j in 0..k {
+            z[j] += alpha * p[j];
+            r[j] -= alpha * q[j];
+        }
+        for j in 0..k {
+            y[j] = r[j] * pre[j];
+        }
+        let ry_next = dot(&r, &y);
+        let beta = ry_next / ry;
+        ry = ry_next;
+        for j in 0..k {
+            p[j] = y[j] + beta * p[j];
+        }
+    }
+    z.iter().all(|v| v.is_finite()).then_some(its)
+}
+
+/// z := approximately M^-1 rhs by GMRES(RESTART) with right preconditioning
+/// M diag(pre) x = rhs, z = diag(pre) x, from z = 0.
+pub(super) fn gmres(
+    op: &mut dyn FnMut(&[f64], &mut [f64]),
+    rhs: &[f64],
+    pre: &[f64],
+    eta: f64,
+    max_it: usize,
+    z: &mut [f64],
+) -> Option<usize> {
+    let k = rhs.len();
+    z.iter_mut().for_each(|v| *v = 0.0);
+    let stop = eta * norm(rhs);
+    // The Krylov basis, RESTART + 1 vectors of length k, column by column.
+    let mut basis = vec![0.0; (RESTART + 1) * k];
+    let ld = RESTART + 1;
+    let mut h = vec![0.0; ld * RESTART];
+    let (mut cs, mut sn, mut g) = (vec![0.0; RESTART], vec![0.0; RESTART], vec![0.0; ld]);
+    let mut r = vec![0.0; k];
+    let mut t = vec![0.0; k];
+    let mut its = 0;
+    loop {
+        // r = rhs - M z
+        op(z, &mut r);
+        its += 1;
+        for j in 0..k {
+            r[j] = rhs[j] - r[j];
+        }
+        let beta = norm(&r);
+        if !beta.is_finite() {
+            return None;
+        }
+        if beta <= stop || its >= max_it {
+            return Some(its);
+        }
+        for j in 0..k {
+            basis[j] = r[j] / beta;
+        }
+        g.iter_mut().for_each(|v| *v = 0.0);
+        g[0] = beta;
+        let mut used = 0;
+        for col in 0..RESTART {
+            for j in 0..k {
+                t[j] = pre[j] * basis[col * k + j];
+            }
+            let (done, next) = basis.split_at_mut((col + 1) * k);
+            let w = &mut next[..k];
+            op(&t, w);
+            its += 1;
+            // Modified Gram-Schmidt against the basis so far.
+            for i in 0..=col {
+                let v = &done[i * k..(i + 1) * k];
+                let hij = dot(w, v);
+                h[i + col * ld] = hij;
+                for j in 0..k {
+                    w[j] -= hij * v[j];
+                }
+            }
+            let hn = norm(w);
+            h[col + 1 + col * ld] = hn;
+            // Apply the previous rotations, then a new one.
+            for i in 0..col {
+                let (a, b) = (h[i + col * ld], h[i + 1 + col * ld]);
+                h[i + col * ld] = cs[i] * a + sn[i] * b;
+                h[i + 1 + col * ld] = -sn[i] * a + cs[i] * b;
+            }
+            let (a, b) = (h[col + col * ld], h[col + 1 + col * ld]);
+            let rr = a.hypot(b);
+            if rr == 0.0 || !rr.is_finite() {
+                break;
+            }
+            cs[col] = a / rr;
+            sn[col] = b / rr;
+            h[col + col * ld] = rr;
+            h[col + 1 + col * ld] = 0.0;
+            g[col + 1] = -sn[col] * g[col];
+            g[col] *= cs[col];
+            used = col + 1;
+            if g[col + 1].abs() <= stop || its >= max_it || hn == 0.0 {
+                break;
+            }
+            w.iter_mut().for_each(|v| *v /= hn);
+        }
+        if used == 0 {
+            return None;
+        }
+        // Back substitution for y (in g), then z += diag(pre) V y.
+        for i in (0..used).rev() {
+            let mut s = g[i];
+            for l in i + 1..used {
+                s -= h[i + l * ld] * g[l];
+            }
+            g[i] = s / h[i + i * ld];
+        }
+        for l in 0..used {
+            for j in 0..k {
+                z[j] += pre[j] * g[l] * basis[l * k + j];
+            }
+        }
+        if !z.iter().all(|v| v.is_finite()) {
+            return None;
+        }
+        if its >= max_it {
+            return Some(its);
+        }
+        // Next cycle: it starts from the true residual and returns there when it
+        // meets the target.
+    }
+}
+
+fn dot(a: &[f64], b: &[f64]) -> f64 {
+    a.iter().zip(b).map(|(x, y)| x * y).sum()
+}
+
+fn norm(a: &[f64]) -> f64 {
+    dot(a, a).sqrt()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A tridiagonal test matrix: 4 on the diagonal, -1 and `skew` -1 beside it.
+    fn tridiag(k: usize, skew: f64) -> impl FnMut(&[f64], &mut [f64]) {
+        move |x: &[f64], y: &mut [f64]| {
+            for i in 0..k {
+                let mut s = (4.0 + i as f64 * 0.01) * x[i];
+                if i > 0 {
+                    s -= (1.0 + skew) * x[i - 1];
+                }
+                if i + 1 < k {
+                    s -= x[i + 1];
+                }
+                y[i] = s;
+            }
+        }
+    }
+
+    fn residual(op: &mut dyn FnMut(&[f64], &mut [f64]), z: &[f64], rhs: &[f64]) -> f64 {
+        let mut y = vec![0.0; z.len()];
+        op(z, &mut y);
+        norm(&y.iter().zip(rhs).map(|(a, b)| a - b).collect::<Vec<_>>()) / norm(rhs)
+    }
+
+    #[test]
+    fn cg_and_gmres_solve_to_the_requested_residual() {
+        let k = 200;
+        let rhs: Vec<f64> = (0..k).map(|i| (i as f64 * 0.37).sin() + 0.1).collect();
+        let pre: Vec<f64> = (0..k).map(|i| 1.0 / (4.0 + i as f64 * 0.01)).collect();
+        let mut z = vec![0.0; k];
+        let mut sym = tridiag(k, 0.0);
+        let its = pcg(&mut sym, &rhs, &pre, 1e-12, 500, &mut z).unwrap();
+        assert!(residual(&mut sym, &z, &rhs) <= 1e-12, "cg");
+        assert!(its < 100, "{its}");
+        // Nonsymmetric: GMRES, across restarts (RESTART < iterations needed at
+        // 1e-13 only when the matrix is harder; here one cycle may do).
+        let mut skew = tridiag(k, 0.5);
+        let its = gmres(&mut skew, &rhs, &pre, 1e-13, 500, &mut z).unwrap();
+        assert!(residual(&mut skew, &z, &rhs) <= 1e-13, "gmres");
+        assert!(its < 200, "{its}");
+        // A loose eta stops early.
+        let its_loose = gmres(&mut skew, &rhs, &pre, 1e-2, 500, &mut z).unwrap();
+        assert!(its_loose < its);
+        assert!(residual(&mut skew, &z, &rhs) <= 1e-2);
+    }
+}
