@@ -382,7 +382,7 @@ typedef struct DsOptions {
    */
   uint32_t struct_size;
   /*
-   A DsMethod value (default DS_METHOD_SPLIT).
+   A DsMethod value (default DS_METHOD_AUTO from 0.6, DS_METHOD_SPLIT before).
    */
   int32_t method;
   /*
@@ -519,7 +519,7 @@ typedef struct DsInfo {
    */
   int32_t setup_form;
   /*
-   The DsMethod of the options passed (the default: DS_METHOD_SPLIT).
+   The DsMethod of the options passed (the default: DS_METHOD_AUTO).
    */
   int32_t method;
   /*
@@ -775,7 +775,8 @@ const char *ds_last_error_message(void);
 
 /*
  Fills the first `size` bytes of *opts with the defaults of the DsOptions of
- that size: struct_size = size, method DS_METHOD_SPLIT, tol 1e-10, max_outer
+ that size: struct_size = size, method DS_METHOD_AUTO (from 0.6; DS_METHOD_SPLIT
+ before), tol 1e-10, max_outer
  10000, max_inner 1000, dual_form DS_DUAL_FORM_AUTO, max_seconds 0 (none),
  stall_window 100, stall_factor 0.9, threads 0 (all cores), ordering
  DS_ORDERING_AUTO, max_memory 0 (the machine's limit). Pass sizeof(DsOptions) as the caller sees
@@ -1069,7 +1070,7 @@ const char *ds_version(void);
 /* The version of dualsplit this header belongs to (ds_version() gives the one a
  * program runs against; tests/header.rs checks these against Cargo.toml). */
 #define DS_VERSION_MAJOR 0
-#define DS_VERSION_MINOR 5
+#define DS_VERSION_MINOR 6
 #define DS_VERSION_PATCH 0
 
 #ifndef DS_NO_OPTIONS_DEFAULT_MACRO

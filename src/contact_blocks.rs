@@ -281,8 +281,8 @@ mod tests {
             let b = stack_rows(&nm, &tm);
             let c = d * m;
             for (ordering, threads) in [(Ordering::Amd, 1), (Ordering::Metis, 2)] {
-                let f = Factor::with_last(&k, &[], ordering, Arc::new(Threads::new(threads)))
-                    .unwrap();
+                let f =
+                    Factor::with_last(&k, &[], ordering, Arc::new(Threads::new(threads))).unwrap();
                 let blocks = contact_blocks(&f, &b, m, d);
                 let bt = b.transpose();
                 let mut dense = vec![0.0; c * c];

@@ -152,13 +152,7 @@ impl Dual {
     ///
     /// Errors: `BadSize` if the shapes of N and T do not match d and K,
     /// `OutOfMemory` if A does not fit.
-    pub fn build(
-        factor: &Arc<Factor>,
-        n: &Csc,
-        t: &Csc,
-        d: usize,
-        form: DualForm,
-    ) -> Result<Dual> {
+    pub fn build(factor: &Arc<Factor>, n: &Csc, t: &Csc, d: usize, form: DualForm) -> Result<Dual> {
         check_shapes(factor.n(), d, n, t)?;
         let trailing = Self::trailing_available(factor, n, t);
         let how = Condensation::of(trailing, form, d * n.nrows);
@@ -302,7 +296,9 @@ impl Dual {
         !factor.last().is_empty() && {
             let mut in_last = vec![false; factor.n()];
             factor.last().iter().for_each(|&j| in_last[j] = true);
-            contact_dofs(b).iter().all(|&j| j < in_last.len() && in_last[j])
+            contact_dofs(b)
+                .iter()
+                .all(|&j| j < in_last.len() && in_last[j])
         }
     }
 
@@ -683,12 +679,22 @@ mod tests {
             assert!((z0[i] - want).abs() <= 1e-13 * scale * m as f64 * m as f64);
             assert!((z1[i] - want).abs() <= 1e-12 * scale * m as f64 * m as f64);
         }
-        // Auto picks dense at this size; without trailing DOFs, matrix-free falls
-        // back to the dense form by solves.
+        // Auto picks dense at this size; without trailing DOFs the dense form is
+        // formed by solves, and the matrix-free one works on the plain factor,
+        // with the same products.
         let auto = Dual::build(&f, &n, &t, 3, DualForm::Auto).unwrap();
         assert!(!auto.is_matrix_free());
         let plain = Factor::new(&k).unwrap();
-        let by_solves = Dual::build(&plain, &n, &t, 3, DualForm::MatrixFree).unwrap();
+        let by_solves = Dual::build(&plain, &n, &t, 3, DualForm::Dense).unwrap();
         assert_eq!(by_solves.condensation, Condensation::Solves);
+        let free_plain = Dual::build(&plain, &n, &t, 3, DualForm::MatrixFree).unwrap();
+        assert_eq!(free_plain.condensation, Condensation::MatrixFree);
+        assert!(!free_plain.trailing);
+        let x: Vec<f64> = (0..c).map(|i| (i as f64 * 0.3).cos()).collect();
+        dense.apply(&x, &mut y0);
+        free_plain.apply(&x, &mut y1);
+        for (a, b) in y0.iter().zip(&y1) {
+            assert!((a - b).abs() <= 1e-12 * scale * c as f64, "{a} vs {b}");
+        }
     }
 }

@@ -121,7 +121,7 @@ impl Factor {
     /// Errors: `NotPositiveDefinite` (non-positive pivot: K singular or indefinite),
     /// `OutOfMemory`.
     #[cfg(any(test, feature = "internals"))]
-    pub fn new(k: &Csc) -> Result<Factor> {
+    pub fn new(k: &Csc) -> Result<Arc<Factor>> {
         Self::with_last(k, &[], Ordering::Auto, Arc::new(Threads::sequential()))
     }
 
@@ -141,10 +141,10 @@ impl Factor {
         last: &[usize],
         ordering: Ordering,
         threads: Arc<Threads>,
-    ) -> Result<Factor> {
+    ) -> Result<Arc<Factor>> {
         let mut f = Self::analyse(k, last, ordering, threads, Ledger::new())?;
         f.refactor(k)?;
-        Ok(f)
+        Ok(Arc::new(f))
     }
 
     /// The analysis of [`Factor::with_last`] alone (ordering and symbolic

@@ -138,7 +138,10 @@ impl Sizes {
             // and solve workspace.
             Condensation::MatrixFree => {
                 let held = 3 * self.c * F64 + self.n * F64 + self.solve_scratch;
-                (held + self.threads * crate::contact_blocks::WORK_COLUMNS * self.n * F64, held)
+                (
+                    held + self.threads * crate::contact_blocks::WORK_COLUMNS * self.n * F64,
+                    held,
+                )
             }
         }
     }

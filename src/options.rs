@@ -80,7 +80,7 @@ pub const DENSE_MAX: usize = 8_000;
 /// Options of one solve. `Options::default()` gives the documented defaults.
 #[derive(Copy, Clone, Debug, PartialEq)]
 pub struct Options {
-    /// Method (default `Split`).
+    /// Method (default `Auto`: the library's choice, see [`Method::Auto`]).
     pub method: Method,
     /// Stop when err (docs/design.md section 5) is at most `tol` (default 1e-10).
     pub tol: f64,
@@ -156,7 +156,7 @@ pub const STALL_FACTOR: f64 = 0.9;
 impl Default for Options {
     fn default() -> Self {
         Options {
-            method: Method::Split,
+            method: Method::Auto,
             tol: 1e-10,
             max_outer: 10_000,
             max_inner: 1_000,

@@ -334,8 +334,7 @@ impl ContactProblem {
             // Contact DOFs last, so that the factor's trailing block condenses K
             // onto them.
             let last = contact_dofs(&stack_rows(n, t));
-            let factor =
-                Factor::analyse(k, &last, opts.ordering, threads.clone(), Ledger::new())?;
+            let factor = Factor::analyse(k, &last, opts.ordering, threads.clone(), Ledger::new())?;
             let sizes = Self::sizes_of(k, n, t, d, &factor);
             let dense = Condensation::of(true, DualForm::Dense, sizes.c);
             if limit.is_none_or(|l| sizes.setup(dense) <= l) {
@@ -360,7 +359,7 @@ impl ContactProblem {
         let free = Condensation::MatrixFree;
         let hint = if how != free && sizes.setup(free) < need {
             format!(
-                "the matrix-free dual (dual_form = matrix-free, method mprgp) would need \
+                "the matrix-free dual (dual_form = matrix-free, method auto, newton or mprgp) would need \
                  about {}",
                 memory::human(sizes.setup(free))
             )
@@ -493,7 +492,7 @@ impl ContactProblem {
                 ErrorKind::BadArgument,
                 format!(
                     "method {} reads entries of the condensed dual A and cannot run \
-                     matrix-free: use mprgp, or the dense or auto dual form",
+                     matrix-free: use auto, newton or mprgp, or the dense or auto dual form",
                     opts.method.name()
                 ),
             );
@@ -506,12 +505,13 @@ impl ContactProblem {
         let need = self
             .sizes
             .solve(now, next, opts.method.workspace(m, c, next == free));
-        let hint = if opts.method.needs_entries() {
+        let hint = if next != free {
             let free_need = self
                 .sizes
-                .solve(now, free, Method::Mprgp.workspace(m, c, true));
+                .solve(now, free, Method::Newton.workspace(m, c, true));
             format!(
-                "method mprgp on the matrix-free dual would need about {}",
+                "the matrix-free dual (dual_form auto or matrix-free, method auto, \
+                 newton or mprgp) would need about {}",
                 memory::human(free_need)
             )
         } else {

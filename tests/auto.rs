@@ -78,7 +78,7 @@ fn auto_runs_newton_on_a_dense_dual() {
 /// of A) and keeps the dual matrix-free; the answer satisfies the KKT conditions
 /// and matches dense Newton's.
 #[test]
-fn auto_runs_mprgp_on_a_matrix_free_dual() {
+fn auto_runs_newton_on_a_matrix_free_dual() {
     let sc = block3d();
     let mu = vec![0.3; sc.m()];
     let friction = Friction::Coulomb(&mu);
@@ -91,7 +91,7 @@ fn auto_runs_mprgp_on_a_matrix_free_dual() {
     let sol = pb.solve(&sc.f, &sc.g, friction, &free).unwrap();
     assert!(pb.is_matrix_free());
     assert_converged("auto matrix-free", &sol);
-    assert_eq!(sol.report.method, Method::Mprgp);
+    assert_eq!(sol.report.method, Method::Newton);
     assert!(
         sol.report.choice.contains("matrix-free"),
         "{}",

@@ -471,6 +471,10 @@ fn verbose_prints_more() {
         "--out",
         out.to_str().unwrap(),
         "--verbose",
+        // A method whose every outer iteration shows (auto's Newton may converge
+        // in its warm-up sweeps, before the first).
+        "--method",
+        "split",
     ]);
     assert_eq!(quiet.status.code(), Some(0));
     assert_eq!(loud.status.code(), Some(0));

@@ -72,7 +72,12 @@ fn agree(name: &str, scene: &Scene, friction: Friction<'_>, method: Method, rel:
         .unwrap();
     assert!(!pb.dual().is_matrix_free());
     let free = pb
-        .solve(&scene.f, &scene.g, friction, &with(method, DualForm::MatrixFree))
+        .solve(
+            &scene.f,
+            &scene.g,
+            friction,
+            &with(method, DualForm::MatrixFree),
+        )
         .unwrap();
     assert!(pb.dual().is_matrix_free(), "{name}: the form is kept");
     assert!(pb.dual().dense().is_none(), "{name}: A is not formed");
@@ -106,13 +111,37 @@ fn newton_matrix_free_matches_dense_newton() {
     let s2 = scene_2d();
     let mu2 = vec![0.3; s2.m()];
     let p2 = vec![0.02; s2.m()];
-    agree("2D Coulomb newton", &s2, Friction::Coulomb(&mu2), Method::Newton, 1e-10);
-    agree("2D Tresca newton", &s2, Friction::Tresca(&p2), Method::Newton, 1e-10);
+    agree(
+        "2D Coulomb newton",
+        &s2,
+        Friction::Coulomb(&mu2),
+        Method::Newton,
+        1e-10,
+    );
+    agree(
+        "2D Tresca newton",
+        &s2,
+        Friction::Tresca(&p2),
+        Method::Newton,
+        1e-10,
+    );
     let s3 = scene_3d();
     let p3 = vec![0.05; s3.m()];
     let mu3 = vec![0.3; s3.m()];
-    agree("3D Tresca newton", &s3, Friction::Tresca(&p3), Method::Newton, 1e-10);
-    agree("3D Coulomb newton", &s3, Friction::Coulomb(&mu3), Method::Newton, 1e-10);
+    agree(
+        "3D Tresca newton",
+        &s3,
+        Friction::Tresca(&p3),
+        Method::Newton,
+        1e-10,
+    );
+    agree(
+        "3D Coulomb newton",
+        &s3,
+        Friction::Coulomb(&mu3),
+        Method::Newton,
+        1e-10,
+    );
 }
 
 /// A problem created matrix-free factors the plain K (no contact DOFs ordered
@@ -123,14 +152,9 @@ fn a_problem_created_matrix_free_uses_the_plain_factor() {
     let mu = vec![0.3; s.m()];
     let fr = Friction::Coulomb(&mu);
     let o = with(Method::Newton, DualForm::MatrixFree);
-    let mut free = dualsplit::ContactProblem::from_csc_with(
-        s.d,
-        s.k.clone(),
-        s.n.clone(),
-        s.t.clone(),
-        &o,
-    )
-    .unwrap();
+    let mut free =
+        dualsplit::ContactProblem::from_csc_with(s.d, s.k.clone(), s.n.clone(), s.t.clone(), &o)
+            .unwrap();
     assert!(free.dual().is_matrix_free());
     assert!(free.factor().last().is_empty(), "the plain factor of K");
     let a = free.solve(&s.f, &s.g, fr, &o).unwrap();
@@ -141,7 +165,10 @@ fn a_problem_created_matrix_free_uses_the_plain_factor() {
     assert_converged("plain factor", &a);
     kkt_of(&s, fr, &a).assert_ok("plain factor", 1e-8);
     let dl = max_diff(&lambda(&a), &lambda(&b));
-    assert!(dl <= 1e-10 * norm_inf(&lambda(&b)), "lambda differs by {dl:.2e}");
+    assert!(
+        dl <= 1e-10 * norm_inf(&lambda(&b)),
+        "lambda differs by {dl:.2e}"
+    );
     let du = max_diff(&a.u, &b.u);
     assert!(du <= 1e-10 * norm_inf(&b.u), "u differs by {du:.2e}");
     // The err measure is the library's: rho from the same diagonal blocks.

@@ -255,8 +255,9 @@ fn a_setup_over_max_memory_is_refused_before_the_factorisation() {
 
 /// Where the dense dual does not fit and the matrix-free one does, the problem
 /// is created matrix-free; a solve whose method needs the dense A is refused
-/// (its message points to mprgp), the problem stays usable, and mprgp, which
-/// runs matrix-free, then solves it to the tolerance.
+/// (its message points to the matrix-free route), the problem stays usable, and
+/// the default (auto: Newton) and mprgp, which run matrix-free, then solve it
+/// to the tolerance.
 #[test]
 fn auto_creates_the_matrix_free_dual_where_the_dense_one_does_not_fit() {
     let _serial = SERIAL.lock().unwrap_or_else(|e| e.into_inner());
@@ -281,13 +282,33 @@ fn auto_creates_the_matrix_free_dual_where_the_dense_one_does_not_fit() {
     assert!(pb.is_matrix_free());
     assert_within("matrix-free setup", setup, info.setup_bytes, 0.25);
     let mu = vec![0.3; sc.m()];
-    // The default method reads entries of A: refused, nothing changed.
+    // A method that reads entries of A, under a limit of the matrix-free setup's
+    // peak: the dense A (by solves with the plain factor) does not fit; refused,
+    // nothing changed.
+    let split = Options {
+        method: Method::Split,
+        max_memory: info.setup_bytes,
+        ..opts
+    };
     let e = pb
-        .solve(&sc.f, &sc.g, Friction::Coulomb(&mu), &opts)
+        .solve(&sc.f, &sc.g, Friction::Coulomb(&mu), &split)
         .unwrap_err();
     assert_eq!(e.kind, ErrorKind::OutOfMemory);
-    assert!(e.message.contains("mprgp"), "{}", e.message);
+    assert!(e.message.contains("matrix-free"), "{}", e.message);
     assert!(pb.is_matrix_free());
+    // The default (auto) runs Newton on the matrix-free dual within the limit.
+    let (sol, peak) = peak_of(|| {
+        pb.solve(&sc.f, &sc.g, Friction::Coulomb(&mu), &opts)
+            .unwrap()
+    });
+    assert_eq!(
+        sol.report.status,
+        dualsplit::SolveStatus::Converged,
+        "{:?}",
+        sol.report
+    );
+    assert_eq!(sol.report.method, Method::Newton);
+    assert!(peak <= limit, "{peak} > {limit}");
     let o = Options {
         method: Method::Mprgp,
         ..opts
@@ -295,10 +316,10 @@ fn auto_creates_the_matrix_free_dual_where_the_dense_one_does_not_fit() {
     let sol = pb.solve(&sc.f, &sc.g, Friction::Coulomb(&mu), &o).unwrap();
     common::assert_converged("mprgp within max_memory", &sol);
     assert!(sol.report.memory_peak <= limit, "{:?}", sol.report);
-    // The same problem with a larger limit: the default method forms A and runs.
+    // The same problem with a larger limit: split forms A and runs.
     let big = Options {
         max_memory: 0,
-        ..opts
+        ..split
     };
     let sol = pb
         .solve(&sc.f, &sc.g, Friction::Coulomb(&mu), &big)
@@ -342,7 +363,7 @@ fn ds_analyse_and_ds_problem_info_fill_a_size_checked_dsinfo() {
     assert_eq!(out.setup_form, DsDualForm::Dense as i32);
     assert_eq!(
         (out.method, out.solve_form),
-        (DsMethod::Split as i32, DsDualForm::Dense as i32)
+        (DsMethod::Auto as i32, DsDualForm::Dense as i32)
     );
     assert_eq!(
         (out.setup_bytes, out.resident_bytes, out.solve_bytes),

@@ -265,22 +265,24 @@ fn log_is_silent_by_default_and_per_iteration_when_asked() {
     );
     solve(&h);
     assert!(lines.is_empty(), "silent level printed: {lines:?}");
-    // Level 1: one summary line.
+    // Level 1: the default method (auto) says what it chose, then one summary line.
     // SAFETY: as above.
     unsafe { ds_problem_set_log(h.0, 1, Some(collect), data) };
     solve(&h);
-    assert_eq!(lines.len(), 1, "{lines:?}");
-    assert!(lines[0].starts_with("1: split: converged"), "{lines:?}");
+    assert_eq!(lines.len(), 2, "{lines:?}");
+    assert!(lines[0].starts_with("1: auto chose newton: "), "{lines:?}");
+    assert!(lines[1].starts_with("1: newton: converged"), "{lines:?}");
     // Level 2: one line per outer iteration plus the summary.
     lines.clear();
     // SAFETY: as above.
     unsafe { ds_problem_set_log(h.0, 2, Some(collect), data) };
     let outer = solve(&h);
-    assert_eq!(lines.len() as i64, outer + 1, "{lines:?}");
-    assert!(
-        lines[0].starts_with("2: split iteration 1: err"),
-        "{lines:?}"
-    );
+    assert_eq!(lines.len() as i64, outer + 2, "{lines:?}");
+    let per_iteration = lines
+        .iter()
+        .filter(|l| l.starts_with("2: auto iteration "))
+        .count();
+    assert_eq!(per_iteration as i64, outer, "{lines:?}");
     // A bad level is refused and changes nothing.
     // SAFETY: as above.
     assert_eq!(
@@ -289,5 +291,5 @@ fn log_is_silent_by_default_and_per_iteration_when_asked() {
     );
     lines.clear();
     solve(&h);
-    assert_eq!(lines.len() as i64, outer + 1);
+    assert_eq!(lines.len() as i64, outer + 2);
 }

@@ -43,7 +43,7 @@ pub struct DsInfo {
     /// The DsDualForm the handle is (or would be) created with:
     /// DS_DUAL_FORM_DENSE (A formed) or DS_DUAL_FORM_MATRIX_FREE.
     pub setup_form: i32,
-    /// The DsMethod of the options passed (the default: DS_METHOD_SPLIT).
+    /// The DsMethod of the options passed (the default: DS_METHOD_AUTO).
     pub method: i32,
     /// The DsDualForm a solve with that method uses (DS_DUAL_FORM_DENSE for every
     /// method that reads entries of A).

@@ -31,7 +31,7 @@ pub struct DsOptions {
     /// ds_options_init; checked so that the struct can grow in later versions
     /// without breaking compiled callers.
     pub struct_size: u32,
-    /// A DsMethod value (default DS_METHOD_SPLIT).
+    /// A DsMethod value (default DS_METHOD_AUTO from 0.6, DS_METHOD_SPLIT before).
     pub method: i32,
     /// Stop when the relative error measure err (dimensionless, see DsReport) is at
     /// most tol; > 0 (default 1e-10).
@@ -266,7 +266,8 @@ impl Default for DsOptions {
 }
 
 /// Fills the first `size` bytes of *opts with the defaults of the DsOptions of
-/// that size: struct_size = size, method DS_METHOD_SPLIT, tol 1e-10, max_outer
+/// that size: struct_size = size, method DS_METHOD_AUTO (from 0.6; DS_METHOD_SPLIT
+/// before), tol 1e-10, max_outer
 /// 10000, max_inner 1000, dual_form DS_DUAL_FORM_AUTO, max_seconds 0 (none),
 /// stall_window 100, stall_factor 0.9, threads 0 (all cores), ordering
 /// DS_ORDERING_AUTO, max_memory 0 (the machine's limit). Pass sizeof(DsOptions) as the caller sees
@@ -437,7 +438,7 @@ mod tests {
     fn defaults_round_trip() {
         let o = DsOptions::default();
         assert_eq!(o.struct_size as usize, SIZE);
-        assert_eq!(o.method, DsMethod::Split as i32);
+        assert_eq!(o.method, DsMethod::Auto as i32);
         assert_eq!((o.tol, o.max_outer, o.max_inner), (1e-10, 10_000, 1_000));
         assert_eq!(
             (o.max_seconds, o.stall_window, o.stall_factor),

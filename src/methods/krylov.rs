@@ -33,7 +33,8 @@ pub(super) fn pcg(
         op(&p, &mut q);
         its += 1;
         let pq = dot(&p, &q);
-        if !(pq > 0.0) {
+        // Non-positive curvature (or NaN): M is not positive definite here.
+        if pq.is_nan() || pq <= 0.0 {
             return (its > 1 && z.iter().all(|v| v.is_finite())).then_some(its);
         }
         let alpha = ry / pq;

@@ -233,6 +233,7 @@ fn linearise(
 
 /// Solves for the Newton step `step` at lam (w = A lam - b). False when the
 /// reduced system is singular.
+#[allow(clippy::too_many_arguments)]
 fn newton_step(
     problem: &DualProblem<'_>,
     lam: &[f64],
@@ -354,7 +355,13 @@ fn krylov_step(
     let k = red.len();
     let rhs: Vec<f64> = red
         .iter()
-        .map(|u| u.rhs - u.test[..u.n_test].iter().map(|&(j, c)| c * ae0[j]).sum::<f64>())
+        .map(|u| {
+            u.rhs
+                - u.test[..u.n_test]
+                    .iter()
+                    .map(|&(j, c)| c * ae0[j])
+                    .sum::<f64>()
+        })
         .collect();
     let pre: Vec<f64> = red
         .iter()
@@ -381,7 +388,11 @@ fn krylov_step(
         }
         dual.apply(v, av);
         for ((u, &xl), yl) in red.iter().zip(x).zip(y.iter_mut()) {
-            *yl = u.diag * xl + u.test[..u.n_test].iter().map(|&(j, c)| c * av[j]).sum::<f64>();
+            *yl = u.diag * xl
+                + u.test[..u.n_test]
+                    .iter()
+                    .map(|&(j, c)| c * av[j])
+                    .sum::<f64>();
         }
     };
     let mut z = vec![0.0; k];
@@ -683,7 +694,11 @@ impl Newton {
 /// at 0.1: superlinear convergence), but no tighter than a step whose error
 /// leaves |F| at a hundredth of the target (err's scale taken as |lambda|).
 fn forcing(res: f64, res0: f64, target: f64, lam_norm: f64) -> f64 {
-    let eta = if res0 > 0.0 { (res / res0).min(0.1) } else { 0.1 };
+    let eta = if res0 > 0.0 {
+        (res / res0).min(0.1)
+    } else {
+        0.1
+    };
     let enough = if res > 0.0 {
         0.01 * target * lam_norm / res
     } else {

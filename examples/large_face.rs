@@ -1,0 +1,100 @@
+//! The matrix-free path on large contact faces (issue 17): per scene, the best
+//! plain factorisation of K (the baseline), then a contact problem created
+//! matrix-free (the plain factor and the contacts' diagonal blocks of A, nothing
+//! c x c), and one cold increment to tol with a method, Tresca and Coulomb:
+//! seconds, their ratio to the baseline, err, iterations and the counted peak
+//! memory of the library's large allocations.
+//!
+//! ```text
+//! cargo run --release --example large_face -- [--scenes A,B,..] [--threads K]
+//!     [--tol X] [--methods newton,mprgp,auto]
+//! ```
+
+#[path = "bench/scene.rs"]
+#[allow(dead_code)]
+mod scene;
+
+use dualsplit::internals::{Factor, Threads};
+use dualsplit::{ContactProblem, DualForm, Friction, Method, Options, Ordering};
+use scene::{Scene, Spec};
+use std::sync::Arc;
+use std::time::Instant;
+
+fn main() {
+    let mut scenes = vec!["3d-64x64x6".to_string()];
+    let mut threads = 1;
+    let mut tol = 1e-10;
+    let mut methods = vec![Method::Newton];
+    let args: Vec<String> = std::env::args().skip(1).collect();
+    let mut k = 0;
+    while k < args.len() {
+        let value = || args.get(k + 1).expect("a value after the flag").clone();
+        match args[k].as_str() {
+            "--scenes" => scenes = value().split(',').map(str::to_string).collect(),
+            "--threads" => threads = value().parse().expect("--threads K"),
+            "--tol" => tol = value().parse().expect("--tol X"),
+            "--methods" => {
+                methods = value()
+                    .split(',')
+                    .map(|s| Method::from_name(s).expect("a method name"))
+                    .collect()
+            }
+            a => panic!("unknown argument {a}"),
+        }
+        k += 2;
+    }
+    println!(
+        "| scene | n | c | factor s | setup s (x) | method | law | solve s | increment / factor | err | outer | inner | peak MB |"
+    );
+    println!("|---|---|---|---|---|---|---|---|---|---|---|---|---|");
+    for name in &scenes {
+        let spec = Spec::parse(name).unwrap_or_else(|| panic!("bad scene {name}"));
+        let sc = Scene::build(spec);
+        let t0 = Instant::now();
+        let pool = Arc::new(Threads::new(threads));
+        drop(Factor::with_last(&sc.k, &[], Ordering::Auto, pool).expect("K is SPD"));
+        let t_factor = t0.elapsed().as_secs_f64();
+        let base = Options {
+            dual_form: DualForm::MatrixFree,
+            threads,
+            tol,
+            ..Options::default()
+        };
+        for &method in &methods {
+            for law in ["tresca", "coulomb"] {
+                let friction = if law == "tresca" {
+                    Friction::Tresca(&sc.p)
+                } else {
+                    Friction::Coulomb(&sc.mu)
+                };
+                let t1 = Instant::now();
+                let mut pb = ContactProblem::from_csc_with(
+                    sc.d,
+                    sc.k.clone(),
+                    sc.n.clone(),
+                    sc.t.clone(),
+                    &base,
+                )
+                .expect("the scene is valid");
+                let t_setup = t1.elapsed().as_secs_f64();
+                let opts = Options { method, ..base };
+                let sol = pb.solve(&sc.f, &sc.g, friction, &opts).expect("solves");
+                let r = &sol.report;
+                let total = t_setup + r.solve_seconds;
+                println!(
+                    "| {name} | {} | {} | {t_factor:.2} | {t_setup:.2} ({:.2}) | {} | {law} | {:.2} | {:.2} | {:.1e} | {} | {} | {:.0} |",
+                    sc.k.nrows,
+                    sc.d * sc.g.len(),
+                    t_setup / t_factor,
+                    r.method.name(),
+                    r.solve_seconds,
+                    total / t_factor,
+                    r.err,
+                    r.outer_iterations,
+                    r.inner_iterations,
+                    r.memory_peak as f64 / 1e6,
+                );
+            }
+        }
+    }
+}
