@@ -219,9 +219,9 @@ typedef enum DsMethod {
   /*
    The library's choice: semismooth Newton on a dense dual (falling back to
    DS_METHOD_SPLIT_MPRGP from Newton's best iterate when Newton stalls or
-   reaches max_outer), MPRGP on a matrix-free one. DsReport.method names the
-   method that gave the answer; the handle's log (level 1) says why. Added in
-   version 0.5.
+   reaches max_outer); on a matrix-free one Newton with Krylov steps, then
+   MPRGP. DsReport.method names the method that gave the answer; the handle's
+   log (level 1) says why. Added in version 0.5; the default from 0.6.
    */
   DS_METHOD_AUTO = 6,
 } DsMethod;
@@ -233,7 +233,8 @@ typedef enum DsMethod {
 typedef enum DsDualForm {
   /*
    Dense A while d m <= 8000 dual unknowns, matrix-free beyond; a method that
-   reads entries of A (all but DS_METHOD_MPRGP) assembles A when it needs it.
+   reads entries of A (all but DS_METHOD_AUTO, DS_METHOD_NEWTON and
+   DS_METHOD_MPRGP) assembles A when it needs it.
    The default.
    */
   DS_DUAL_FORM_AUTO = 0,
@@ -243,9 +244,10 @@ typedef enum DsDualForm {
    */
   DS_DUAL_FORM_DENSE = 1,
   /*
-   Never form A: each product is two dense triangular solves with the trailing
-   block of K's factor (the contact DOFs ordered last); only DS_METHOD_MPRGP
-   runs this way (the others: DS_STATUS_BAD_ARGUMENT).
+   Never form A nor anything c x c: each product is one solve with K's factor
+   (a handle created with it factors K in the best plain ordering);
+   DS_METHOD_AUTO, DS_METHOD_NEWTON (Krylov steps) and DS_METHOD_MPRGP run
+   this way (the others: DS_STATUS_BAD_ARGUMENT).
    */
   DS_DUAL_FORM_MATRIX_FREE = 2,
 } DsDualForm;

@@ -5,16 +5,19 @@ pub use crate::methods::Method;
 /// How the products with the condensed dual operator A = B K^-1 B^T are formed.
 #[derive(Copy, Clone, Debug, PartialEq, Eq)]
 pub enum DualForm {
-    /// Dense A while c = d m <= [`DENSE_MAX`], matrix-free beyond; a method that
-    /// needs the entries of A (every method but `Mprgp`) assembles it when needed.
+    /// Dense A while c = d m <= [`DENSE_MAX`] (and it fits `max_memory`),
+    /// matrix-free beyond; a method that needs the entries of A (every method but
+    /// `Newton`, `Mprgp` and `Auto`) assembles it when needed.
     Auto,
     /// Assemble the dense c x c matrix A (c^2 doubles; `OutOfMemory` if it does not
     /// fit).
     Dense,
-    /// Never form A: each product A x is two dense triangular solves with the
-    /// trailing block L_CC of K's factor (the contact DOFs ordered last), about the
-    /// cost of a dense product, without A's memory or the O(c^3) work to form it.
-    /// Only `Mprgp` runs matrix-free (the others read entries of A).
+    /// Never form A, nor anything c x c: each product A x is one solve with K's
+    /// factor. A problem created with it factors K in the best plain ordering
+    /// (no contact DOFs last); the contacts' d x d diagonal blocks of A (for rho
+    /// and Newton's preconditioner) are computed once from the factor by sparse
+    /// forward solves. `Newton` (its steps by preconditioned CG / GMRES),
+    /// `Mprgp` and `Auto` run matrix-free; the others read entries of A.
     MatrixFree,
 }
 

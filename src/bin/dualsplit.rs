@@ -70,7 +70,7 @@ OPTIONS:
     --stall-factor X  in (0, 1] (default {STALL_FACTOR})
     --dual-form F     auto (default), dense or matrix-free: whether the condensed dual
                       A is assembled (dense while d m <= 8000) or applied through K's
-                      factor; matrix-free runs only with --method mprgp
+                      factor; matrix-free runs with --method auto, newton or mprgp
     --ordering O      auto (default), amd or metis: the fill-reducing ordering of K
                       (auto keeps whichever needs fewer flops)
     --threads N       threads for the factorisation and the dense kernels: 0 for all

@@ -71,9 +71,9 @@ pub enum DsMethod {
     Mprgp = 5,
     /// The library's choice: semismooth Newton on a dense dual (falling back to
     /// DS_METHOD_SPLIT_MPRGP from Newton's best iterate when Newton stalls or
-    /// reaches max_outer), MPRGP on a matrix-free one. DsReport.method names the
-    /// method that gave the answer; the handle's log (level 1) says why. Added in
-    /// version 0.5.
+    /// reaches max_outer); on a matrix-free one Newton with Krylov steps, then
+    /// MPRGP. DsReport.method names the method that gave the answer; the handle's
+    /// log (level 1) says why. Added in version 0.5; the default from 0.6.
     Auto = 6,
 }
 
@@ -83,15 +83,17 @@ pub enum DsMethod {
 #[derive(Copy, Clone, Debug, PartialEq, Eq)]
 pub enum DsDualForm {
     /// Dense A while d m <= 8000 dual unknowns, matrix-free beyond; a method that
-    /// reads entries of A (all but DS_METHOD_MPRGP) assembles A when it needs it.
+    /// reads entries of A (all but DS_METHOD_AUTO, DS_METHOD_NEWTON and
+    /// DS_METHOD_MPRGP) assembles A when it needs it.
     /// The default.
     Auto = 0,
     /// Assemble the dense (d m) x (d m) matrix A (DS_STATUS_OUT_OF_MEMORY if it does
     /// not fit).
     Dense = 1,
-    /// Never form A: each product is two dense triangular solves with the trailing
-    /// block of K's factor (the contact DOFs ordered last); only DS_METHOD_MPRGP
-    /// runs this way (the others: DS_STATUS_BAD_ARGUMENT).
+    /// Never form A nor anything c x c: each product is one solve with K's factor
+    /// (a handle created with it factors K in the best plain ordering);
+    /// DS_METHOD_AUTO, DS_METHOD_NEWTON (Krylov steps) and DS_METHOD_MPRGP run
+    /// this way (the others: DS_STATUS_BAD_ARGUMENT).
     MatrixFree = 2,
 }
 

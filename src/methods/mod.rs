@@ -165,7 +165,9 @@ methods! {
     /// sweeps first (counted as inner iterations); a step (or half, a quarter, an
     /// eighth of it) is kept when it lowers the natural residual |F|, otherwise
     /// Gauss-Seidel sweeps follow. One outer iteration is one Newton step (a dense
-    /// LU on the free unknowns).
+    /// Cholesky / LU on the free unknowns; on a matrix-free dual, preconditioned CG
+    /// or GMRES on products with A, without the sweeps, falling back to projection
+    /// steps).
     Newton => newton::NEWTON,
     /// Pop's splitting (Schur variant) with MPRGP / MPGP for the sub-problems instead
     /// of projected Gauss-Seidel.
@@ -173,10 +175,10 @@ methods! {
     /// MPRGP / MPGP (Dostal) on the whole dual; for Coulomb, the fixed point
     /// p = mu lambda_N outside (one outer iteration per Tresca solve).
     Mprgp => whole::MPRGP,
-    /// The library's choice for the problem at hand (see `methods/auto.rs`):
-    /// `Newton` on a dense dual, falling back to `SplitMprgp` from Newton's best
-    /// iterate when Newton stalls or reaches its iteration limit; `Mprgp` on a
-    /// matrix-free dual. `Report::method` names the method that gave the
+    /// The library's choice for the problem at hand (see `methods/auto.rs`), and
+    /// the default: `Newton` on a dense dual, falling back to `SplitMprgp` from
+    /// Newton's best iterate when Newton stalls or reaches its iteration limit;
+    /// on a matrix-free dual `Newton` (Krylov steps), then `Mprgp`. `Report::method` names the method that gave the
     /// answer and `Report::choice` says why.
     Auto => auto::AUTO,
 }
@@ -188,8 +190,8 @@ impl Method {
         self.spec().name
     }
 
-    /// True when the method reads entries of A (and so needs it assembled); only
-    /// `Mprgp` runs on products alone.
+    /// True when the method reads entries of A (and so needs it assembled);
+    /// `Newton`, `Mprgp` and `Auto` run on products alone.
     pub fn needs_entries(self) -> bool {
         self.spec().needs_entries
     }
