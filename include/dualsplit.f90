@@ -120,7 +120,7 @@ module dualsplit
    !> c_sizeof of this type to ds_options_init), then change fields.
    type, bind(C), public :: DsOptions
       integer(c_int32_t) :: struct_size   !< uint32_t in C: sizeof(DsOptions), set by ds_options_init
-      integer(c_int32_t) :: method        !< a DS_METHOD_* value (default DS_METHOD_SPLIT)
+      integer(c_int32_t) :: method        !< a DS_METHOD_* value (default DS_METHOD_AUTO from 0.6)
       real(c_double)     :: tol           !< stop when err <= tol (default 1e-10)
       integer(c_int64_t) :: max_outer     !< outer iterations, >= 0 (default 10000)
       integer(c_int64_t) :: max_inner     !< Gauss-Seidel sweeps per sub-problem, >= 1 (default 1000)
