@@ -19,6 +19,8 @@ struct Counting;
 
 static LIVE: AtomicUsize = AtomicUsize::new(0);
 static PEAK: AtomicUsize = AtomicUsize::new(0);
+/// The largest single allocation (bytes) since it was last reset.
+static LARGEST: AtomicUsize = AtomicUsize::new(0);
 
 // SAFETY: every call is forwarded to the system allocator unchanged; the
 // counters have no effect on the memory handed out.
@@ -27,6 +29,7 @@ unsafe impl GlobalAlloc for Counting {
         // SAFETY: forwarded with the caller's layout (GlobalAlloc contract).
         let p = unsafe { System.alloc(layout) };
         if !p.is_null() {
+            LARGEST.fetch_max(layout.size(), Ordering::Relaxed);
             let live = LIVE.fetch_add(layout.size(), Ordering::Relaxed) + layout.size();
             PEAK.fetch_max(live, Ordering::Relaxed);
         }
@@ -43,6 +46,7 @@ unsafe impl GlobalAlloc for Counting {
         // SAFETY: forwarded with the caller's layout (GlobalAlloc contract).
         let p = unsafe { System.alloc_zeroed(layout) };
         if !p.is_null() {
+            LARGEST.fetch_max(layout.size(), Ordering::Relaxed);
             let live = LIVE.fetch_add(layout.size(), Ordering::Relaxed) + layout.size();
             PEAK.fetch_max(live, Ordering::Relaxed);
         }
@@ -53,6 +57,7 @@ unsafe impl GlobalAlloc for Counting {
         // SAFETY: forwarded unchanged (GlobalAlloc contract).
         let p = unsafe { System.realloc(ptr, layout, new_size) };
         if !p.is_null() {
+            LARGEST.fetch_max(new_size, Ordering::Relaxed);
             LIVE.fetch_sub(layout.size(), Ordering::Relaxed);
             let live = LIVE.fetch_add(new_size, Ordering::Relaxed) + new_size;
             PEAK.fetch_max(live, Ordering::Relaxed);
@@ -492,4 +497,49 @@ fn refactor_and_new_contacts_respect_the_handles_max_memory() {
         ds_problem_free(tight);
         ds_problem_free(roomy);
     }
+}
+
+/// The matrix-free path (issue 17) allocates no c x c array: on a slab whose
+/// every bottom node is a contact (c = 1,875 = n, so that even a dense factor of K
+/// stays below c^2 doubles), no single allocation of the creation and a Coulomb
+/// solve by the default method reaches c^2 doubles; the dense route on the same
+/// scene does (A), which shows the count can see one.
+#[test]
+fn the_matrix_free_path_allocates_nothing_c_by_c() {
+    let _serial = SERIAL.lock().unwrap_or_else(|e| e.into_inner());
+    let sc = Scene::pressed_block(
+        Mesh::grid3d(24, 24, 1, 2.0, 2.0, 0.2),
+        &[0.002, 0.001, -0.01],
+        0.01,
+        &[1.0, 1.0],
+    );
+    let c = sc.d * sc.m();
+    let c2 = c * c * std::mem::size_of::<f64>();
+    assert_eq!(c, sc.k.nrows);
+    let mu = vec![0.3; sc.m()];
+    warm_up();
+    let run = |form: DualForm| {
+        let o = Options {
+            dual_form: form,
+            ..one_thread()
+        };
+        LARGEST.store(0, Ordering::Relaxed);
+        let (k, n, t) = (sc.k.clone(), sc.n.clone(), sc.t.clone());
+        let mut pb = ContactProblem::from_csc_with(sc.d, k, n, t, &o).unwrap();
+        let sol = pb.solve(&sc.f, &sc.g, Friction::Coulomb(&mu), &o).unwrap();
+        common::assert_converged(form.name(), &sol);
+        (LARGEST.load(Ordering::Relaxed), sol.report.method)
+    };
+    let (free, method) = run(DualForm::MatrixFree);
+    assert_eq!(method, Method::Newton);
+    println!("largest allocation: matrix-free {free} bytes, c^2 doubles = {c2}");
+    assert!(
+        free < c2,
+        "matrix-free: an allocation of {free} >= {c2} bytes"
+    );
+    let (dense, _) = run(DualForm::Dense);
+    assert!(
+        dense >= c2,
+        "dense: largest allocation {dense} < {c2} bytes"
+    );
 }
