@@ -86,6 +86,10 @@ program minimal_f
    if (st /= DS_STATUS_OK) stop 2
 
    call ds_options_default(opts)
+   ! Pop's splitting, whose every outer iteration reaches the monitor (the default,
+   ! DS_METHOD_AUTO, solves this one-contact problem by Newton within its warm-up
+   ! sweeps, before any outer iteration)
+   opts%method = DS_METHOD_SPLIT
    ! the analysis alone, and the handle's: c = 2 dual unknowns, memory predicted
    call ds_info_init(info)
    st = ds_analyse(2, k, n, t, opts, info)

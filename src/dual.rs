@@ -417,6 +417,11 @@ impl Operator {
 
     /// y := A x (leading blocks for shorter x and y, as [`Dual::apply`]).
     fn apply(&self, x: &[f64], y: &mut [f64]) {
+        if x.iter().all(|&v| v == 0.0) {
+            // No solve for a zero x (Newton's explicit part near convergence).
+            y.iter_mut().for_each(|v| *v = 0.0);
+            return;
+        }
         let mut work = self.work.borrow_mut();
         let (z, mem) = &mut *work;
         z.iter_mut().for_each(|v| *v = 0.0);

@@ -1,7 +1,7 @@
 //! The work-precision benchmark of dualsplit (issue 4).
 //!
 //! ```text
-//! cargo run --release --example bench -- [--quick | --big] [--scenes A,B,..]
+//! cargo run --release --example bench -- [--quick | --big | --slabs] [--scenes A,B,..]
 //!     [--out DIR] [--cap SECONDS] [--rep-below S] [--solves-cap S]
 //!     [--no-clarabel] [--no-free] [--clarabel-max-n N] [--clarabel-max-n-3d N]
 //!     [--clarabel-limit S] [--only ours|ours-dense|ours-free|clarabel]
@@ -32,9 +32,10 @@
 //!   - a history: the first step (cold) and a second, warm-started step with the
 //!     load raised by 5 %;
 //! - child `ours-free` (the matrix-free dual, `DualForm::MatrixFree`): the setup in
-//!   matrix-free form (`Factor::with_last` + `Dual::build(.., MatrixFree)`, or
-//!   `from_csc` where Auto is matrix-free anyway), its peak memory before anything
-//!   dense is formed, then `Method::Mprgp` matrix-free as the series `mprgp-free`
+//!   matrix-free form (`from_csc_with` with `DualForm::MatrixFree`: the best plain
+//!   factor of K and the contacts' diagonal blocks of A, nothing c x c), its peak
+//!   memory, then `Method::Newton`, `Method::Mprgp` and `Method::Auto`
+//!   matrix-free as the series `newton-free`, `mprgp-free`, `auto-free`
 //!   (tolerances and history as above);
 //! - child `clarabel`: Clarabel on the same Tresca problem.
 //!
@@ -53,11 +54,9 @@ mod report;
 mod row;
 mod scene;
 
-use dualsplit::internals::{Condensation, Dual, contact_dofs, stack_rows};
+use dualsplit::internals::{Condensation, Dual};
 use dualsplit::internals::{Factor, Threads};
-use dualsplit::{
-    ContactProblem, DENSE_MAX, DualForm, Friction, Method, Options, Ordering, SolveStatus,
-};
+use dualsplit::{ContactProblem, DualForm, Friction, Method, Options, Ordering, SolveStatus};
 use row::{Part, Row, median, peak_mb, reset_peak, rss_mb};
 use scene::{Scene, Spec};
 use std::io::Write as _;
@@ -89,6 +88,11 @@ const FULL: &[&str] = &[
 const BIG: &[&str] = &["2d-5000x100", "3d-50x50x25"];
 
 const QUICK: &[&str] = &["2d-100x50", "2d-200x25", "3d-10x10x5"];
+
+/// `--slabs` (issue 17): thin 3D slabs whose whole bottom face is a contact, c =
+/// 3,267, 12,675 and 41,067, and the 2D strip of `--big` (c = 10,002). Run them
+/// with `--only ours-free`: the dense dual of the largest does not fit 24 GB.
+const SLABS: &[&str] = &["3d-32x32x4", "3d-64x64x6", "3d-116x116x4", "2d-5000x100"];
 
 #[derive(Clone, Debug)]
 struct Config {
@@ -152,12 +156,14 @@ impl Config {
             child: None,
         };
         let mut big = false;
+        let mut slabs = false;
         let mut it = args.iter();
         while let Some(a) = it.next() {
             let mut val = || it.next().cloned().unwrap_or_else(|| usage(a));
             match a.as_str() {
                 "--quick" => {}
                 "--big" => big = true,
+                "--slabs" => slabs = true,
                 "--scenes" => c.scenes = val().split(',').map(String::from).collect(),
                 "--out" => c.out = PathBuf::from(val()),
                 "--cap" => c.cap = val().parse().unwrap_or_else(|_| usage(a)),
@@ -182,7 +188,13 @@ impl Config {
             }
         }
         if c.scenes.is_empty() {
-            let list = if quick { QUICK } else { FULL };
+            let list = if slabs {
+                SLABS
+            } else if quick {
+                QUICK
+            } else {
+                FULL
+            };
             c.scenes = list.iter().map(|s| s.to_string()).collect();
             if big {
                 c.scenes.extend(BIG.iter().map(|s| s.to_string()));
@@ -242,7 +254,7 @@ fn usage(bad: &str) -> ! {
         eprintln!("bench: bad argument {bad:?}");
     }
     eprintln!(
-        "usage: cargo run --release --example bench -- [--quick | --big] [--scenes 2d-200x25,3d-20x20x10,..]\n\
+        "usage: cargo run --release --example bench -- [--quick | --big | --slabs] [--scenes 2d-200x25,3d-20x20x10,..]\n\
          \x20   [--out DIR] [--cap S] [--rep-below S] [--solves-cap S] [--frictions tresca,coulomb]\n\
          \x20   [--no-clarabel] [--no-free] [--clarabel-max-n N] [--clarabel-max-n-3d N]\n\
          \x20   [--clarabel-limit S] [--only ours|ours-dense|ours-free|clarabel] [--append]\n\
@@ -448,6 +460,17 @@ fn friction_of<'a>(sc: &'a Scene, name: &str) -> Friction<'a> {
 }
 
 /// The contact problem of a scene with the run's thread count.
+/// The scene's contact problem created matrix-free (the plain factor of K).
+fn problem_free(cfg: &Config, sc: &Scene) -> ContactProblem {
+    let opts = Options {
+        threads: cfg.threads,
+        dual_form: DualForm::MatrixFree,
+        ..Options::default()
+    };
+    ContactProblem::from_csc_with(sc.d, sc.k.clone(), sc.n.clone(), sc.t.clone(), &opts)
+        .expect("valid scene")
+}
+
 fn problem(cfg: &Config, sc: &Scene) -> ContactProblem {
     let opts = Options {
         threads: cfg.threads,
@@ -675,84 +698,59 @@ fn child_ours(cfg: &Config, spec: Spec) -> Vec<Row> {
     rows
 }
 
-/// The matrix-free child: setup in matrix-free form, then MPRGP matrix-free.
+/// The matrix-free child: setup in matrix-free form, then Newton, MPRGP and
+/// auto matrix-free.
 fn child_free(cfg: &Config, spec: Spec) -> Vec<Row> {
     let mut rows = Vec::new();
     let sc = Scene::build(spec);
     let base = base_row(&sc);
-    let d = sc.d;
     rows.push(mem_row(&base, "free-assembly"));
     reset_peak();
     rows.push(Row {
         mem_mb: rss_mb(),
         ..mem_row(&base, "free-setup-start")
     });
-    // The setup in matrix-free form, without ever forming A: where Auto is
-    // matrix-free (c > DENSE_MAX) this is from_csc; below, from_csc would assemble
-    // A, so the factor (contact DOFs last) and the matrix-free dual are built here,
-    // timed and measured, then dropped, and the problem is made afterwards.
-    let direct = base.c > DENSE_MAX;
+    // The setup in matrix-free form, without ever forming A: the problem created
+    // with `DualForm::MatrixFree` (the best plain factor of K, the contacts'
+    // diagonal blocks of A).
     let (walls, (t_factor, t_build, pb)) = repeated(cfg.rep_below, || {
-        if direct {
-            let (pb, t) = time(|| problem(cfg, &sc));
-            assert!(pb.dual().is_matrix_free());
-            let (tf, tb) = (0.0, pb.dual().condense_seconds());
-            (t, (tf, tb, Some(pb)))
-        } else {
-            let ((fac, dual), t) = time(|| {
-                let last = contact_dofs(&stack_rows(&sc.n, &sc.t));
-                let fac = Factor::with_last(
-                    &sc.k,
-                    &last,
-                    Ordering::Auto,
-                    Arc::new(Threads::new(cfg.threads)),
-                )
-                .expect("K is SPD");
-                let dual = Dual::build(&fac, &sc.n, &sc.t, d, DualForm::MatrixFree).expect("fits");
-                (fac, dual)
-            });
-            assert!(dual.is_matrix_free());
-            (t, (fac.factor_seconds, dual.condense_seconds(), None))
-        }
+        let (pb, t) = time(|| problem_free(cfg, &sc));
+        assert!(pb.dual().is_matrix_free());
+        let tb = pb.dual().condense_seconds();
+        (t, (0.0, tb, pb))
     });
-    let how = if direct {
-        "from_csc (auto: matrix-free)"
-    } else {
-        "Factor::with_last + Dual::build(MatrixFree)"
-    };
+    let how = "from_csc_with (dual_form matrix-free: plain factor)";
     eprintln!(
-        "  setup matrix-free: {:.3} s (matrix-free build {t_build:.3} s) by {how}",
+        "  setup matrix-free: {:.3} s (contact blocks {t_build:.3} s) by {how}",
         median(&walls)
     );
     rows.push(time_row(&base, "setup_free", &walls, how.into()));
     rows.push(time_row(&base, "condense_free", &[t_build], String::new()));
     rows.push(mem_row(&base, "free-setup"));
-    let mut pb = match pb {
-        Some(pb) => pb,
-        None => {
-            // c <= DENSE_MAX: Auto assembles A here; the first matrix-free solve
-            // below replaces it by the matrix-free form (peak memory past the
-            // reading above is not the matrix-free setup's).
-            problem(cfg, &sc)
-        }
-    };
+    let mut pb = pb;
     let mut t_factor = t_factor;
     for fr_name in &cfg.frictions {
-        let (r, fs) = method_series(
-            cfg,
-            &sc,
-            &base,
-            &mut pb,
-            fr_name,
-            Method::Mprgp,
-            DualForm::MatrixFree,
-            "mprgp-free",
-        );
-        assert!(pb.dual().is_matrix_free());
-        if t_factor == 0.0 {
-            t_factor = fs;
+        for (method, label) in [
+            (Method::Newton, "newton-free"),
+            (Method::Mprgp, "mprgp-free"),
+            (Method::Auto, "auto-free"),
+        ] {
+            let (r, fs) = method_series(
+                cfg,
+                &sc,
+                &base,
+                &mut pb,
+                fr_name,
+                method,
+                DualForm::MatrixFree,
+                label,
+            );
+            assert!(pb.dual().is_matrix_free());
+            if t_factor == 0.0 {
+                t_factor = fs;
+            }
+            rows.extend(r);
         }
-        rows.extend(r);
     }
     rows.push(time_row(
         &base,

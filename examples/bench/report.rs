@@ -217,9 +217,10 @@ pub fn summary(rows: &[Row]) -> String {
          is not installed); `setup` = `ContactProblem::from_csc` (factor with the contact DOFs \
          last + condensed dual A from the trailing block; where `DualForm::Auto` leaves \
          it matrix-free, c > 8,000, plus the dense assembly of A that the dense methods \
-         need); `setup (m-free)` = the same factor + the matrix-free dual (no A); \
-         `total` = the method's setup + its solve; `mprgp-free` = MPRGP matrix-free \
-         (the other series run on the dense A).\n"
+         need); `setup (m-free)` = the problem created matrix-free (the best plain \
+         factor of K + the contacts' diagonal blocks of A, nothing c x c); `total` = the \
+         method's setup + its solve; `newton-free`, `mprgp-free`, `auto-free` = those \
+         methods matrix-free (the other series run on the dense A).\n"
     );
     // Scenes and setup costs.
     let _ = writeln!(s, "## Scenes and the cost of the setup\n");
@@ -440,11 +441,11 @@ pub fn summary(rows: &[Row]) -> String {
             Box::new(|sn: &str| time_of(rows, sn, "condense_trailing")),
         ),
         (
-            "setup, matrix-free (factor contacts last + matrix-free build)".into(),
+            "setup, matrix-free (plain factor + contact blocks of A)".into(),
             Box::new(|sn: &str| time_of(rows, sn, "setup_free")),
         ),
         (
-            "matrix-free build (L_CC, diagonal of A)".into(),
+            "matrix-free build (contact blocks of A)".into(),
             Box::new(|sn: &str| time_of(rows, sn, "condense_free")),
         ),
         (
@@ -503,7 +504,8 @@ pub fn summary(rows: &[Row]) -> String {
     s
 }
 
-/// Dense against matrix-free: setup, peak memory, MPRGP to 1e-10.
+/// Dense against matrix-free: setup, peak memory, Newton, MPRGP and auto to
+/// 1e-10.
 fn free_table(s: &mut String, rows: &[Row], sc: &[String], frs: &[String]) {
     let has_free = sc.iter().any(|n| time_of(rows, n, "setup_free").is_some());
     if !has_free {
@@ -518,18 +520,20 @@ fn free_table(s: &mut String, rows: &[Row], sc: &[String], frs: &[String]) {
          /proc/self/clear_refs), the scene (K, N, T, f) still resident, and in brackets \
          its rise over the resident memory at the start of the setup (the dense child \
          holds freed heap from the factorisation of K alone there); the matrix-free \
-         setup forms nothing c x c. MPRGP to err <= 1e-10 on the dense A \
-         (`mprgp`) and matrix-free (`mprgp-free`), solve only (outer iterations), then \
-         the totals with each form's setup.\n"
+         setup forms nothing c x c. Newton to err <= 1e-10 on the dense A \
+         (`newton`) and matrix-free (`newton-free`, its steps by CG / GMRES), MPRGP and \
+         auto matrix-free, solve only (outer iterations), then the totals with each \
+         form's setup.\n"
     );
     let mut head = "| scene | c | setup | of which dense condensation | setup (m-free) | of which m-free build | peak MB setup (dense) | peak MB setup (m-free) |".to_string();
     let mut sep = "|---|---|---|---|---|---|---|---|".to_string();
     for fr in frs {
         let _ = write!(
             head,
-            " {fr}: mprgp | {fr}: mprgp-free | {fr}: total dense / m-free |"
+            " {fr}: newton | {fr}: newton-free | {fr}: mprgp-free | {fr}: auto-free | \
+             {fr}: total newton / newton-free / auto-free |"
         );
-        sep.push_str("---|---|---|");
+        sep.push_str("---|---|---|---|---|");
     }
     let _ = writeln!(s, "{head}\n{sep}");
     // Peak of the setup stage, and its rise over the resident memory at its start.
@@ -569,11 +573,14 @@ fn free_table(s: &mut String, rows: &[Row], sc: &[String], frs: &[String]) {
             };
             let _ = write!(
                 line,
-                " {} | {} | {} / {} |",
-                cell("mprgp"),
+                " {} | {} | {} | {} | {} / {} / {} |",
+                cell("newton"),
+                cell("newton-free"),
                 cell("mprgp-free"),
-                f3(tot("mprgp")),
-                f3(tot("mprgp-free"))
+                cell("auto-free"),
+                f3(tot("newton")),
+                f3(tot("newton-free")),
+                f3(tot("auto-free"))
             );
         }
         let _ = writeln!(s, "{line}");
