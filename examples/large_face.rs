@@ -44,9 +44,9 @@ fn main() {
         k += 2;
     }
     println!(
-        "| scene | n | c | factor s | setup s (x) | method | law | solve s | increment / factor | err | outer | inner | peak MB |"
+        "| scene | n | c | factor s | setup s (x) | of which contact blocks s | method | law | solve s | increment / factor | err | outer | inner | peak MB |"
     );
-    println!("|---|---|---|---|---|---|---|---|---|---|---|---|---|");
+    println!("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|");
     for name in &scenes {
         let spec = Spec::parse(name).unwrap_or_else(|| panic!("bad scene {name}"));
         let sc = Scene::build(spec);
@@ -82,10 +82,11 @@ fn main() {
                 let r = &sol.report;
                 let total = t_setup + r.solve_seconds;
                 println!(
-                    "| {name} | {} | {} | {t_factor:.2} | {t_setup:.2} ({:.2}) | {} | {law} | {:.2} | {:.2} | {:.1e} | {} | {} | {:.0} |",
+                    "| {name} | {} | {} | {t_factor:.2} | {t_setup:.2} ({:.2}) | {:.2} | {} | {law} | {:.2} | {:.2} | {:.1e} | {} | {} | {:.0} |",
                     sc.k.nrows,
                     sc.d * sc.g.len(),
                     t_setup / t_factor,
+                    pb.dual().condense_seconds(),
                     r.method.name(),
                     r.solve_seconds,
                     total / t_factor,

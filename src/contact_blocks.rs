@@ -22,7 +22,7 @@ use faer::{Accum, Mat, MatMut, Par};
 use rayon::prelude::*;
 
 /// Contacts solved together (d right-hand sides each).
-const GROUP: usize = 16;
+const GROUP: usize = 32;
 
 /// The most columns of one group's block (d <= 3), for memory predictions.
 pub(crate) const WORK_COLUMNS: usize = 3 * GROUP;
@@ -71,7 +71,13 @@ impl Tree {
 struct Scratch {
     mark: Vec<usize>,
     offset: Vec<usize>,
+    /// Per supernode of the group's union, the first and last of the group's
+    /// columns whose path passes through it (the others are zero there).
+    lo: Vec<usize>,
+    hi: Vec<usize>,
     list: Vec<usize>,
+    /// The local rows the pattern of the current supernode updates.
+    dest: Vec<usize>,
     buf: Vec<f64>,
 }
 
@@ -80,7 +86,10 @@ impl Scratch {
         Scratch {
             mark: vec![usize::MAX; ns],
             offset: vec![0; ns],
+            lo: vec![0; ns],
+            hi: vec![0; ns],
             list: Vec::new(),
+            dest: Vec::new(),
             buf: Vec::new(),
         }
     }
@@ -150,14 +159,24 @@ fn group_blocks(
             .flat_map(move |&(_, i)| rows_of(i, m, d))
             .enumerate()
     };
-    // The union of the paths to the root, in elimination order.
+    // The union of the paths to the root, in elimination order, and per
+    // supernode the range of columns that reach it (columns come in increasing
+    // order: a visited supernode only extends its range, up to the root, until
+    // one already extended by this column).
     ws.list.clear();
-    for (_, r) in cols() {
+    for (t, r) in cols() {
         for &dof in &bt.row_idx[bt.col_ptr[r]..bt.col_ptr[r + 1]] {
             let mut s = tree.of_col[new_of[dof]];
-            while s != usize::MAX && ws.mark[s] != stamp {
-                ws.mark[s] = stamp;
-                ws.list.push(s);
+            while s != usize::MAX {
+                if ws.mark[s] != stamp {
+                    ws.mark[s] = stamp;
+                    ws.list.push(s);
+                    (ws.lo[s], ws.hi[s]) = (t, t);
+                } else if ws.hi[s] == t {
+                    break;
+                } else {
+                    ws.hi[s] = t;
+                }
                 s = tree.parent[s];
             }
         }
@@ -186,31 +205,42 @@ fn group_blocks(
         let w = val.ncols();
         let pattern = node.pattern();
         let off = ws.offset[s];
+        let (t0, kk) = (ws.lo[s], ws.hi[s] - ws.lo[s] + 1);
         solve_lower_triangular_in_place(
             val.submatrix(0, 0, w, w),
-            y.as_mut().submatrix_mut(off, 0, w, k),
+            y.as_mut().submatrix_mut(off, t0, w, kk),
             Par::Seq,
         );
         let below = pattern.len();
         if below == 0 {
             continue;
         }
-        if ws.buf.len() < below * k {
-            ws.buf.resize(below * k, 0.0);
+        if ws.buf.len() < below * kk {
+            ws.buf.resize(below * kk, 0.0);
         }
-        let mut tmp = MatMut::from_column_major_slice_mut(&mut ws.buf[..below * k], below, k);
+        let mut tmp = MatMut::from_column_major_slice_mut(&mut ws.buf[..below * kk], below, kk);
         matmul(
             tmp.as_mut(),
             Accum::Replace,
             val.submatrix(w, 0, below, w),
-            y.as_ref().submatrix(off, 0, w, k),
+            y.as_ref().submatrix(off, t0, w, kk),
             1.0,
             Par::Seq,
         );
-        for t in 0..k {
-            for (q, &row) in pattern.iter().enumerate() {
-                let s2 = tree.of_col[row];
-                y[(ws.offset[s2] + row - tree.begin[s2], t)] -= tmp[(q, t)];
+        ws.dest.clear();
+        ws.dest.extend(pattern.iter().map(|&row| {
+            let s2 = tree.of_col[row];
+            ws.offset[s2] + row - tree.begin[s2]
+        }));
+        for t in 0..kk {
+            let ycol = y
+                .col_mut(t0 + t)
+                .try_as_col_major_mut()
+                .expect("contiguous")
+                .as_slice_mut();
+            let tcol = &ws.buf[t * below..(t + 1) * below];
+            for (&at, &v) in ws.dest.iter().zip(tcol) {
+                ycol[at] -= v;
             }
         }
     }
