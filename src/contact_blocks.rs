@@ -24,9 +24,6 @@ use rayon::prelude::*;
 /// Contacts solved together (d right-hand sides each).
 const GROUP: usize = 32;
 
-/// The most columns of one group's block (d <= 3), for memory predictions.
-pub(crate) const WORK_COLUMNS: usize = 3 * GROUP;
-
 /// The rows of B that belong to contact i of m (d rows: i, then the d-1 tangent
 /// rows m + (d-1) i ..).
 fn rows_of(i: usize, m: usize, d: usize) -> impl Iterator<Item = usize> {
@@ -39,6 +36,7 @@ struct Tree {
     of_col: Vec<usize>,
     parent: Vec<usize>,
     begin: Vec<usize>,
+    width: Vec<usize>,
 }
 
 impl Tree {
@@ -62,6 +60,7 @@ impl Tree {
             of_col,
             parent,
             begin: begin[..ns].to_vec(),
+            width: (0..ns).map(|s| end[s] - begin[s]).collect(),
         }
     }
 }
@@ -104,15 +103,7 @@ pub(crate) fn contact_blocks(factor: &Factor, b: &Csc, m: usize, d: usize) -> Ve
     let tree = Tree::of(factor);
     let new_of = factor.new_of_old();
     let ns = tree.parent.len();
-    // Contacts sorted by their first (deepest) supernode.
-    let first = |i: usize| {
-        rows_of(i, m, d)
-            .flat_map(|r| &bt.row_idx[bt.col_ptr[r]..bt.col_ptr[r + 1]])
-            .map(|&dof| tree.of_col[new_of[dof]])
-            .min()
-    };
-    let mut order: Vec<(usize, usize)> = (0..m).filter_map(|i| first(i).map(|s| (s, i))).collect();
-    order.sort_unstable();
+    let order = ordered(&tree, &new_of, &bt, m, d);
     let groups: Vec<&[(usize, usize)]> = order.chunks(GROUP).collect();
     let solve_group = |group: &[(usize, usize)], ws: &mut Scratch| {
         group_blocks(factor, &tree, &new_of, &bt, m, d, group, ws)
@@ -137,6 +128,56 @@ pub(crate) fn contact_blocks(factor: &Factor, b: &Csc, m: usize, d: usize) -> Ve
         }
     }
     blocks
+}
+
+/// The contacts with entries in B (`bt` = B^T), as (first supernode, contact)
+/// pairs sorted by their first (deepest) supernode: the order they are solved in.
+fn ordered(tree: &Tree, new_of: &[usize], bt: &Csc, m: usize, d: usize) -> Vec<(usize, usize)> {
+    let first = |i: usize| {
+        rows_of(i, m, d)
+            .flat_map(|r| &bt.row_idx[bt.col_ptr[r]..bt.col_ptr[r + 1]])
+            .map(|&dof| tree.of_col[new_of[dof]])
+            .min()
+    };
+    let mut order: Vec<(usize, usize)> = (0..m).filter_map(|i| first(i).map(|s| (s, i))).collect();
+    order.sort_unstable();
+    order
+}
+
+/// The bytes [`contact_blocks`] works in per thread, from the symbolic factor
+/// alone (known before the numeric factorisation): the largest group's dense
+/// block (the rows of the union of its paths, times its columns), the largest
+/// product buffer (rows below a supernode of a group's union, times the
+/// group's columns), and the per-supernode marks.
+pub(crate) fn work_bytes(factor: &Factor, b: &Csc, m: usize, d: usize) -> usize {
+    let bt = b.transpose();
+    let tree = Tree::of(factor);
+    let new_of = factor.new_of_old();
+    let ns = tree.parent.len();
+    let sym = factor.supernodal_symbolic();
+    let order = ordered(&tree, &new_of, &bt, m, d);
+    let mut mark = vec![usize::MAX; ns];
+    let (mut block, mut buf) = (0, 0);
+    for (g, group) in order.chunks(GROUP).enumerate() {
+        let (mut rows, mut below) = (0, 0);
+        for &(_, i) in group {
+            for r in rows_of(i, m, d) {
+                for &dof in &bt.row_idx[bt.col_ptr[r]..bt.col_ptr[r + 1]] {
+                    let mut s = tree.of_col[new_of[dof]];
+                    while s != usize::MAX && mark[s] != g {
+                        mark[s] = g;
+                        rows += tree.width[s];
+                        below = below.max(sym.supernode(s).pattern().len());
+                        s = tree.parent[s];
+                    }
+                }
+            }
+        }
+        let k = group.len() * d;
+        block = block.max(rows * k);
+        buf = buf.max(below * k);
+    }
+    (block + buf) * std::mem::size_of::<f64>() + 4 * ns * std::mem::size_of::<usize>()
 }
 
 /// The blocks of one group of contacts ((first supernode, contact) pairs), in

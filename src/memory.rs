@@ -110,6 +110,9 @@ pub(crate) struct Sizes {
     pub solve_scratch: usize,
     /// The problem's threads.
     pub threads: usize,
+    /// Bytes one thread works in while the matrix-free dual's contact blocks
+    /// are formed (`contact_blocks::work_bytes`).
+    pub blocks_work: usize,
 }
 
 /// Predicted bytes, what the counted allocations will reach.
@@ -134,14 +137,11 @@ impl Sizes {
             ),
             // The contacts' diagonal blocks (d c doubles at most) and, while
             // they are formed, a block of their sparse forward solves per thread
-            // (at most 3 GROUP columns of n rows); then one product's n-vector
-            // and solve workspace.
+            // (`blocks_work`); then one product's n-vector and solve workspace,
+            // and L's values in single precision (the rough products).
             Condensation::MatrixFree => {
-                let held = 3 * self.c * F64 + self.n * F64 + self.solve_scratch;
-                (
-                    held + self.threads * crate::contact_blocks::WORK_COLUMNS * self.n * F64,
-                    held,
-                )
+                let held = 3 * self.c * F64 + self.n * F64 + self.solve_scratch + self.factor / 2;
+                (held + self.threads * self.blocks_work, held)
             }
         }
     }

@@ -286,6 +286,7 @@ impl ContactProblem {
             factor_scratch: factor.factor_scratch_bytes(),
             solve_scratch: factor.solve_scratch(BLOCK).size_bytes(),
             threads: factor.threads().count(),
+            blocks_work: crate::contact_blocks::work_bytes(factor, &stack_rows(n, t), n.nrows, d),
         }
     }
 
@@ -421,6 +422,12 @@ impl ContactProblem {
         check_shapes(self.factor.n(), self.d, &n, &t)?;
         let next = Sizes {
             c: self.d * n.nrows,
+            blocks_work: crate::contact_blocks::work_bytes(
+                &self.factor,
+                &stack_rows(&n, &t),
+                n.nrows,
+                self.d,
+            ),
             ..self.sizes
         };
         let how = Condensation::of(
@@ -443,6 +450,7 @@ impl ContactProblem {
             self.lam_hist = vec![0.0; dual.c];
         }
         self.sizes.c = dual.c;
+        self.sizes.blocks_work = next.blocks_work;
         self.sizes.inputs = self.k.bytes() + n.bytes() + t.bytes();
         self.inputs.resize(self.sizes.inputs);
         self.dual = dual;

@@ -71,6 +71,13 @@ const BACKTRACKS: usize = 4;
 /// Most products with A in one reduced solve on a matrix-free dual.
 const KRYLOV_MAX_IT: usize = 500;
 
+/// Reduced solves on a matrix-free dual whose forcing term is at least this use
+/// products with the factor in single precision (half the memory traffic of a
+/// solve): their error, about 1e-7 times the factor's conditioning, stays well
+/// below the residual such a solve asks for. The step is still checked by the
+/// exact gradient (the backtracking), so a rough step can only cost a step.
+const ROUGH_ETA: f64 = 1e-4;
+
 /// Sufficient decrease for keeping a Newton step: |F(lam + d)| <= (1 - ARMIJO) |F(lam)|.
 const ARMIJO: f64 = 1e-4;
 
@@ -304,6 +311,9 @@ pub(super) struct Krylov {
     pub max_it: usize,
     /// Products used so far (inner iterations).
     pub its: usize,
+    /// Whether the reduced solve must use exact products whatever its forcing
+    /// term (see ROUGH_ETA).
+    pub exact: bool,
     v: Vec<f64>,
     av: Vec<f64>,
 }
@@ -314,6 +324,7 @@ impl Krylov {
             eta: 0.1,
             max_it: KRYLOV_MAX_IT,
             its: 0,
+            exact: false,
             v: vec![0.0; c],
             av: vec![0.0; c],
         }
@@ -379,6 +390,9 @@ fn krylov_step(
         .iter()
         .all(|u| u.n_test == u.n_dir && u.test[..u.n_test] == u.dir[..u.n_dir]);
     let (v, av) = (&mut krylov.v, &mut krylov.av);
+    // A loose inner solve tolerates products in single precision (see
+    // ROUGH_ETA); a tight one needs them exact.
+    let rough = !krylov.exact && krylov.eta >= ROUGH_ETA;
     let mut op = |x: &[f64], y: &mut [f64]| {
         v.iter_mut().for_each(|e| *e = 0.0);
         for (u, &xl) in red.iter().zip(x) {
@@ -386,7 +400,11 @@ fn krylov_step(
                 v[j] += c * xl;
             }
         }
-        dual.apply(v, av);
+        if rough {
+            dual.apply_rough(v, av);
+        } else {
+            dual.apply(v, av);
+        }
         for ((u, &xl), yl) in red.iter().zip(x).zip(y.iter_mut()) {
             *yl = u.diag * xl
                 + u.test[..u.n_test]
@@ -617,19 +635,33 @@ impl OuterStep for Newton {
         };
         let (step, trial, wt) = (&mut self.step, &mut self.trial, &mut self.wt);
         self.krylov.eta = forcing(self.res, self.res0, self.target, norm(lam));
-        let before = self.krylov.its;
-        let solved = newton_step(
-            problem,
-            lam,
-            w,
-            step,
-            &mut self.f,
-            &mut self.ae0,
-            cscale,
-            &mut self.krylov,
-        );
-        *inner += self.krylov.its - before;
-        if solved {
+        // On a matrix-free dual a step that the backtracking rejects is solved
+        // again, with exact products (on an ill-conditioned K the single-
+        // precision ones can be too rough) and a forcing term a thousand times
+        // tighter (an inexact direction need not lower |F|), before any fallback.
+        for exact in [false, true] {
+            self.krylov.exact = exact;
+            if exact {
+                if !problem.dual.is_matrix_free() {
+                    break;
+                }
+                self.krylov.eta = (1e-3 * self.krylov.eta).max(1e-14);
+            }
+            let before = self.krylov.its;
+            let solved = newton_step(
+                problem,
+                lam,
+                w,
+                step,
+                &mut self.f,
+                &mut self.ae0,
+                cscale,
+                &mut self.krylov,
+            );
+            *inner += self.krylov.its - before;
+            if !solved {
+                continue;
+            }
             // Backtracking: the full step, then halves of it.
             let mut t = 1.0;
             for _ in 0..BACKTRACKS {
