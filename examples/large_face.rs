@@ -7,8 +7,11 @@
 //!
 //! ```text
 //! cargo run --release --example large_face -- [--scenes A,B,..] [--threads K]
-//!     [--tol X] [--methods newton,mprgp,auto]
+//!     [--tol X] [--methods newton,mprgp,auto] [--form matrix-free|dense|auto]
 //! ```
+//!
+//! `--form dense` (or `auto`) creates the problem in that form instead, for the
+//! comparison with the dense route (the factor with the contact DOFs last and A).
 
 #[path = "bench/scene.rs"]
 #[allow(dead_code)]
@@ -25,6 +28,7 @@ fn main() {
     let mut threads = 1;
     let mut tol = 1e-10;
     let mut methods = vec![Method::Newton];
+    let mut form = DualForm::MatrixFree;
     let args: Vec<String> = std::env::args().skip(1).collect();
     let mut k = 0;
     while k < args.len() {
@@ -33,6 +37,7 @@ fn main() {
             "--scenes" => scenes = value().split(',').map(str::to_string).collect(),
             "--threads" => threads = value().parse().expect("--threads K"),
             "--tol" => tol = value().parse().expect("--tol X"),
+            "--form" => form = DualForm::from_name(&value()).expect("a dual form"),
             "--methods" => {
                 methods = value()
                     .split(',')
@@ -44,7 +49,7 @@ fn main() {
         k += 2;
     }
     println!(
-        "| scene | n | c | factor s | setup s (x) | of which contact blocks s | method | law | solve s | increment / factor | err | outer | inner | peak MB |"
+        "| scene | n | c | factor s | setup s (x) | of which the dual s | method | law | solve s | increment / factor | err | outer | inner | peak MB |"
     );
     println!("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|");
     for name in &scenes {
@@ -55,7 +60,7 @@ fn main() {
         drop(Factor::with_last(&sc.k, &[], Ordering::Auto, pool).expect("K is SPD"));
         let t_factor = t0.elapsed().as_secs_f64();
         let base = Options {
-            dual_form: DualForm::MatrixFree,
+            dual_form: form,
             threads,
             tol,
             ..Options::default()

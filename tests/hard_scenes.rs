@@ -675,11 +675,11 @@ fn slender_body_aspect_100() {
     assert_agree("slender beam", &strong, 1e-6);
 }
 
-/// The matrix-free dual on the slender beam, cond(K) about 1e10: Newton there
-/// (its inner solves partly with single-precision products, no Gauss-Seidel to
-/// globalise it) either converges or stops honestly (Stalled, its best iterate),
-/// and auto, which goes on with MPRGP from Newton's best iterate, converges to
-/// dense Newton's answer, as the strong methods agree above.
+/// The matrix-free dual on the slender beam, cond(K) about 1e10, cond(A) 7e7:
+/// Newton there (its inner solves partly with single-precision products, MPRGP
+/// iterations instead of Gauss-Seidel where a step is rejected; with projection
+/// steps instead it stalled at err 0.98) and auto converge to dense Newton's
+/// answer, as the strong methods agree above.
 #[test]
 fn slender_body_matrix_free() {
     let s = slender_beam();
@@ -708,23 +708,13 @@ fn slender_body_matrix_free() {
         );
         sol
     };
-    let newton_free = run(Method::Newton, DualForm::MatrixFree);
-    let r = &newton_free.report;
-    assert!(
-        matches!(r.status, SolveStatus::Converged | SolveStatus::Stalled),
-        "{r:?}"
-    );
-    assert_eq!(r.status == SolveStatus::Converged, r.err <= 1e-10, "{r:?}");
     let sols = vec![
         (Method::Newton, run(Method::Newton, DualForm::Dense)),
+        (Method::Newton, run(Method::Newton, DualForm::MatrixFree)),
         (Method::Auto, run(Method::Auto, DualForm::MatrixFree)),
     ];
-    assert_all_converged("slender beam, newton dense and auto matrix-free", &sols);
-    assert_agree(
-        "slender beam, newton dense and auto matrix-free",
-        &sols,
-        1e-6,
-    );
+    assert_all_converged("slender beam, dense and matrix-free", &sols);
+    assert_agree("slender beam, dense and matrix-free", &sols, 1e-6);
 }
 
 // ---------------------------------------------------------------------------------

@@ -42,7 +42,9 @@
 //! from the active set of the previous increment.
 
 use super::driver::{Flow, Gradient, OuterStep};
+use super::mprgp::ConvexQp;
 use super::pgs;
+use super::subproblem::Mprgp;
 use super::{DualProblem, MethodSpec};
 use crate::dense;
 use crate::friction::Friction;
@@ -53,6 +55,10 @@ use std::sync::Arc;
 
 /// Gauss-Seidel sweeps taken when a Newton step is rejected.
 const FALLBACK_SWEEPS: usize = 5;
+
+/// MPRGP iterations taken instead when a Newton step on a matrix-free dual is
+/// rejected (each one product with A, as a Krylov iteration of a step).
+const FALLBACK_MPRGP: usize = 20;
 
 /// Projected Gauss-Seidel sweeps before the first Newton step, in chunks of
 /// PRESWEEP_CHUNK with the error checked in between. From a cold start (every
@@ -69,7 +75,7 @@ const PRESWEEP_CHUNK: usize = 10;
 const BACKTRACKS: usize = 4;
 
 /// Most products with A in one reduced solve on a matrix-free dual.
-const KRYLOV_MAX_IT: usize = 500;
+const KRYLOV_MAX_IT: usize = 200;
 
 /// Reduced solves on a matrix-free dual whose forcing term is at least this use
 /// products with the factor in single precision (half the memory traffic of a
@@ -544,6 +550,11 @@ pub(super) struct Newton {
     wt: Vec<f64>,
     /// The reduced solves' Krylov state on a matrix-free dual.
     krylov: Krylov,
+    /// The matrix-free fallback's MPRGP (made at its first use), the bounds it
+    /// works with and its estimate of |A|.
+    fallback: Option<Mprgp>,
+    radii: Vec<f64>,
+    norm: Option<f64>,
     /// |F| at the start (the forcing terms' reference).
     res0: f64,
     /// |F| at the current iterate, and the lowest |F| with the iteration it was met.
@@ -566,6 +577,9 @@ impl Newton {
             trial: vec![0.0; c],
             wt: vec![0.0; c],
             krylov: Krylov::new(c),
+            fallback: None,
+            radii: Vec::new(),
+            norm: None,
             res0: 0.0,
             res: 0.0,
             best: 0.0,
@@ -635,17 +649,14 @@ impl OuterStep for Newton {
         };
         let (step, trial, wt) = (&mut self.step, &mut self.trial, &mut self.wt);
         self.krylov.eta = forcing(self.res, self.res0, self.target, norm(lam));
-        // On a matrix-free dual a step that the backtracking rejects is solved
-        // again, with exact products (on an ill-conditioned K the single-
-        // precision ones can be too rough) and a forcing term a thousand times
-        // tighter (an inexact direction need not lower |F|), before any fallback.
+        // A step from rough (single-precision) products that the backtracking
+        // rejects is solved again with exact ones before any fallback: on an
+        // ill-conditioned K the rough products can be too rough.
         for exact in [false, true] {
             self.krylov.exact = exact;
-            if exact {
-                if !problem.dual.is_matrix_free() {
-                    break;
-                }
-                self.krylov.eta = (1e-3 * self.krylov.eta).max(1e-14);
+            let rough = problem.dual.is_matrix_free() && self.krylov.eta >= ROUGH_ETA;
+            if exact && !rough {
+                break;
             }
             let before = self.krylov.its;
             let solved = newton_step(
@@ -680,7 +691,7 @@ impl OuterStep for Newton {
             }
         }
         if problem.dual.is_matrix_free() {
-            return self.projected_step(problem, lam, w);
+            return self.mprgp_fallback(problem, lam, w, inner);
         }
         // Fallback: a first-order step.
         *inner += pgs::sweeps(problem, lam, w, FALLBACK_SWEEPS);
@@ -692,32 +703,45 @@ impl OuterStep for Newton {
 
 impl Newton {
     /// The fallback on a matrix-free dual (no Gauss-Seidel without entries of A):
-    /// the projection step lam - t F(lam) = P(lam - t rho w) for t = 1, 1/2, 1/4,
-    /// 1/8, kept when it lowers |F|; `Stalled` when none does (`auto` then goes on
-    /// with MPRGP). `self.f` holds F(lam) from the rejected Newton step.
-    fn projected_step(
+    /// FALLBACK_MPRGP iterations of MPRGP / MPGP (one product with A each) on the
+    /// Tresca problem of the current bound, from lam: a first-order descent step
+    /// that, unlike a projection step, makes progress where A is ill-conditioned
+    /// (the slender beam of tests/hard_scenes.rs); Newton restarts from there.
+    fn mprgp_fallback(
         &mut self,
         problem: &DualProblem<'_>,
         lam: &mut [f64],
         w: &mut [f64],
+        inner: &mut usize,
     ) -> Flow {
-        let (trial, wt, f) = (&mut self.trial, &mut self.wt, &self.f);
-        let mut t = 1.0;
-        for _ in 0..BACKTRACKS {
-            for j in 0..lam.len() {
-                trial[j] = lam[j] - t * f[j];
-            }
-            problem.gradient(trial, wt);
-            let r = residual_norm(problem, trial, wt);
-            if r < self.res {
-                lam.copy_from_slice(trial);
-                w.copy_from_slice(wt);
-                self.res = r;
-                return Flow::Go(Gradient::Exact);
-            }
-            t *= 0.5;
+        let dual = problem.dual;
+        let (m, c) = (dual.m, dual.c);
+        self.radii.resize(m, 0.0);
+        problem.law.bounds(&lam[..m], &mut self.radii);
+        let qp = ConvexQp {
+            h: &dual.a,
+            ld: c,
+            op: Some(dual),
+            k: c,
+            q: problem.b,
+            n_nonneg: m,
+            block: dual.d - 1,
+            radii: &self.radii,
+            threads: &dual.threads,
+        };
+        let solver = self
+            .fallback
+            .get_or_insert_with(|| Mprgp::new(c, 0.0, FALLBACK_MPRGP));
+        if let Flow::Infeasible = Flow::after(
+            solver.solve_convex(&qp, lam, &mut self.norm),
+            inner,
+            Gradient::Stale,
+        ) {
+            return Flow::Infeasible;
         }
-        Flow::Stalled
+        problem.gradient(lam, w);
+        self.res = residual_norm(problem, lam, w);
+        Flow::Go(Gradient::Exact)
     }
 }
 
