@@ -303,29 +303,10 @@ fn group_blocks(
 mod tests {
     use super::*;
     use crate::dual::stack_rows;
+    use crate::dual::tests::grid;
     use crate::options::Ordering;
     use crate::threads::Threads;
     use std::sync::Arc;
-
-    /// A 2D grid Laplacian plus a shift (SPD), nx x ny nodes, one DOF each.
-    fn grid(nx: usize, ny: usize) -> Csc {
-        let id = |i: usize, j: usize| i + nx * j;
-        let mut t = Vec::new();
-        for j in 0..ny {
-            for i in 0..nx {
-                t.push((id(i, j), id(i, j), 4.05));
-                if i + 1 < nx {
-                    t.push((id(i, j), id(i + 1, j), -1.0));
-                    t.push((id(i + 1, j), id(i, j), -1.0));
-                }
-                if j + 1 < ny {
-                    t.push((id(i, j), id(i, j + 1), -1.0));
-                    t.push((id(i, j + 1), id(i, j), -1.0));
-                }
-            }
-        }
-        Csc::from_triplets(nx * ny, nx * ny, &t)
-    }
 
     /// The blocks against B K^-1 B^T formed column by column with full solves,
     /// for both orderings, 1 and 2 threads, d = 2 and 3, with a contact whose rows

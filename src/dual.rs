@@ -601,11 +601,11 @@ fn a_from_trailing_block(factor: &Factor, b: &Csc, a: &mut [f64]) {
 }
 
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     use super::*;
 
     /// A 2D grid Laplacian plus a small shift (SPD), nx x ny nodes, one DOF each.
-    fn grid(nx: usize, ny: usize) -> Csc {
+    pub(crate) fn grid(nx: usize, ny: usize) -> Csc {
         let id = |i: usize, j: usize| i + nx * j;
         let mut t = Vec::new();
         for j in 0..ny {

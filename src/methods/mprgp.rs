@@ -29,6 +29,25 @@ pub(super) struct ConvexQp<'a> {
     pub threads: &'a crate::threads::Threads,
 }
 
+impl<'a> ConvexQp<'a> {
+    /// The whole dual of `problem` (its A, dense or by products, and its b) with
+    /// the bounds `radii` (length m): lambda_N >= 0, |lambda_T,i| <= radii_i.
+    pub fn whole<'p: 'a>(problem: &'a super::DualProblem<'p>, radii: &'a [f64]) -> ConvexQp<'a> {
+        let dual = problem.dual;
+        ConvexQp {
+            h: &dual.a,
+            ld: dual.c,
+            op: dual.is_matrix_free().then_some(dual),
+            k: dual.c,
+            q: problem.b,
+            n_nonneg: dual.m,
+            block: dual.d - 1,
+            radii,
+            threads: &dual.threads,
+        }
+    }
+}
+
 /// Relative distance to the boundary under which a disk block counts as active.
 const ON_BOUNDARY: f64 = 1e-14;
 

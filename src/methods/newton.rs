@@ -718,17 +718,7 @@ impl Newton {
         let (m, c) = (dual.m, dual.c);
         self.radii.resize(m, 0.0);
         problem.law.bounds(&lam[..m], &mut self.radii);
-        let qp = ConvexQp {
-            h: &dual.a,
-            ld: c,
-            op: Some(dual),
-            k: c,
-            q: problem.b,
-            n_nonneg: m,
-            block: dual.d - 1,
-            radii: &self.radii,
-            threads: &dual.threads,
-        };
+        let qp = ConvexQp::whole(problem, &self.radii);
         let solver = self
             .fallback
             .get_or_insert_with(|| Mprgp::new(c, 0.0, FALLBACK_MPRGP));

@@ -66,24 +66,13 @@ impl OuterStep for WholeMprgp {
         inner: &mut usize,
         k: usize,
     ) -> Flow {
-        let dual = problem.dual;
-        let (m, c) = (dual.m, dual.c);
+        let m = problem.dual.m;
         problem.law.bounds(&lam[..m], &mut self.radii);
         if self.coulomb {
             self.relax
                 .relax_bound(&mut self.prev, &mut self.radii, k == 0);
         }
-        let qp = ConvexQp {
-            h: &dual.a,
-            ld: c,
-            op: dual.is_matrix_free().then_some(dual),
-            k: c,
-            q: problem.b,
-            n_nonneg: m,
-            block: dual.d - 1,
-            radii: &self.radii,
-            threads: &dual.threads,
-        };
+        let qp = ConvexQp::whole(problem, &self.radii);
         let run = self.solver.solve_convex(&qp, lam, &mut self.norm);
         Flow::after(run, inner, Gradient::Stale)
     }
