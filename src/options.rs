@@ -94,7 +94,11 @@ pub struct Options {
     /// `Split` and `BlockGs`, MPRGP iterations in `SplitMprgp` and `Mprgp`
     /// (default 1_000).
     pub max_inner: usize,
-    /// Dense or matrix-free products with A (default `Auto`).
+    /// Dense or matrix-free products with A (default `Auto`). Read by every solve
+    /// and by `ContactProblem::with_options`, which creates the problem in that
+    /// form: `MatrixFree` factors K in the best plain ordering, `Dense` with the
+    /// contact DOFs last (whatever c, where it fits `max_memory`), `Auto` by
+    /// [`DENSE_MAX`] and the memory limit.
     pub dual_form: DualForm,
     /// Wall-clock budget of one solve in seconds, 0 for none (default 0): no outer
     /// iteration starts after it, and the solve ends with `SolveStatus::TimeLimit`
