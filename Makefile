@@ -64,6 +64,12 @@ clean-c:
 #   make fortran-minimal                  build and run c_examples/minimal.f90 (gfortran)
 #   make suitesparse-demo [DEMO_ARGS=...] build and run c_examples/suitesparse_block2d.c
 #                                         (CHOLMOD + CXSparse: libsuitesparse-dev)
+#   make mumps-demo [DEMO_ARGS=...]       build and run c_examples/mumps_schur.c: K
+#                                         factored by the sequential MUMPS, the library
+#                                         on its Schur complement (libmumps-seq-dev)
+#   make mumps-mpi-demo [DEMO_ARGS=...] [MPIRUN=...] [NP=2]
+#                                         the same over MPI: c_examples/mumps_mpi_schur.c
+#                                         (libmumps-dev openmpi-bin libopenmpi-dev)
 #
 # The shared library gets its soname from one extra linker argument given to the
 # final rustc call only (`cargo rustc --lib -- -C link-arg=-Wl,-soname,...`):
@@ -92,8 +98,18 @@ FFLAGS   ?= -O2
 FOUTDIR   = $(OUTDIR)/fortran
 SUITESPARSE_CFLAGS ?= -I/usr/include/suitesparse
 SUITESPARSE_LIBS   ?= -lcholmod -lcxsparse -lsuitesparseconfig
+# Debian's sequential MUMPS (its fake mpi.h in /usr/include/mumps_seq) and parallel one.
+MUMPS_SEQ_CFLAGS   ?= -I/usr/include/mumps_seq
+MUMPS_SEQ_LIBS     ?= -ldmumps_seq -lmumps_common_seq -lmpiseq_seq -lpord_seq
+MUMPS_MPI_LIBS     ?= -ldmumps -lmumps_common
+MPICC              ?= mpicc
+# OpenMPI refuses to run as root (CI) unless told; --oversubscribe lets 2 ranks run
+# on fewer cores.
+MPIRUN             ?= OMPI_ALLOW_RUN_AS_ROOT=1 OMPI_ALLOW_RUN_AS_ROOT_CONFIRM=1 mpirun --oversubscribe
+NP                 ?= 2
 
-.PHONY: install install-lib uninstall fortran-demo fortran-minimal suitesparse-demo
+.PHONY: install install-lib uninstall fortran-demo fortran-minimal suitesparse-demo \
+        mumps-demo mumps-mpi-demo
 
 # Builds libdualsplit.{so,a,rlib} in one rustc call; the link argument only affects
 # the shared library.
@@ -149,3 +165,17 @@ $(OUTDIR)/suitesparse_block2d: c_examples/suitesparse_block2d.c include/dualspli
 
 suitesparse-demo: $(OUTDIR)/suitesparse_block2d
 	$(abspath $(OUTDIR)/suitesparse_block2d) $(DEMO_ARGS)
+
+$(OUTDIR)/mumps_schur: c_examples/mumps_schur.c c_examples/block2d_scene.h include/dualsplit.h $(LIBDS) | $(OUTDIR)
+	$(CC) $(CPPFLAGS) $(MUMPS_SEQ_CFLAGS) $(CFLAGS) -o $@ c_examples/mumps_schur.c \
+	    $(LIBDS) $(MUMPS_SEQ_LIBS) $(LDFLAGS) $(LDLIBS)
+
+mumps-demo: $(OUTDIR)/mumps_schur
+	$(abspath $(OUTDIR)/mumps_schur) $(DEMO_ARGS)
+
+$(OUTDIR)/mumps_mpi_schur: c_examples/mumps_mpi_schur.c c_examples/mumps_schur.c c_examples/block2d_scene.h include/dualsplit.h $(LIBDS) | $(OUTDIR)
+	$(MPICC) $(CPPFLAGS) $(CFLAGS) -o $@ c_examples/mumps_mpi_schur.c \
+	    $(LIBDS) $(MUMPS_MPI_LIBS) $(LDFLAGS) $(LDLIBS)
+
+mumps-mpi-demo: $(OUTDIR)/mumps_mpi_schur
+	$(MPIRUN) -np $(NP) $(abspath $(OUTDIR)/mumps_mpi_schur) $(DEMO_ARGS)

@@ -79,6 +79,9 @@ module dualsplit
    integer(c_int32_t), parameter, public :: DS_FORMAT_CSR = 0
    integer(c_int32_t), parameter, public :: DS_FORMAT_CSC = 1
    integer(c_int32_t), parameter, public :: DS_FORMAT_COO = 2
+   !> Dense column-major (a Schur complement from MUMPS, PARDISO or PETSc): the
+   !> DsMatrix's nnz holds the leading dimension, p and i are not read (0.7).
+   integer(c_int32_t), parameter, public :: DS_FORMAT_DENSE = 3
 
    !> DsIndexType: integer width of a DsMatrix's p and i arrays.
    integer(c_int32_t), parameter, public :: DS_INDEX_TYPE_I32 = 0
@@ -107,6 +110,8 @@ module dualsplit
    integer(c_int32_t), parameter, public :: DS_ORDERING_AUTO = 0
    integer(c_int32_t), parameter, public :: DS_ORDERING_AMD = 1
    integer(c_int32_t), parameter, public :: DS_ORDERING_METIS = 2
+   !> Reported only: K given dense, factored by dense Cholesky (0.7).
+   integer(c_int32_t), parameter, public :: DS_ORDERING_DENSE = 3
 
    !> DsFriction: what the `bound` array of ds_solve / ds_step holds.
    integer(c_int32_t), parameter, public :: DS_FRICTION_TRESCA = 0
@@ -166,7 +171,7 @@ module dualsplit
       real(c_double)     :: factor_seconds
       real(c_double)     :: condense_seconds
       real(c_double)     :: solve_seconds
-      integer(c_int32_t) :: ordering      !< DS_ORDERING_AMD or DS_ORDERING_METIS: K's factor (0.4)
+      integer(c_int32_t) :: ordering      !< DS_ORDERING_AMD, _METIS or _DENSE (0.7): K's factor (0.4)
       integer(c_int32_t) :: threads       !< threads of the handle's pool (0.4)
       integer(c_int64_t) :: factor_nnz    !< nonzeros of K's Cholesky factor (0.4)
       real(c_double)     :: factor_flops  !< flops of one factorisation of K (0.4)
@@ -255,7 +260,7 @@ module dualsplit
    public :: ds_problem_sizes, ds_solve, ds_step, ds_history_reset
    public :: ds_analyse, ds_problem_info, ds_info_init
    public :: ds_problem_set_monitor, ds_problem_set_log, ds_problem_dump, ds_string_from_c
-   public :: ds_matrix_csr, ds_matrix_csc, ds_matrix_coo
+   public :: ds_matrix_csr, ds_matrix_csc, ds_matrix_coo, ds_matrix_dense
 
    !> ds_problem_sizes(problem, n_dofs, n_contacts, d): n_dofs and n_contacts default
    !> INTEGER or INTEGER(8).
@@ -280,6 +285,15 @@ module dualsplit
    interface ds_matrix_coo
       module procedure ds_matrix_coo_i32, ds_matrix_coo_i64
    end interface ds_matrix_coo
+
+   !> mat = ds_matrix_dense(nrows, ncols, a, lda [, storage]): a dense column-major
+   !> DsMatrix over a(lda, ncols) (or a rank-1 array of lda*ncols), lda >= nrows (a
+   !> Schur complement from MUMPS, PARDISO or PETSc as K: storage DS_STORAGE_UPPER /
+   !> LOWER reads one triangle).
+   interface ds_matrix_dense
+      module procedure ds_matrix_dense_i32, ds_matrix_dense_i64, ds_matrix_dense_i32_r2, &
+         ds_matrix_dense_i64_r2
+   end interface ds_matrix_dense
 
    ! ---------------------------------------------------------------------------------
    ! The C functions (private; called through the wrappers below)
@@ -886,5 +900,42 @@ contains
          mat%x = c_loc(a(1))
       end if
    end function ds_matrix_coo_i64
+
+   function ds_matrix_dense_i32(nrows, ncols, a, lda, storage) result(mat)
+      integer(c_int32_t), intent(in) :: nrows, ncols, lda
+      real(c_double), intent(in), target :: a(*)
+      integer(c_int32_t), intent(in), optional :: storage
+      type(DsMatrix) :: mat
+      mat = ds_matrix_dense_i64(int(nrows, c_int64_t), int(ncols, c_int64_t), a, &
+                                int(lda, c_int64_t), storage)
+   end function ds_matrix_dense_i32
+
+   function ds_matrix_dense_i64(nrows, ncols, a, lda, storage) result(mat)
+      integer(c_int64_t), intent(in) :: nrows, ncols, lda
+      real(c_double), intent(in), target :: a(*)
+      integer(c_int32_t), intent(in), optional :: storage
+      type(DsMatrix) :: mat
+      ! nnz carries the leading dimension; p and i are not read.
+      mat = matrix_head(DS_FORMAT_DENSE, DS_INDEX_TYPE_I32, nrows, ncols, lda, storage, 1_c_int32_t)
+      if (nrows > 0 .and. ncols > 0) mat%x = c_loc(a(1))
+   end function ds_matrix_dense_i64
+
+   function ds_matrix_dense_i32_r2(nrows, ncols, a, lda, storage) result(mat)
+      integer(c_int32_t), intent(in) :: nrows, ncols, lda
+      real(c_double), intent(in), target :: a(lda, *)
+      integer(c_int32_t), intent(in), optional :: storage
+      type(DsMatrix) :: mat
+      mat = ds_matrix_dense_i64_r2(int(nrows, c_int64_t), int(ncols, c_int64_t), a, &
+                                   int(lda, c_int64_t), storage)
+   end function ds_matrix_dense_i32_r2
+
+   function ds_matrix_dense_i64_r2(nrows, ncols, a, lda, storage) result(mat)
+      integer(c_int64_t), intent(in) :: nrows, ncols, lda
+      real(c_double), intent(in), target :: a(lda, *)
+      integer(c_int32_t), intent(in), optional :: storage
+      type(DsMatrix) :: mat
+      mat = matrix_head(DS_FORMAT_DENSE, DS_INDEX_TYPE_I32, nrows, ncols, lda, storage, 1_c_int32_t)
+      if (nrows > 0 .and. ncols > 0) mat%x = c_loc(a(1, 1))
+   end function ds_matrix_dense_i64_r2
 
 end module dualsplit

@@ -144,6 +144,16 @@ typedef enum DsFormat {
    indices. Duplicates are summed.
    */
   DS_FORMAT_COO = 2,
+  /*
+   Dense, column-major (LAPACK, Fortran arrays): entry (r, c) at
+   `x[r + c * nnz]`, the DsMatrix's `nnz` field holding the leading dimension
+   (LDA >= nrows); `p`, `i` and `index_type` are not read, `base` only names
+   rows and columns in messages. For K (full storage: checked symmetric;
+   DS_STORAGE_UPPER / LOWER: the other triangle is not read) every entry is
+   kept and K is factored by dense Cholesky (a Schur complement from MUMPS,
+   PARDISO or PETSc); N and T keep their nonzeros. Added in version 0.7.
+   */
+  DS_FORMAT_DENSE = 3,
 } DsFormat;
 
 /*
@@ -188,7 +198,7 @@ typedef enum DsMethod {
   /*
    Pop's dual splitting, Schur complement variant: the tangential step on
    S = A22 - A21 A11^-1 A12 over the current contact set, then the normal step on
-   A11, both by projected Gauss-Seidel. The default.
+   A11, both by projected Gauss-Seidel (the default until version 0.5).
    */
   DS_METHOD_SPLIT = 0,
   /*
@@ -271,6 +281,13 @@ typedef enum DsOrdering {
    Nested dissection (METIS_NodeND, METIS 5 built into the library).
    */
   DS_ORDERING_METIS = 2,
+  /*
+   Reported only (DsReport.ordering, DsInfo.ordering; as an option:
+   DS_STATUS_BAD_ARGUMENT): K was given with every entry stored
+   (DS_FORMAT_DENSE) and factored by dense Cholesky, without a fill-reducing
+   ordering. Added in version 0.7.
+   */
+  DS_ORDERING_DENSE = 3,
 } DsOrdering;
 
 /*
@@ -308,12 +325,13 @@ typedef struct DsProblem DsProblem;
  Errors when a matrix is read: DS_STATUS_BAD_ARGUMENT (unknown format, index_type
  or storage, base not 0 or 1), DS_STATUS_BAD_INDEX (last pointer below base, index
  out of range, pointers not monotone), DS_STATUS_BAD_SIZE (negative nrows, ncols or
- COO nnz), DS_STATUS_NULL_POINTER (p, i or x NULL for a non-empty array),
+ COO nnz, DENSE leading dimension below nrows), DS_STATUS_NULL_POINTER (p, i or x NULL for a non-empty array),
  DS_STATUS_NOT_FINITE (NaN or infinity in x).
  */
 typedef struct DsMatrix {
   /*
-   A DsFormat value: DS_FORMAT_CSR, DS_FORMAT_CSC or DS_FORMAT_COO.
+   A DsFormat value: DS_FORMAT_CSR, DS_FORMAT_CSC, DS_FORMAT_COO or
+   DS_FORMAT_DENSE.
    */
   int32_t format;
   /*
@@ -339,21 +357,23 @@ typedef struct DsMatrix {
   int64_t ncols;
   /*
    COO: number of triplets (>= 0). CSR/CSC: ignored; the number of entries is
-   `p[last] - base`.
+   `p[last] - base`. DENSE: the leading dimension (>= nrows); x holds
+   `nnz * (ncols - 1) + nrows` values.
    */
   int64_t nnz;
   /*
    CSC: ncols+1 column pointers; CSR: nrows+1 row pointers; COO: nnz column
-   indices. Never NULL for CSR/CSC.
+   indices. Never NULL for CSR/CSC. DENSE: not read.
    */
   const void *p;
   /*
    CSC: row indices; CSR: column indices; COO: row indices. NULL allowed when
-   there are no entries.
+   there are no entries. DENSE: not read.
    */
   const void *i;
   /*
-   Values, one per entry. NULL allowed when there are no entries.
+   Values, one per entry (DENSE: column-major with leading dimension `nnz`).
+   NULL allowed when there are no entries.
    */
   const double *x;
 } DsMatrix;
@@ -512,7 +532,8 @@ typedef struct DsInfo {
    */
   double factor_flops;
   /*
-   The DsOrdering chosen: DS_ORDERING_AMD or DS_ORDERING_METIS.
+   The DsOrdering chosen: DS_ORDERING_AMD or DS_ORDERING_METIS
+   (DS_ORDERING_DENSE for a K given dense).
    */
   int32_t ordering;
   /*
@@ -682,7 +703,8 @@ typedef struct DsReport {
   double solve_seconds;
   /*
    The DsOrdering K's factor was computed with: DS_ORDERING_AMD or
-   DS_ORDERING_METIS (DS_ORDERING_AUTO picks one). Added in version 0.4.
+   DS_ORDERING_METIS (DS_ORDERING_AUTO picks one); DS_ORDERING_DENSE for a
+   K given dense (dense Cholesky). Added in version 0.4.
    */
   int32_t ordering;
   /*
@@ -1072,7 +1094,7 @@ const char *ds_version(void);
 /* The version of dualsplit this header belongs to (ds_version() gives the one a
  * program runs against; tests/header.rs checks these against Cargo.toml). */
 #define DS_VERSION_MAJOR 0
-#define DS_VERSION_MINOR 6
+#define DS_VERSION_MINOR 7
 #define DS_VERSION_PATCH 0
 
 #ifndef DS_NO_OPTIONS_DEFAULT_MACRO

@@ -99,6 +99,9 @@ impl Scratch {
 /// `[i d^2 .. (i+1) d^2]`, row-major, its rows and columns contact i's rows of B
 /// (normal first). Contacts without entries in B get a zero block.
 pub(crate) fn contact_blocks(factor: &Factor, b: &Csc, m: usize, d: usize) -> Vec<f64> {
+    if factor.is_dense() {
+        return dense_blocks(factor, b, m, d);
+    }
     let bt = b.transpose();
     let tree = Tree::of(factor);
     let new_of = factor.new_of_old();
@@ -130,6 +133,33 @@ pub(crate) fn contact_blocks(factor: &Factor, b: &Csc, m: usize, d: usize) -> Ve
     blocks
 }
 
+/// [`contact_blocks`] of a dense factor (K had every entry stored): W_i = L^-1 P
+/// B_i^T by d dense forward solves per contact, A_ii = W_i^T W_i. Sequential: a
+/// dense K is an interface problem, and its dense dual is the usual route.
+fn dense_blocks(factor: &Factor, b: &Csc, m: usize, d: usize) -> Vec<f64> {
+    let (n, dd) = (factor.n(), d * d);
+    let bt = b.transpose();
+    let mut blocks = vec![0.0; m * dd];
+    let mut x = vec![0.0; n];
+    let mut w = vec![0.0; d * n];
+    for i in 0..m {
+        for (a, r) in rows_of(i, m, d).enumerate() {
+            x.fill(0.0);
+            for k in bt.col_ptr[r]..bt.col_ptr[r + 1] {
+                x[bt.row_idx[k]] = bt.values[k];
+            }
+            factor.forward(&x, &mut w[a * n..(a + 1) * n]);
+        }
+        for a in 0..d {
+            for e in 0..d {
+                let (wa, we) = (&w[a * n..(a + 1) * n], &w[e * n..(e + 1) * n]);
+                blocks[i * dd + a * d + e] = wa.iter().zip(we).map(|(p, q)| p * q).sum();
+            }
+        }
+    }
+    blocks
+}
+
 /// The contacts with entries in B (`bt` = B^T), as (first supernode, contact)
 /// pairs sorted by their first (deepest) supernode: the order they are solved in.
 fn ordered(tree: &Tree, new_of: &[usize], bt: &Csc, m: usize, d: usize) -> Vec<(usize, usize)> {
@@ -150,6 +180,9 @@ fn ordered(tree: &Tree, new_of: &[usize], bt: &Csc, m: usize, d: usize) -> Vec<(
 /// product buffer (rows below a supernode of a group's union, times the
 /// group's columns), and the per-supernode marks.
 pub(crate) fn work_bytes(factor: &Factor, b: &Csc, m: usize, d: usize) -> usize {
+    if factor.is_dense() {
+        return (d + 1) * factor.n() * std::mem::size_of::<f64>();
+    }
     let bt = b.transpose();
     let tree = Tree::of(factor);
     let new_of = factor.new_of_old();

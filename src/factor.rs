@@ -1,6 +1,8 @@
-//! K's sparse Cholesky factorisation (faer): the symbolic analysis (fill-reducing
+//! K's Cholesky factorisation (faer): the symbolic analysis (fill-reducing
 //! ordering, elimination tree) is done once per sparsity pattern, the numeric
-//! factorisation once per set of values, and each solve reuses both.
+//! factorisation once per set of values, and each solve reuses both. A K with every
+//! entry stored (a dense K: a Schur complement from the user's own solver) skips
+//! the ordering and the symbolic analysis and is factored by dense Cholesky.
 
 use crate::error::{ErrorKind, Result, fail};
 use crate::memory::{Claim, Ledger};
@@ -9,6 +11,9 @@ use crate::sparse::Csc;
 use crate::threads::Threads;
 use faer::dyn_stack::{MemBuffer, MemStack, StackReq};
 use faer::linalg::cholesky::llt::factor::LltRegularization;
+use faer::linalg::triangular_solve::{
+    solve_lower_triangular_in_place, solve_upper_triangular_in_place,
+};
 use faer::perm::PermRef;
 use faer::sparse::linalg::SupernodalThreshold;
 use faer::sparse::linalg::cholesky::supernodal::{SupernodalLltRef, SymbolicSupernodalCholesky};
@@ -44,8 +49,10 @@ const METIS_FLOPS_PER_ENTRY: f64 = 500.0;
 /// The Cholesky factor L L^T = P K P^T of an SPD matrix K, with the pattern of K it
 /// was computed for.
 pub struct Factor {
-    /// The symbolic analysis, shared by the copies [`Factor::unfactored_copy`] makes.
-    symbolic: Arc<SymbolicCholesky<usize>>,
+    /// How L is stored.
+    layout: Layout,
+    /// L's values: the supernodes (sparse), or n x n column-major with L in the
+    /// lower triangle (dense).
     l_values: Vec<f64>,
     /// The bytes of `l_values` on the ledger.
     l_claim: Option<Claim>,
@@ -55,9 +62,10 @@ pub struct Factor {
     row_idx: Vec<usize>,
     /// The DOFs ordered last, in this order (empty for a plain AMD ordering).
     last: Vec<usize>,
-    /// The fill-reducing ordering, new -> old.
+    /// The fill-reducing ordering, new -> old (dense: the DOFs not in `last` in
+    /// their order, then `last`).
     fwd: Vec<usize>,
-    /// Which ordering that is (`Amd` or `Metis`, never `Auto`).
+    /// Which ordering that is (`Amd`, `Metis` or `Dense`, never `Auto`).
     ordering: Ordering,
     /// Seconds of the analysis: the ordering (both, where AUTO tries METIS) and
     /// the symbolic factorisation.
@@ -69,6 +77,21 @@ pub struct Factor {
     /// Whether the factorisation and the solves use them (see
     /// PARALLEL_FLOPS_PER_ENTRY).
     parallel: bool,
+}
+
+/// How a factor's L is stored.
+enum Layout {
+    /// Supernodal (faer's sparse Cholesky); the symbolic analysis is shared by the
+    /// copies [`Factor::unfactored_copy`] makes.
+    Supernodal(Arc<SymbolicCholesky<usize>>),
+    /// Dense n x n: K had every entry stored.
+    Dense,
+}
+
+/// True when `k` (n x n) stores every entry: a dense K, factored by dense Cholesky
+/// without ordering or symbolic analysis (a fill-reducing ordering cannot help).
+fn is_dense(k: &Csc) -> bool {
+    k.nrows > 0 && k.nnz() == k.nrows * k.ncols
 }
 
 /// The supernodal symbolic Cholesky factor of `k` in the ordering (`fwd`, `inv`).
@@ -162,6 +185,9 @@ impl Factor {
         ledger: Arc<Ledger>,
     ) -> Result<Factor> {
         let n = k.nrows;
+        if is_dense(k) {
+            return Ok(Self::analyse_dense(n, last, threads, ledger));
+        }
         let start = Instant::now();
         let order = |how: Ordering| match how {
             Ordering::Metis => crate::ordering::metis_with_last(k, last),
@@ -202,7 +228,7 @@ impl Factor {
             l_values: Vec::new(),
             l_claim: None,
             ledger,
-            symbolic: Arc::new(symbolic),
+            layout: Layout::Supernodal(Arc::new(symbolic)),
             col_ptr: k.col_ptr.clone(),
             row_idx: k.row_idx.clone(),
             last: last.to_vec(),
@@ -217,6 +243,57 @@ impl Factor {
         f.parallel = flops > PARALLEL_FLOPS_PER_ENTRY * nnz as f64;
         debug_assert_eq!(f.n(), n);
         Ok(f)
+    }
+
+    /// The analysis of a dense K (n x n, every entry stored): no ordering beyond
+    /// moving `last` to the end, no symbolic factorisation.
+    fn analyse_dense(
+        n: usize,
+        last: &[usize],
+        threads: Arc<Threads>,
+        ledger: Arc<Ledger>,
+    ) -> Factor {
+        let mut is_last = vec![false; n];
+        last.iter().for_each(|&j| is_last[j] = true);
+        let mut fwd: Vec<usize> = (0..n).filter(|&j| !is_last[j]).collect();
+        fwd.extend_from_slice(last);
+        let mut f = Factor {
+            layout: Layout::Dense,
+            l_values: Vec::new(),
+            l_claim: None,
+            ledger,
+            col_ptr: Vec::new(),
+            row_idx: Vec::new(),
+            last: last.to_vec(),
+            fwd,
+            ordering: Ordering::Dense,
+            analyse_seconds: 0.0,
+            factor_seconds: 0.0,
+            threads,
+            parallel: false,
+        };
+        let (nnz, flops) = f.nnz_and_flops();
+        f.parallel = flops > PARALLEL_FLOPS_PER_ENTRY * nnz as f64;
+        f
+    }
+
+    /// True when K was dense and L is held dense.
+    pub(crate) fn is_dense(&self) -> bool {
+        matches!(self.layout, Layout::Dense)
+    }
+
+    /// The sparse symbolic analysis; panics on a dense factor.
+    fn symbolic(&self) -> &SymbolicCholesky<usize> {
+        match &self.layout {
+            Layout::Supernodal(s) => s,
+            Layout::Dense => unreachable!("a dense factor has no symbolic analysis"),
+        }
+    }
+
+    /// L of a dense factor (n x n, lower triangle).
+    fn dense_l(&self) -> faer::MatRef<'_, f64> {
+        let n = self.n();
+        faer::MatRef::from_column_major_slice(&self.l_values, n, n)
     }
 
     /// The problem's count of its large allocations.
@@ -234,9 +311,17 @@ impl Factor {
 
     /// Bytes of the numeric factorisation's workspace.
     pub(crate) fn factor_scratch_bytes(&self) -> usize {
-        self.symbolic
-            .factorize_numeric_llt_scratch::<f64>(self.par(), Default::default())
-            .size_bytes()
+        match &self.layout {
+            Layout::Supernodal(symbolic) => {
+                symbolic.factorize_numeric_llt_scratch::<f64>(self.par(), Default::default())
+            }
+            Layout::Dense => faer::linalg::cholesky::llt::factor::cholesky_in_place_scratch::<f64>(
+                self.n(),
+                self.par(),
+                Default::default(),
+            ),
+        }
+        .size_bytes()
     }
 
     /// The threads the factorisation and the solves use.
@@ -252,25 +337,27 @@ impl Factor {
     /// The smallest relative pivot L_jj^2 / K_jj of a numeric factor `values` (j in
     /// the factor's ordering), or None for n = 0.
     fn smallest_pivot(&self, values: &[f64], k: &Csc) -> Option<(usize, f64)> {
-        let sym = self.supernodal_symbolic();
-        let llt = SupernodalLltRef::<usize, f64>::new(sym, values);
         let diag_k = |old: usize| {
             (k.col_ptr[old]..k.col_ptr[old + 1])
                 .find(|&p| k.row_idx[p] == old)
                 .map_or(0.0, |p| k.values[p])
         };
+        let ratio = |l_jj: f64, k_jj: f64| if k_jj > 0.0 { l_jj * l_jj / k_jj } else { 0.0 };
+        if self.is_dense() {
+            let n = self.n();
+            return (0..n)
+                .map(|j| (j, ratio(values[j * n + j], diag_k(self.fwd[j]))))
+                .min_by(|a, b| a.1.total_cmp(&b.1));
+        }
+        let sym = self.supernodal_symbolic();
+        let llt = SupernodalLltRef::<usize, f64>::new(sym, values);
         let mut worst: Option<(usize, f64)> = None;
         for s in 0..sym.n_supernodes() {
             let node = llt.supernode(s);
             let val = node.val();
             for jl in 0..val.ncols() {
                 let j = node.start() + jl;
-                let kjj = diag_k(self.fwd[j]);
-                let ratio = if kjj > 0.0 {
-                    val[(jl, jl)].powi(2) / kjj
-                } else {
-                    0.0
-                };
+                let ratio = ratio(val[(jl, jl)], diag_k(self.fwd[j]));
                 if worst.is_none_or(|(_, r)| ratio < r) {
                     worst = Some((j, ratio));
                 }
@@ -282,7 +369,14 @@ impl Factor {
     /// The size of the factor: (nonzeros of L, dense supernodal blocks included;
     /// flops of the numeric factorisation, sum over columns of (rows below + 1)^2).
     pub fn nnz_and_flops(&self) -> (usize, f64) {
-        symbolic_size(&self.symbolic)
+        match &self.layout {
+            Layout::Supernodal(symbolic) => symbolic_size(symbolic),
+            Layout::Dense => {
+                let n = self.n();
+                let flops = (1..=n).map(|r| (r * r) as f64).sum();
+                (n * (n + 1) / 2, flops)
+            }
+        }
     }
 
     /// The DOFs ordered last (empty when the ordering is plain AMD).
@@ -301,6 +395,10 @@ impl Factor {
             return Mat::zeros(0, 0);
         }
         let first = n - nc;
+        if self.is_dense() {
+            let l = self.dense_l().submatrix(first, first, nc, nc);
+            return Mat::from_fn(nc, nc, |i, j| if i >= j { l[(i, j)] } else { 0.0 });
+        }
         let mut l = Mat::<f64>::zeros(nc, nc);
         let sym = self.supernodal_symbolic();
         let llt = SupernodalLltRef::<usize, f64>::new(sym, &self.l_values);
@@ -336,12 +434,16 @@ impl Factor {
 
     /// Number of rows of K.
     pub fn n(&self) -> usize {
-        self.col_ptr.len() - 1
+        self.fwd.len()
     }
 
-    /// True when `k` has exactly the pattern this factor was analysed for.
+    /// True when `k` has exactly the pattern this factor was analysed for (dense:
+    /// every entry stored, the same n).
     pub fn same_pattern(&self, k: &Csc) -> bool {
-        k.col_ptr == self.col_ptr && k.row_idx == self.row_idx
+        match self.layout {
+            Layout::Supernodal(_) => k.col_ptr == self.col_ptr && k.row_idx == self.row_idx,
+            Layout::Dense => k.nrows == self.n() && is_dense(k),
+        }
     }
 
     /// Numeric refactorisation with new values on the same pattern, reusing the
@@ -357,36 +459,12 @@ impl Factor {
             );
         }
         let start = Instant::now();
-        let n = self.n();
-        let a = SparseColMatRef::new(
-            SymbolicSparseColMatRef::new_checked(n, n, &self.col_ptr, None, &self.row_idx),
-            &k.values,
-        );
-        let symbolic = &self.symbolic;
         let scratch_claim = self.ledger.claim(self.factor_scratch_bytes());
-        let values_claim = self.ledger.claim_f64(symbolic.len_val());
-        let result = self.threads.run(self.parallel, |par| {
-            let req = symbolic.factorize_numeric_llt_scratch::<f64>(par, Default::default());
-            let mut mem = MemBuffer::try_new(req).map_err(|_| {
-                crate::Error::new(ErrorKind::OutOfMemory, "K: factorisation workspace")
-            })?;
-            let mut values = Vec::new();
-            values.try_reserve_exact(symbolic.len_val()).map_err(|_| {
-                crate::Error::new(ErrorKind::OutOfMemory, "K: Cholesky factor values")
-            })?;
-            values.resize(symbolic.len_val(), 0.0);
-            let result = symbolic.factorize_numeric_llt::<f64>(
-                &mut values,
-                a,
-                Side::Lower,
-                LltRegularization::default(),
-                par,
-                MemStack::new(&mut mem),
-                Default::default(),
-            );
-            let result = result.map(|_| ()).map_err(|e| format!("{e:?}"));
-            Ok((values, result))
-        });
+        let values_claim = self.ledger.claim_f64(self.values_len());
+        let result = match &self.layout {
+            Layout::Supernodal(symbolic) => self.factor_supernodal(symbolic, k),
+            Layout::Dense => self.factor_dense(k),
+        };
         let (values, result) = result?;
         drop(scratch_claim);
         if let Err(e) = result {
@@ -417,19 +495,131 @@ impl Factor {
         Ok(())
     }
 
+    /// Bytes of L's values once factored (sparse: the supernodes; dense: n^2).
+    pub(crate) fn values_bytes(&self) -> usize {
+        self.values_len() * std::mem::size_of::<f64>()
+    }
+
+    /// The number of values of L (sparse: the supernodes; dense: n^2).
+    fn values_len(&self) -> usize {
+        match &self.layout {
+            Layout::Supernodal(symbolic) => symbolic.len_val(),
+            Layout::Dense => self.n() * self.n(),
+        }
+    }
+
+    /// A zeroed vector for L's values, or `OutOfMemory`.
+    fn values_vec(&self) -> Result<Vec<f64>> {
+        let mut values = Vec::new();
+        values
+            .try_reserve_exact(self.values_len())
+            .map_err(|_| crate::Error::new(ErrorKind::OutOfMemory, "K: Cholesky factor values"))?;
+        values.resize(self.values_len(), 0.0);
+        Ok(values)
+    }
+
+    /// The numeric supernodal factorisation of `k`: (values, Err(message) when
+    /// a pivot was not positive).
+    fn factor_supernodal(
+        &self,
+        symbolic: &SymbolicCholesky<usize>,
+        k: &Csc,
+    ) -> Result<(Vec<f64>, std::result::Result<(), String>)> {
+        let n = self.n();
+        let a = SparseColMatRef::new(
+            SymbolicSparseColMatRef::new_checked(n, n, &self.col_ptr, None, &self.row_idx),
+            &k.values,
+        );
+        self.threads.run(self.parallel, |par| {
+            let req = symbolic.factorize_numeric_llt_scratch::<f64>(par, Default::default());
+            let mut mem = MemBuffer::try_new(req).map_err(|_| {
+                crate::Error::new(ErrorKind::OutOfMemory, "K: factorisation workspace")
+            })?;
+            let mut values = self.values_vec()?;
+            let result = symbolic.factorize_numeric_llt::<f64>(
+                &mut values,
+                a,
+                Side::Lower,
+                LltRegularization::default(),
+                par,
+                MemStack::new(&mut mem),
+                Default::default(),
+            );
+            let result = result.map(|_| ()).map_err(|e| format!("{e:?}"));
+            Ok((values, result))
+        })
+    }
+
+    /// The dense Cholesky factorisation of P K P^T (k stores every entry): as
+    /// [`Factor::factor_supernodal`].
+    fn factor_dense(&self, k: &Csc) -> Result<(Vec<f64>, std::result::Result<(), String>)> {
+        use faer::linalg::cholesky::llt::factor::{cholesky_in_place, cholesky_in_place_scratch};
+        let n = self.n();
+        let new_of = self.new_of_old();
+        let mut values = self.values_vec()?;
+        // The lower triangle of P K P^T, column-major.
+        for j in 0..n {
+            let jn = new_of[j];
+            for p in k.col_ptr[j]..k.col_ptr[j + 1] {
+                let i_n = new_of[k.row_idx[p]];
+                if i_n >= jn {
+                    values[jn * n + i_n] = k.values[p];
+                }
+            }
+        }
+        self.threads.run(self.parallel, |par| {
+            let req = cholesky_in_place_scratch::<f64>(n, par, Default::default());
+            let mut mem = MemBuffer::try_new(req).map_err(|_| {
+                crate::Error::new(ErrorKind::OutOfMemory, "K: factorisation workspace")
+            })?;
+            let l = faer::MatMut::from_column_major_slice_mut(&mut values, n, n);
+            let result = cholesky_in_place(
+                l,
+                Default::default(),
+                par,
+                MemStack::new(&mut mem),
+                Default::default(),
+            );
+            let result = result.map(|_| ()).map_err(|e| format!("{e:?}"));
+            Ok((values, result))
+        })
+    }
+
     /// Workspace needed by [`Factor::solve_in_place`] for `ncols` right-hand sides.
     pub fn solve_scratch(&self, ncols: usize) -> StackReq {
-        self.symbolic
-            .solve_in_place_scratch::<f64>(ncols, self.par())
+        match &self.layout {
+            Layout::Supernodal(symbolic) => {
+                symbolic.solve_in_place_scratch::<f64>(ncols, self.par())
+            }
+            Layout::Dense => faer::linalg::temp_mat_scratch::<f64>(self.n(), ncols),
+        }
     }
 
     /// Overwrites `rhs` (n x k) with K^-1 rhs, using `stack` as workspace (at least
     /// `solve_scratch(k)`).
     pub fn solve_in_place(&self, rhs: MatMut<'_, f64>, stack: &mut MemStack) {
-        let llt = LltRef::new(&self.symbolic, &self.l_values);
-        self.threads.run(self.parallel, |par| {
-            llt.solve_in_place_with_conj(Conj::No, rhs, par, stack);
-        });
+        self.solve_values(&self.l_values, rhs, stack);
+    }
+
+    /// K^-1 rhs with L's values `values` (of this factor, in double or single
+    /// precision), `stack` as workspace.
+    fn solve_values<T: faer::traits::ComplexField>(
+        &self,
+        values: &[T],
+        rhs: MatMut<'_, T>,
+        stack: &mut MemStack,
+    ) {
+        match &self.layout {
+            Layout::Supernodal(symbolic) => {
+                let llt = LltRef::new(symbolic, values);
+                self.threads.run(self.parallel, |par| {
+                    llt.solve_in_place_with_conj(Conj::No, rhs, par, stack);
+                });
+            }
+            Layout::Dense => self.threads.run(self.parallel, |par| {
+                dense_solve(values, &self.fwd, rhs, par, stack);
+            }),
+        }
     }
 
     /// L's values rounded to single precision (for [`Factor::solve_single`]).
@@ -439,7 +629,10 @@ impl Factor {
 
     /// Workspace of [`Factor::solve_single`] for one right-hand side.
     pub(crate) fn solve_scratch_single(&self) -> StackReq {
-        self.symbolic.solve_in_place_scratch::<f32>(1, self.par())
+        match &self.layout {
+            Layout::Supernodal(symbolic) => symbolic.solve_in_place_scratch::<f32>(1, self.par()),
+            Layout::Dense => faer::linalg::temp_mat_scratch::<f32>(self.n(), 1),
+        }
     }
 
     /// Overwrites `rhs` (n x 1) with an approximation of K^-1 rhs in single
@@ -447,10 +640,7 @@ impl Factor {
     /// traffic of a solve, relative error about 1e-7 cond(K)^(1/2) per factor
     /// solve; for the inexact inner solves of a Newton step only.
     pub(crate) fn solve_single(&self, values: &[f32], rhs: MatMut<'_, f32>, stack: &mut MemStack) {
-        let llt = LltRef::new(&self.symbolic, values);
-        self.threads.run(self.parallel, |par| {
-            llt.solve_in_place_with_conj(Conj::No, rhs, par, stack);
-        });
+        self.solve_values(values, rhs, stack);
     }
 
     /// The forward half of a solve: y := L^-1 P x, y in the factor's ordering
@@ -459,6 +649,13 @@ impl Factor {
         let n = self.n();
         for (new, &old) in self.fwd.iter().enumerate() {
             y[new] = x[old];
+        }
+        if self.is_dense() {
+            let y = faer::MatMut::from_column_major_slice_mut(y, n, 1);
+            self.threads.run(self.parallel, |par| {
+                solve_lower_triangular_in_place(self.dense_l(), y, par);
+            });
+            return;
         }
         let mut mem = MemBuffer::new(self.solve_scratch(1));
         let llt = self.supernodal();
@@ -479,6 +676,15 @@ impl Factor {
         let first = n - self.last.len();
         y[..first].iter_mut().for_each(|v| *v = 0.0);
         y[first..].copy_from_slice(x_last);
+        if self.is_dense() {
+            let nc = n - first;
+            let l = self.dense_l().submatrix(first, first, nc, nc);
+            let y = faer::MatMut::from_column_major_slice_mut(&mut y[first..], nc, 1);
+            self.threads.run(self.parallel, |par| {
+                solve_lower_triangular_in_place(l, y, par);
+            });
+            return;
+        }
         let sym = self.supernodal_symbolic();
         let llt = self.supernodal();
         // Column-oriented L y = rhs over the supernodes that end after `first`.
@@ -510,6 +716,16 @@ impl Factor {
     /// Allocates its workspace.
     pub fn backward(&self, y: &mut [f64], x: &mut [f64]) {
         let n = self.n();
+        if self.is_dense() {
+            let ym = faer::MatMut::from_column_major_slice_mut(y, n, 1);
+            self.threads.run(self.parallel, |par| {
+                solve_upper_triangular_in_place(self.dense_l().transpose(), ym, par);
+            });
+            for (new, &old) in self.fwd.iter().enumerate() {
+                x[old] = y[new];
+            }
+            return;
+        }
         let mut mem = MemBuffer::new(self.solve_scratch(1));
         let llt = self.supernodal();
         self.threads.run(self.parallel, |par| {
@@ -526,7 +742,10 @@ impl Factor {
     /// this one and replace it only once everything built on it succeeded.
     pub(crate) fn unfactored_copy(&self) -> Factor {
         Factor {
-            symbolic: self.symbolic.clone(),
+            layout: match &self.layout {
+                Layout::Supernodal(s) => Layout::Supernodal(s.clone()),
+                Layout::Dense => Layout::Dense,
+            },
             l_values: Vec::new(),
             l_claim: None,
             ledger: self.ledger.clone(),
@@ -605,10 +824,11 @@ impl Factor {
     }
 
     /// The symbolic factor: always supernodal (`with_last` forces it), since the
-    /// pivots and the trailing block are read from the supernodes.
+    /// pivots and the trailing block are read from the supernodes. Panics on a
+    /// dense factor ([`Factor::is_dense`]).
     pub(crate) fn supernodal_symbolic(&self) -> &SymbolicSupernodalCholesky<usize> {
-        let SymbolicCholeskyRaw::Supernodal(sym) = self.symbolic.raw() else {
-            unreachable!("the factorisation is always supernodal");
+        let SymbolicCholeskyRaw::Supernodal(sym) = self.symbolic().raw() else {
+            unreachable!("the sparse factorisation is always supernodal");
         };
         sym
     }
@@ -619,6 +839,33 @@ impl Factor {
         let n = x.len();
         let m = faer::MatMut::from_column_major_slice_mut(x, n, 1);
         self.solve_in_place(m, MemStack::new(&mut mem));
+    }
+}
+
+/// rhs := P^T L^-T L^-1 P rhs for a dense L (`values`, n x n column-major, lower
+/// triangle) and the ordering `fwd` (new -> old); `stack` holds an n x k copy.
+fn dense_solve<T: faer::traits::ComplexField>(
+    values: &[T],
+    fwd: &[usize],
+    mut rhs: MatMut<'_, T>,
+    par: Par,
+    stack: &mut MemStack,
+) {
+    let (n, k) = (rhs.nrows(), rhs.ncols());
+    let l = faer::MatRef::from_column_major_slice(values, n, n);
+    let (mut tmp, _) = faer::linalg::temp_mat_zeroed::<T, _, _>(n, k, stack);
+    let mut tmp = faer::mat::AsMatMut::as_mat_mut(&mut tmp);
+    for j in 0..k {
+        for (new, &old) in fwd.iter().enumerate() {
+            tmp[(new, j)] = rhs[(old, j)].clone();
+        }
+    }
+    solve_lower_triangular_in_place(l, tmp.as_mut(), par);
+    solve_upper_triangular_in_place(l.transpose(), tmp.as_mut(), par);
+    for j in 0..k {
+        for (new, &old) in fwd.iter().enumerate() {
+            rhs[(old, j)] = tmp[(new, j)].clone();
+        }
     }
 }
 

@@ -20,7 +20,8 @@ pub struct Info {
     pub c: usize,
     /// Stored entries of K, both triangles.
     pub nnz_k: usize,
-    /// The fill-reducing ordering chosen (`Amd` or `Metis`).
+    /// The fill-reducing ordering chosen (`Amd` or `Metis`; `Dense` for a K
+    /// given dense, factored by dense Cholesky).
     pub ordering: Ordering,
     /// Entries of the Cholesky factor L (dense supernodal blocks included).
     pub factor_nnz: usize,

@@ -55,10 +55,14 @@ pub enum Ordering {
     Amd,
     /// Nested dissection: METIS_NodeND (METIS 5, built from vendored sources).
     Metis,
+    /// Reported only (never an option: `BadArgument`): K had every entry stored (a
+    /// dense K, `Format::Dense`) and was factored by dense Cholesky, without a
+    /// fill-reducing ordering or a symbolic analysis.
+    Dense,
 }
 
 impl Ordering {
-    /// Every ordering, in the order of the C enum.
+    /// Every ordering an option may name, in the order of the C enum.
     pub const ALL: [Ordering; 3] = [Ordering::Auto, Ordering::Amd, Ordering::Metis];
 
     /// Short lower-case name ("auto", "amd", "metis").
@@ -67,10 +71,12 @@ impl Ordering {
             Ordering::Auto => "auto",
             Ordering::Amd => "amd",
             Ordering::Metis => "metis",
+            Ordering::Dense => "dense",
         }
     }
 
-    /// Parses a name as returned by [`Ordering::name`].
+    /// Parses a name as returned by [`Ordering::name`] (of the options in
+    /// [`Ordering::ALL`]).
     pub fn from_name(s: &str) -> Option<Ordering> {
         Ordering::ALL.into_iter().find(|o| o.name() == s)
     }

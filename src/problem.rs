@@ -282,7 +282,7 @@ impl ContactProblem {
             c: d * n.nrows,
             nc: factor.last().len(),
             inputs: k.bytes() + n.bytes() + t.bytes(),
-            factor: factor.nnz_and_flops().0 * F64,
+            factor: factor.values_bytes(),
             factor_scratch: factor.factor_scratch_bytes(),
             solve_scratch: factor.solve_scratch(BLOCK).size_bytes(),
             threads: factor.threads().count(),
@@ -554,6 +554,13 @@ impl ContactProblem {
         }
         if opts.max_inner == 0 {
             return fail(ErrorKind::BadArgument, "max_inner must be at least 1");
+        }
+        if opts.ordering == crate::Ordering::Dense {
+            return fail(
+                ErrorKind::BadArgument,
+                "ordering = dense is reported, not chosen: a K with every entry stored \
+                 (the dense format) is factored densely whatever the ordering option",
+            );
         }
         if !(opts.max_seconds.is_finite() && opts.max_seconds >= 0.0) {
             return fail(

@@ -85,7 +85,7 @@ pub struct Report {
     /// Seconds of this solve: right-hand side, iterations and recovery of u.
     pub solve_seconds: f64,
     /// The fill-reducing ordering K's factor was computed with (`Amd` or `Metis`;
-    /// `Options::ordering` = `Auto` picks one).
+    /// `Options::ordering` = `Auto` picks one; `Dense` for a K given dense).
     pub ordering: crate::Ordering,
     /// Nonzeros of the Cholesky factor L (dense supernodal blocks included).
     pub factor_nnz: usize,

@@ -157,6 +157,7 @@ impl Laid {
                     p.push(i.len() as i64 + base);
                 }
             }
+            DsFormat::Dense => unreachable!("tests/dense_k.rs covers the dense format"),
         }
         Laid {
             nrows,

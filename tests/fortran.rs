@@ -920,3 +920,39 @@ fn block2d_f90_rejects_bad_options() {
         );
     }
 }
+
+/// `ds_matrix_dense` (the Schur-complement workflow of issue 18): a dense K in a
+/// padded array, one triangle read, gives the COO answer and DS_ORDERING_DENSE.
+#[test]
+fn dense_k_through_the_module() {
+    let src = manifest_dir().join("tests/data/fortran/dense_k.f90");
+    let Some(exe) = build_fortran(
+        "fortran::dense_k_through_the_module",
+        &src,
+        "dense_k_f",
+        &[],
+        Link::Library,
+    ) else {
+        return;
+    };
+    let stdout = stdout_of(&run_ok(&mut Command::new(&exe), "dense_k_f"));
+    println!("{stdout}");
+    let field = |key: &str| -> Vec<f64> {
+        stdout
+            .lines()
+            .find_map(|l| l.strip_prefix(key))
+            .unwrap_or_else(|| panic!("no {key} line:\n{stdout}"))
+            .split_whitespace()
+            .map(|t| t.parse().expect("a number"))
+            .collect()
+    };
+    assert_eq!(field("ORDERING "), [3.0], "DS_ORDERING_DENSE");
+    assert!(field("DIFF ").iter().all(|&d| d <= 1e-14), "{stdout}");
+    // Closed form: the node closes (u_y = 0) and slips: lambda_T = p = 0.3,
+    // 4 u_x = 0.5 - 0.3 (u_y = 0), lambda_N = 2 + (K u)_y = 2 + u_x.
+    let r = field("DENSE ");
+    let want = [0.05, 0.0, 2.05, 0.3];
+    for (k, w) in want.iter().enumerate() {
+        assert!((r[k] - w).abs() <= 1e-12, "DENSE[{k}] = {} != {w}", r[k]);
+    }
+}

@@ -38,7 +38,8 @@ pub struct DsInfo {
     pub factor_nnz: i64,
     /// Flops of one numeric factorisation of K.
     pub factor_flops: f64,
-    /// The DsOrdering chosen: DS_ORDERING_AMD or DS_ORDERING_METIS.
+    /// The DsOrdering chosen: DS_ORDERING_AMD or DS_ORDERING_METIS
+    /// (DS_ORDERING_DENSE for a K given dense).
     pub ordering: i32,
     /// The DsDualForm the handle is (or would be) created with:
     /// DS_DUAL_FORM_DENSE (A formed) or DS_DUAL_FORM_MATRIX_FREE.

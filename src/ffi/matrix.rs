@@ -17,12 +17,13 @@ use std::ffi::c_void;
 /// Errors when a matrix is read: DS_STATUS_BAD_ARGUMENT (unknown format, index_type
 /// or storage, base not 0 or 1), DS_STATUS_BAD_INDEX (last pointer below base, index
 /// out of range, pointers not monotone), DS_STATUS_BAD_SIZE (negative nrows, ncols or
-/// COO nnz), DS_STATUS_NULL_POINTER (p, i or x NULL for a non-empty array),
+/// COO nnz, DENSE leading dimension below nrows), DS_STATUS_NULL_POINTER (p, i or x NULL for a non-empty array),
 /// DS_STATUS_NOT_FINITE (NaN or infinity in x).
 #[repr(C)]
 #[derive(Copy, Clone, Debug)]
 pub struct DsMatrix {
-    /// A DsFormat value: DS_FORMAT_CSR, DS_FORMAT_CSC or DS_FORMAT_COO.
+    /// A DsFormat value: DS_FORMAT_CSR, DS_FORMAT_CSC, DS_FORMAT_COO or
+    /// DS_FORMAT_DENSE.
     pub format: i32,
     /// A DsIndexType value: p and i point to int32_t (DS_INDEX_TYPE_I32) or int64_t
     /// (DS_INDEX_TYPE_I64).
@@ -36,15 +37,17 @@ pub struct DsMatrix {
     /// Number of columns, >= 0.
     pub ncols: i64,
     /// COO: number of triplets (>= 0). CSR/CSC: ignored; the number of entries is
-    /// `p[last] - base`.
+    /// `p[last] - base`. DENSE: the leading dimension (>= nrows); x holds
+    /// `nnz * (ncols - 1) + nrows` values.
     pub nnz: i64,
     /// CSC: ncols+1 column pointers; CSR: nrows+1 row pointers; COO: nnz column
-    /// indices. Never NULL for CSR/CSC.
+    /// indices. Never NULL for CSR/CSC. DENSE: not read.
     pub p: *const c_void,
     /// CSC: row indices; CSR: column indices; COO: row indices. NULL allowed when
-    /// there are no entries.
+    /// there are no entries. DENSE: not read.
     pub i: *const c_void,
-    /// Values, one per entry. NULL allowed when there are no entries.
+    /// Values, one per entry (DENSE: column-major with leading dimension `nnz`).
+    /// NULL allowed when there are no entries.
     pub x: *const f64,
 }
 
@@ -92,6 +95,10 @@ impl DsMatrix {
     /// describe, and not written during `'a`.
     pub(crate) unsafe fn view<'a>(&self, what: &str) -> Result<MatrixView<'a>> {
         let format = DsFormat::parse(self.format, &format!("{what}.format"))?;
+        if format == DsFormat::Dense {
+            // SAFETY: the caller guarantees x holds the values the fields describe.
+            return unsafe { self.dense_view(what) };
+        }
         let index_type = DsIndexType::parse(self.index_type, &format!("{what}.index_type"))?;
         let storage = DsStorage::parse(self.storage, &format!("{what}.storage"))?;
         let base: usize = match self.base {
@@ -106,7 +113,11 @@ impl DsMatrix {
         };
         let nrows = size(self.nrows, what, "nrows")?;
         let ncols = size(self.ncols, what, "ncols")?;
-        let format: Format = format.into();
+        let format = match format {
+            DsFormat::Csr => Format::Csr,
+            DsFormat::Csc => Format::Csc,
+            _ => Format::Coo,
+        };
         let (p, nnz) = match format {
             Format::Csr | Format::Csc => {
                 let (outer, name) = if format == Format::Csr {
@@ -144,6 +155,7 @@ impl DsMatrix {
                 let p = unsafe { indices(self.p, nnz, index_type, &format!("{what}.p"))? };
                 (p, nnz)
             }
+            Format::Dense { .. } => unreachable!("dense views are made by dense_view"),
         };
         // SAFETY: the caller guarantees i and x hold nnz entries.
         let i = unsafe { indices(self.i, nnz, index_type, &format!("{what}.i"))? };
@@ -157,6 +169,43 @@ impl DsMatrix {
             ncols,
             p,
             i,
+            x,
+        })
+    }
+}
+
+impl DsMatrix {
+    /// [`DsMatrix::view`] of a DS_FORMAT_DENSE matrix: `nnz` is the leading
+    /// dimension; `p`, `i` and `index_type` are not read.
+    ///
+    /// # Safety
+    /// `x` must be NULL or valid for reads of `nnz (ncols - 1) + nrows` values.
+    unsafe fn dense_view<'a>(&self, what: &str) -> Result<MatrixView<'a>> {
+        let storage = DsStorage::parse(self.storage, &format!("{what}.storage"))?;
+        let base: usize = match self.base {
+            0 => 0,
+            1 => 1,
+            b => {
+                return Err(Error::new(
+                    ErrorKind::BadArgument,
+                    format!("{what}: base = {b} is not 0 or 1"),
+                ));
+            }
+        };
+        let nrows = size(self.nrows, what, "nrows")?;
+        let ncols = size(self.ncols, what, "ncols")?;
+        let ld = size(self.nnz, what, "nnz (the dense leading dimension)")?;
+        let len = crate::sparse::dense_len(nrows, ncols, ld, what)?;
+        // SAFETY: the caller guarantees x holds len values.
+        let x = unsafe { slice_in(self.x, len, &format!("{what}.x"))? };
+        Ok(MatrixView {
+            format: Format::Dense { ld },
+            storage: storage.into(),
+            base,
+            nrows,
+            ncols,
+            p: Indices::I32(&[]),
+            i: Indices::I32(&[]),
             x,
         })
     }
@@ -200,9 +249,9 @@ mod tests {
         let zeros = [0i64; 3];
         let cases: Vec<(DsMatrix, ErrorKind, &str)> = vec![
             (
-                DsMatrix { format: 3, ..good },
+                DsMatrix { format: 4, ..good },
                 ErrorKind::BadArgument,
-                "K.format = 3",
+                "K.format = 4",
             ),
             (
                 DsMatrix {

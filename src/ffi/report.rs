@@ -54,7 +54,8 @@ pub struct DsReport {
     /// Seconds of this solve (right-hand side, iterations, recovery of u).
     pub solve_seconds: f64,
     /// The DsOrdering K's factor was computed with: DS_ORDERING_AMD or
-    /// DS_ORDERING_METIS (DS_ORDERING_AUTO picks one). Added in version 0.4.
+    /// DS_ORDERING_METIS (DS_ORDERING_AUTO picks one); DS_ORDERING_DENSE for a
+    /// K given dense (dense Cholesky). Added in version 0.4.
     pub ordering: i32,
     /// Threads the handle's pool has (1: the calling thread only). Added in
     /// version 0.4.

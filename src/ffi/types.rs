@@ -5,7 +5,7 @@
 
 use crate::error::{Error, ErrorKind, Result};
 use crate::options::{DualForm, Method, Ordering};
-use crate::sparse::{Format, Storage};
+use crate::sparse::Storage;
 
 /// Layout of a DsMatrix (its `format` field), named as in CSparse.
 #[repr(C)]
@@ -19,6 +19,14 @@ pub enum DsFormat {
     /// Triplets (CSparse `cs` with nz >= 0): `i` holds nnz row indices, `p` nnz column
     /// indices. Duplicates are summed.
     Coo = 2,
+    /// Dense, column-major (LAPACK, Fortran arrays): entry (r, c) at
+    /// `x[r + c * nnz]`, the DsMatrix's `nnz` field holding the leading dimension
+    /// (LDA >= nrows); `p`, `i` and `index_type` are not read, `base` only names
+    /// rows and columns in messages. For K (full storage: checked symmetric;
+    /// DS_STORAGE_UPPER / LOWER: the other triangle is not read) every entry is
+    /// kept and K is factored by dense Cholesky (a Schur complement from MUMPS,
+    /// PARDISO or PETSc); N and T keep their nonzeros. Added in version 0.7.
+    Dense = 3,
 }
 
 /// Integer width of a DsMatrix's `p` and `i` arrays (its `index_type` field).
@@ -52,7 +60,7 @@ pub enum DsStorage {
 pub enum DsMethod {
     /// Pop's dual splitting, Schur complement variant: the tangential step on
     /// S = A22 - A21 A11^-1 A12 over the current contact set, then the normal step on
-    /// A11, both by projected Gauss-Seidel. The default.
+    /// A11, both by projected Gauss-Seidel (the default until version 0.5).
     Split = 0,
     /// Plain block Gauss-Seidel on (lambda_N, lambda_T): tangential step on A22, normal
     /// step on A11, both by projected Gauss-Seidel.
@@ -110,6 +118,11 @@ pub enum DsOrdering {
     Amd = 1,
     /// Nested dissection (METIS_NodeND, METIS 5 built into the library).
     Metis = 2,
+    /// Reported only (DsReport.ordering, DsInfo.ordering; as an option:
+    /// DS_STATUS_BAD_ARGUMENT): K was given with every entry stored
+    /// (DS_FORMAT_DENSE) and factored by dense Cholesky, without a fill-reducing
+    /// ordering. Added in version 0.7.
+    Dense = 3,
 }
 
 /// Friction law of one increment (the `friction` argument of ds_solve / ds_step).
@@ -165,6 +178,7 @@ impl CEnum for DsFormat {
         (DsFormat::Csr, "DS_FORMAT_CSR"),
         (DsFormat::Csc, "DS_FORMAT_CSC"),
         (DsFormat::Coo, "DS_FORMAT_COO"),
+        (DsFormat::Dense, "DS_FORMAT_DENSE"),
     ];
 }
 
@@ -213,6 +227,7 @@ impl CEnum for DsOrdering {
         (DsOrdering::Auto, "DS_ORDERING_AUTO"),
         (DsOrdering::Amd, "DS_ORDERING_AMD"),
         (DsOrdering::Metis, "DS_ORDERING_METIS"),
+        (DsOrdering::Dense, "DS_ORDERING_DENSE"),
     ];
 }
 
@@ -222,6 +237,7 @@ impl From<DsOrdering> for Ordering {
             DsOrdering::Auto => Ordering::Auto,
             DsOrdering::Amd => Ordering::Amd,
             DsOrdering::Metis => Ordering::Metis,
+            DsOrdering::Dense => Ordering::Dense,
         }
     }
 }
@@ -232,6 +248,7 @@ impl From<Ordering> for DsOrdering {
             Ordering::Auto => DsOrdering::Auto,
             Ordering::Amd => DsOrdering::Amd,
             Ordering::Metis => DsOrdering::Metis,
+            Ordering::Dense => DsOrdering::Dense,
         }
     }
 }
@@ -262,16 +279,6 @@ impl CEnum for DsFriction {
         (DsFriction::Tresca, "DS_FRICTION_TRESCA"),
         (DsFriction::Coulomb, "DS_FRICTION_COULOMB"),
     ];
-}
-
-impl From<DsFormat> for Format {
-    fn from(f: DsFormat) -> Format {
-        match f {
-            DsFormat::Csr => Format::Csr,
-            DsFormat::Csc => Format::Csc,
-            DsFormat::Coo => Format::Coo,
-        }
-    }
 }
 
 impl From<DsStorage> for Storage {

@@ -1,4 +1,4 @@
-//! Matrix Market files (coordinate, real, general or symmetric) and the vectors of a
+//! Matrix Market files (coordinate or array, real, general or symmetric) and the vectors of a
 //! folder (one number per line): parse, read, format, write.
 
 use super::text::*;
@@ -14,6 +14,9 @@ pub(super) struct Header {
     pub(super) ncols: usize,
     pub(super) nnz: usize,
     pub(super) symmetric: bool,
+    /// `array` (dense, one value per line, column-major; symmetric: the lower
+    /// triangle) rather than `coordinate`.
+    pub(super) array: bool,
     /// 1-based number of the size line; the entries follow it.
     pub(super) size_line: usize,
 }
@@ -45,16 +48,20 @@ pub(super) fn parse_header(text: &str, path: &Path) -> Result<Header> {
             ),
         ));
     }
-    if words[2] != "coordinate" {
-        return Err(line_err(
-            path,
-            1,
-            format!(
-                "unsupported format \"{}\": only coordinate (sparse) matrices are read",
-                clip(words[2])
-            ),
-        ));
-    }
+    let array = match words[2] {
+        "coordinate" => false,
+        "array" => true,
+        other => {
+            return Err(line_err(
+                path,
+                1,
+                format!(
+                    "unsupported format \"{}\": only coordinate and array matrices are read",
+                    clip(other)
+                ),
+            ));
+        }
+    };
     if words[3] != "real" && words[3] != "integer" {
         return Err(line_err(
             path,
@@ -88,6 +95,47 @@ pub(super) fn parse_header(text: &str, path: &Path) -> Result<Header> {
         ));
     };
     let tokens: Vec<&str> = size_text.split_whitespace().take(4).collect();
+    if array {
+        if tokens.len() != 2 {
+            return Err(line_err(
+                path,
+                size_line,
+                format!(
+                    "bad size line \"{}\": expected two integers \"rows columns\" (array)",
+                    clip(size_text)
+                ),
+            ));
+        }
+        let nrows = parse_count(tokens[0], path, size_line, "row count")?;
+        let ncols = parse_count(tokens[1], path, size_line, "column count")?;
+        if symmetric && nrows != ncols {
+            return Err(line_err(
+                path,
+                size_line,
+                format!("a symmetric matrix must be square, got {nrows} x {ncols}"),
+            ));
+        }
+        let nnz = if symmetric {
+            nrows.checked_mul(nrows.saturating_add(1)).map(|v| v / 2)
+        } else {
+            nrows.checked_mul(ncols)
+        };
+        let Some(nnz) = nnz else {
+            return Err(line_err(
+                path,
+                size_line,
+                format!("a {nrows} x {ncols} array has too many entries"),
+            ));
+        };
+        return Ok(Header {
+            nrows,
+            ncols,
+            nnz,
+            symmetric,
+            array,
+            size_line,
+        });
+    }
     if tokens.len() != 3 {
         return Err(line_err(
             path,
@@ -113,6 +161,7 @@ pub(super) fn parse_header(text: &str, path: &Path) -> Result<Header> {
         ncols,
         nnz,
         symmetric,
+        array,
         size_line,
     })
 }
@@ -180,12 +229,17 @@ pub(super) fn parse_entries(text: &str, path: &Path, h: &Header) -> Result<Csc> 
         ncols,
         nnz,
         symmetric,
+        array,
         size_line,
     } = *h;
     let declared = || format!("a {nrows} x {ncols} matrix with {nnz} entries, as declared");
     // Room for the entries, capped so that an absurd count in a short file cannot
-    // exhaust memory before the count check below; it grows if ever needed.
-    let cap = nnz.min(text.len() / 6 + 1);
+    // exhaust memory before the count check below; it grows if ever needed (an
+    // entry line takes 6 bytes or more, an array value 2).
+    let cap = nnz.min(text.len() / if array { 2 } else { 6 } + 1);
+    // The array position of the k-th value: column-major, the lower triangle of
+    // a symmetric file.
+    let (mut next_r, mut next_c) = (0usize, 0usize);
     let mut rows: Vec<i64> = Vec::new();
     let mut cols: Vec<i64> = Vec::new();
     let mut vals: Vec<f64> = Vec::new();
@@ -210,6 +264,25 @@ pub(super) fn parse_entries(text: &str, path: &Path, h: &Header) -> Result<Csc> 
             ));
         }
         let tokens: Vec<&str> = entry.split_whitespace().take(4).collect();
+        if array {
+            if tokens.len() != 1 {
+                return Err(line_err(
+                    path,
+                    line,
+                    format!("bad array value \"{}\": expected one number", clip(entry)),
+                ));
+            }
+            let v = parse_real(tokens[0], path, line, "value")?;
+            try_push(&mut rows, next_r as i64 + 1, path, "entries")?;
+            try_push(&mut cols, next_c as i64 + 1, path, "entries")?;
+            try_push(&mut vals, v, path, "entries")?;
+            next_r += 1;
+            if next_r == nrows {
+                next_c += 1;
+                next_r = if symmetric { next_c } else { 0 };
+            }
+            continue;
+        }
         if tokens.len() != 3 {
             return Err(line_err(
                 path,
@@ -270,6 +343,7 @@ pub(super) fn parse_entries(text: &str, path: &Path, h: &Header) -> Result<Csc> 
             ),
         ));
     }
+    // Array files keep every value (zeros too): a dense K stays dense.
     let storage = match (symmetric, triangle) {
         (false, _) => Storage::Full,
         (true, Some((false, _))) => Storage::Upper,

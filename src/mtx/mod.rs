@@ -21,7 +21,11 @@
 //! # Matrix Market
 //!
 //! Read: `%%MatrixMarket matrix coordinate real general` or `... symmetric`
-//! (`integer` instead of `real` is accepted too; keywords are case-insensitive).
+//! (`integer` instead of `real` is accepted too; keywords are case-insensitive),
+//! and `%%MatrixMarket matrix array real general|symmetric`: a size line
+//! "rows columns", then one value per line, column by column (symmetric: the
+//! lower triangle, diagonal included); every value is kept, zeros too, so a
+//! dense K read from an array file is factored densely.
 //! Comment lines (starting with `%`) and blank lines may appear anywhere after the
 //! header line. Indices are 1-based. Duplicate entries are summed. A `symmetric`
 //! file stores one triangle (the lower one, as the format says, or the upper one,
@@ -65,8 +69,8 @@
 //!   machine without the memory) is [`crate::ErrorKind::OutOfMemory`], with the file and
 //!   the declared sizes in the message.
 //!
-//! The `array` (dense) Matrix Market format is not read (an `Io` error on the
-//! header line, before the size line), so a dense size is never allocated.
+//! An `array` file holds one value per line: its room is capped by the text as
+//! for the entries of a coordinate file (a value line takes 2 bytes or more).
 
 mod folder;
 mod matrix;
@@ -188,8 +192,8 @@ mod tests {
         let text = "%%MatrixMarket matrix coordinate real general\n% c\n\n7 5 3\n";
         let h = parse_header(text, path).unwrap();
         assert_eq!(
-            (h.nrows, h.ncols, h.nnz, h.symmetric, h.size_line),
-            (7, 5, 3, false, 4)
+            (h.nrows, h.ncols, h.nnz, h.symmetric, h.array, h.size_line),
+            (7, 5, 3, false, false, 4)
         );
         check_unconfirmed(&h, text, path).unwrap();
         let big = Header {
@@ -202,6 +206,71 @@ mod tests {
         // A file at least as long as the dimension confirms it.
         let long = " ".repeat(MAX_UNCONFIRMED_DIM + 1);
         check_unconfirmed(&big, &long, path).unwrap();
+    }
+
+    /// An array file is the matrix of its values, column by column, every value
+    /// kept (zeros too); a symmetric one holds the lower triangle.
+    #[test]
+    fn mtx_array_files() {
+        let path = Path::new("A.mtx");
+        let general = "%%MatrixMarket matrix array real general\n% c\n2 3\n1\n0\n3\n4\n-5e-1\n6\n";
+        let a = parse_matrix(general, path).unwrap();
+        let want = Csc::from_triplets(
+            2,
+            3,
+            &[
+                (0, 0, 1.0),
+                (1, 0, 0.0),
+                (0, 1, 3.0),
+                (1, 1, 4.0),
+                (0, 2, -0.5),
+                (1, 2, 6.0),
+            ],
+        );
+        assert_eq!(a, want);
+        let sym = "%%MatrixMarket matrix array real symmetric\n3 3\n4\n1\n0\n5\n2\n6\n";
+        let s = parse_matrix(sym, path).unwrap();
+        let mut t = Vec::new();
+        for (r, c, v) in [
+            (0, 0, 4.0),
+            (1, 0, 1.0),
+            (2, 0, 0.0),
+            (1, 1, 5.0),
+            (2, 1, 2.0),
+            (2, 2, 6.0),
+        ] {
+            t.push((r, c, v));
+            if r != c {
+                t.push((c, r, v));
+            }
+        }
+        assert_eq!(s, Csc::from_triplets(3, 3, &t));
+        assert_eq!(s.nnz(), 9, "a dense K read from an array file stays dense");
+        for (text, words) in [
+            (
+                "%%MatrixMarket matrix array real general\n2 2 4\n1\n2\n3\n4\n",
+                "two integers",
+            ),
+            (
+                "%%MatrixMarket matrix array real general\n2 2\n1\n2\n3\n",
+                "end of file",
+            ),
+            (
+                "%%MatrixMarket matrix array real general\n1 2\n1\n2\n3\n",
+                "more entries",
+            ),
+            (
+                "%%MatrixMarket matrix array real general\n1 1\n1 2\n",
+                "one number",
+            ),
+            (
+                "%%MatrixMarket matrix array real symmetric\n2 3\n",
+                "square",
+            ),
+        ] {
+            let e = parse_matrix(text, path).unwrap_err();
+            assert!(e.message.contains(words), "{text:?}: {}", e.message);
+        }
     }
 
     #[test]

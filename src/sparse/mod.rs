@@ -18,7 +18,8 @@ mod validate;
 
 use crate::error::{ErrorKind, Result, fail};
 use assemble::{Triplets, assemble, filled, try_copy, zeroed};
-use validate::{check_base, check_sums_finite, check_symmetric, collect};
+pub(crate) use validate::dense_len;
+use validate::{check_base, check_sums_finite, check_symmetric, collect, collect_dense};
 
 /// Layout of a borrowed sparse matrix, named as in CSparse.
 #[derive(Copy, Clone, Debug, PartialEq, Eq)]
@@ -31,6 +32,14 @@ pub enum Format {
     /// Triplets (CSparse convention): `i` holds the row indices, `p` the column
     /// indices, both of length nnz. Duplicates are summed.
     Coo,
+    /// Dense, column-major (LAPACK): entry (r, c) at `x[r + c ld]`, `ld >= nrows`;
+    /// `p`, `i` and the index base are not used. A symmetric K keeps every entry
+    /// (of its triangle, mirrored, for one-triangle storage; the other triangle
+    /// is not read) and is factored by dense Cholesky; N and T keep their nonzeros.
+    Dense {
+        /// The leading dimension: x holds `ld (ncols - 1) + nrows` values.
+        ld: usize,
+    },
 }
 
 /// Which part of a symmetric matrix is stored (only meaningful for K).
@@ -97,6 +106,102 @@ pub struct Csc {
 /// |K_ij - K_ji| <= SYMMETRY_TOL * max_kl |K_kl| for every pair.
 pub const SYMMETRY_TOL: f64 = 1e-10;
 
+/// A dense symmetric K (`view.format` = `Dense { ld }`, square) in the internal
+/// form with every entry stored, explicit zeros too, so that it stays dense and is
+/// factored by dense Cholesky whatever its values: column j holds rows 0..n.
+/// Built straight from the array (no triplets, no sorts): the n^2 values and row
+/// indices are all it allocates. One-triangle storage reads only that triangle;
+/// full storage is checked for symmetry with [`SYMMETRY_TOL`].
+///
+/// Errors: `BadSize` (ld < n, x too short), `NotFinite` (a value read),
+/// `NotSymmetric` (the worst pair), `OutOfMemory`.
+fn symmetric_from_dense(view: &MatrixView<'_>, ld: usize, what: &str, base: usize) -> Result<Csc> {
+    let n = view.nrows;
+    let len = dense_len(n, n, ld, what)?;
+    if view.x.len() < len {
+        return fail(
+            ErrorKind::BadSize,
+            format!(
+                "{what}: dense x has {} values, {n} x {n} with leading dimension {ld} needs {len}",
+                view.x.len()
+            ),
+        );
+    }
+    let entries = n.checked_mul(n).ok_or_else(|| {
+        crate::Error::new(
+            ErrorKind::OutOfMemory,
+            format!("{what}: {n} x {n} is too large"),
+        )
+    })?;
+    // The array position holding entry (r, c) of the stored part.
+    let at = |r: usize, c: usize| match view.storage {
+        Storage::Upper if r > c => c + r * ld,
+        Storage::Lower if r < c => c + r * ld,
+        _ => r + c * ld,
+    };
+    let mut values = filled(entries, 0.0, "values")?;
+    let mut row_idx = filled(entries, 0usize, "indices")?;
+    let mut max_abs = 0.0f64;
+    for c in 0..n {
+        for r in 0..n {
+            let v = view.x[at(r, c)];
+            if !v.is_finite() {
+                let (sr, sc) = if at(r, c) == r + c * ld {
+                    (r, c)
+                } else {
+                    (c, r)
+                };
+                return fail(
+                    ErrorKind::NotFinite,
+                    format!(
+                        "{what}: dense entry (row {}, column {}) = x[{}] is {v}",
+                        sr + base,
+                        sc + base,
+                        sr + sc * ld
+                    ),
+                );
+            }
+            values[r + c * n] = v;
+            row_idx[r + c * n] = r;
+            max_abs = max_abs.max(v.abs());
+        }
+    }
+    if view.storage == Storage::Full {
+        let tol = SYMMETRY_TOL * max_abs;
+        let mut worst: Option<(usize, usize, f64)> = None;
+        for c in 0..n {
+            for r in 0..c {
+                let diff = (values[r + c * n] - values[c + r * n]).abs();
+                if diff > tol && worst.is_none_or(|w| diff > w.2) {
+                    worst = Some((r, c, diff));
+                }
+            }
+        }
+        if let Some((r, c, diff)) = worst {
+            return fail(
+                ErrorKind::NotSymmetric,
+                format!(
+                    "{what} is not symmetric: {what}({},{}) = {} but {what}({},{}) = {}; \
+                     |difference| {diff:e} > {SYMMETRY_TOL:e} * max|{what}| = {tol:e}",
+                    r + base,
+                    c + base,
+                    values[r + c * n],
+                    c + base,
+                    r + base,
+                    values[c + r * n]
+                ),
+            );
+        }
+    }
+    Ok(Csc {
+        nrows: n,
+        ncols: n,
+        col_ptr: (0..=n).map(|j| j * n).collect(),
+        row_idx,
+        values,
+    })
+}
+
 impl Indices<'_> {
     /// Number of stored indices.
     fn len(&self) -> usize {
@@ -143,7 +248,10 @@ impl Csc {
                 ),
             );
         }
-        let t = collect(view, what, base, 0)?;
+        let t = match view.format {
+            Format::Dense { .. } => collect_dense(view, what, base)?,
+            _ => collect(view, what, base, 0)?,
+        };
         let a = assemble(view.nrows, view.ncols, &t)?;
         check_sums_finite(&a, what, base)?;
         Ok(a)
@@ -173,6 +281,9 @@ impl Csc {
         } else {
             view.i.len()
         };
+        if let Format::Dense { ld } = view.format {
+            return symmetric_from_dense(view, ld, what, base);
+        }
         let mut t = collect(view, what, base, extra)?;
         match view.storage {
             Storage::Full => {

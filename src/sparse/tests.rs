@@ -84,6 +84,7 @@ fn encode(
             trip.iter().map(|t| t.0 as i64 + b).collect(),
             trip.iter().map(|t| t.2).collect(),
         ),
+        Format::Dense { .. } => unreachable!("the sparse tests lay out sparse formats"),
         Format::Csc | Format::Csr => {
             let csc = format == Format::Csc;
             let n = if csc { ncols } else { nrows };

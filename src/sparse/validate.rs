@@ -61,7 +61,7 @@ pub(super) fn check_pointers(view: &MatrixView<'_>, what: &str, base: usize) -> 
     let (fmt, n, dim_name, ptr_name) = match view.format {
         Format::Csc => ("CSC", view.ncols, "columns", "column"),
         Format::Csr => ("CSR", view.nrows, "rows", "row"),
-        Format::Coo => unreachable!("COO has no pointers"),
+        Format::Coo | Format::Dense { .. } => unreachable!("only CSR and CSC have pointers"),
     };
     let plen = view.p.len();
     if plen == 0 || plen - 1 != n {
@@ -182,6 +182,7 @@ pub(super) fn collect(
             }
             Ok(t)
         }
+        Format::Dense { .. } => unreachable!("dense views are read by collect_dense"),
         Format::Coo => {
             let (ilen, plen, xlen) = (view.i.len(), view.p.len(), view.x.len());
             if ilen != plen || ilen != xlen {
@@ -222,6 +223,72 @@ pub(super) fn collect(
             Ok(t)
         }
     }
+}
+
+/// The number of values a dense view of `nrows` x `ncols` with leading dimension
+/// `ld` reads: `ld (ncols - 1) + nrows`, 0 for an empty matrix; `BadSize` when ld
+/// < nrows or the count overflows.
+pub(crate) fn dense_len(nrows: usize, ncols: usize, ld: usize, what: &str) -> Result<usize> {
+    if ld < nrows {
+        return fail(
+            ErrorKind::BadSize,
+            format!("{what}: dense leading dimension {ld} is less than nrows = {nrows}"),
+        );
+    }
+    if nrows == 0 || ncols == 0 {
+        return Ok(0);
+    }
+    (ncols - 1)
+        .checked_mul(ld)
+        .and_then(|v| v.checked_add(nrows))
+        .ok_or_else(|| {
+            crate::Error::new(
+                ErrorKind::BadSize,
+                format!("{what}: {nrows} x {ncols} with leading dimension {ld} is too large"),
+            )
+        })
+}
+
+/// The nonzeros of a dense general view (N, T) as 0-based triplets, column by
+/// column. Every value is checked for finiteness; messages give rows and columns
+/// in `base`. (A dense K is read by `symmetric_from_dense`, every entry kept.)
+pub(super) fn collect_dense(view: &MatrixView<'_>, what: &str, base: usize) -> Result<Triplets> {
+    let Format::Dense { ld } = view.format else {
+        unreachable!("collect_dense reads dense views");
+    };
+    let (nrows, ncols) = (view.nrows, view.ncols);
+    let len = dense_len(nrows, ncols, ld, what)?;
+    if view.x.len() < len {
+        return fail(
+            ErrorKind::BadSize,
+            format!(
+                "{what}: dense x has {} values, {nrows} x {ncols} with leading dimension {ld} \
+                 needs {len}",
+                view.x.len()
+            ),
+        );
+    }
+    let mut t = Triplets::default();
+    for c in 0..ncols {
+        for r in 0..nrows {
+            let v = view.x[r + c * ld];
+            if !v.is_finite() {
+                return fail(
+                    ErrorKind::NotFinite,
+                    format!(
+                        "{what}: dense entry (row {}, column {}) = x[{}] is {v}",
+                        r + base,
+                        c + base,
+                        r + c * ld
+                    ),
+                );
+            }
+            if v != 0.0 {
+                t.push(r, c, v);
+            }
+        }
+    }
+    Ok(t)
 }
 
 /// After [`assemble`]: every entry is finite, unless duplicates summed to an
