@@ -37,7 +37,7 @@ lib:
 
 $(LIBDS): lib
 
-$(BLOCK2D): c_examples/block2d.c include/dualsplit.h $(LIBDS) | $(OUTDIR)
+$(BLOCK2D): c_examples/block2d.c c_examples/block2d_scene.h include/dualsplit.h $(LIBDS) | $(OUTDIR)
 	$(CC) $(CPPFLAGS) $(CFLAGS) -o $@ c_examples/block2d.c $(LIBDS) $(LDFLAGS) $(LDLIBS)
 
 $(OUTDIR):
@@ -159,7 +159,7 @@ fortran-demo: $(FOUTDIR)/block2d_f
 fortran-minimal: $(FOUTDIR)/minimal_f
 	$(abspath $(FOUTDIR)/minimal_f)
 
-$(OUTDIR)/suitesparse_block2d: c_examples/suitesparse_block2d.c include/dualsplit.h $(LIBDS) | $(OUTDIR)
+$(OUTDIR)/suitesparse_block2d: c_examples/suitesparse_block2d.c c_examples/block2d_scene.h include/dualsplit.h $(LIBDS) | $(OUTDIR)
 	$(CC) $(CPPFLAGS) $(SUITESPARSE_CFLAGS) $(CFLAGS) -o $@ c_examples/suitesparse_block2d.c \
 	    $(LIBDS) $(SUITESPARSE_LIBS) $(LDFLAGS) $(LDLIBS)
 

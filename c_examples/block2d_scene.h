@@ -1,9 +1,11 @@
 /*
- * block2d_scene.h -- the demo's 2D block (c_examples/block2d.c) as a reusable
- * assembly for the examples that factor K with another solver
- * (mumps_schur.c, mumps_mpi_schur.c): plane-strain Q4 block pressed onto a curved
- * rigid foundation and sheared, top edge prescribed, every bottom node a contact.
- * Everything is static: include it in one translation unit.
+ * block2d_scene.h -- the demo's 2D block: the triplet storage and the Q4 element
+ * of c_examples/block2d.c, and the whole scene assembled for the examples that
+ * factor K with another solver (mumps_schur.c, mumps_mpi_schur.c): plane-strain
+ * Q4 block pressed onto a curved rigid foundation and sheared, top edge
+ * prescribed, every bottom node a contact. Every function is static inline (no
+ * warning for the ones a program does not use): include it in one translation
+ * unit.
  *
  *   - node (i,j) = j (nx+1) + i at (i W/nx, j H/ny); the top row is prescribed;
  *   - eq[dof] >= 0 numbers the free equations, -(1+p) the prescribed DOF p;
@@ -21,6 +23,8 @@
 #include <stdio.h>
 #include <stdlib.h>
 
+#include "dualsplit.h"
+
 /* ------------------------------------------------------------------------- */
 /* triplet (COO) storage, grown as needed                                     */
 /* ------------------------------------------------------------------------- */
@@ -33,27 +37,27 @@ typedef struct {
     long cap;
 } Triplets;
 
-static void die_oom(void)
+static inline void die_oom(void)
 {
     fprintf(stderr, "out of memory\n");
     exit(2);
 }
 
-static void *xmalloc(size_t nbytes)
+static inline void *xmalloc(size_t nbytes)
 {
     void *p = malloc(nbytes > 0 ? nbytes : 1);
     if (p == NULL) die_oom();
     return p;
 }
 
-static void *xcalloc(size_t count, size_t size)
+static inline void *xcalloc(size_t count, size_t size)
 {
     void *p = calloc(count > 0 ? count : 1, size > 0 ? size : 1);
     if (p == NULL) die_oom();
     return p;
 }
 
-static void trip_init(Triplets *t, long cap)
+static inline void trip_init(Triplets *t, long cap)
 {
     t->n = 0;
     t->cap = cap > 16 ? cap : 16;
@@ -62,7 +66,7 @@ static void trip_init(Triplets *t, long cap)
     t->val = (double *)xmalloc((size_t)t->cap * sizeof(double));
 }
 
-static void trip_add(Triplets *t, long r, long c, double v)
+static inline void trip_add(Triplets *t, long r, long c, double v)
 {
     if (t->n == t->cap) {
         long cap = 2 * t->cap;
@@ -85,7 +89,7 @@ static void trip_add(Triplets *t, long r, long c, double v)
     t->n++;
 }
 
-static void trip_free(Triplets *t)
+static inline void trip_free(Triplets *t)
 {
     free(t->row);
     free(t->col);
@@ -95,12 +99,29 @@ static void trip_free(Triplets *t)
     t->n = t->cap = 0;
 }
 
+/* A borrowed 0-based int32 COO matrix for the library (p = columns, i = rows). */
+static inline DsMatrix coo_matrix(const Triplets *t, long nrows, long ncols)
+{
+    DsMatrix a;
+    a.format = DS_FORMAT_COO;
+    a.index_type = DS_INDEX_TYPE_I32;
+    a.base = 0;
+    a.storage = DS_STORAGE_FULL;
+    a.nrows = nrows;
+    a.ncols = ncols;
+    a.nnz = t->n;
+    a.p = t->col;
+    a.i = t->row;
+    a.x = t->val;
+    return a;
+}
+
 /* ------------------------------------------------------------------------- */
 /* element                                                                     */
 /* ------------------------------------------------------------------------- */
 
 /* Plane-strain elasticity matrix. */
-static void plane_strain_d(double e, double nu, double d[3][3])
+static inline void plane_strain_d(double e, double nu, double d[3][3])
 {
     double c = e / ((1.0 + nu) * (1.0 - 2.0 * nu));
     d[0][0] = c * (1.0 - nu); d[0][1] = c * nu;         d[0][2] = 0.0;
@@ -110,7 +131,7 @@ static void plane_strain_d(double e, double nu, double d[3][3])
 
 /* Q4 stiffness, 2x2 Gauss, unit thickness.  Local nodes counter-clockwise,
    DOFs ordered (u1x, u1y, u2x, u2y, ...).  Returns 0, or -1 on a bad Jacobian. */
-static int q4_stiffness(const double xe[4], const double ye[4], double d[3][3], double ke[8][8])
+static inline int q4_stiffness(const double xe[4], const double ye[4], double d[3][3], double ke[8][8])
 {
     static const double xi_a[4] = {-1.0, 1.0, 1.0, -1.0};
     static const double eta_a[4] = {-1.0, -1.0, 1.0, 1.0};
@@ -189,7 +210,7 @@ typedef struct {
 /* Builds the block: nx x ny elements on W x H, E, nu; gap curvature `curved`,
    Coulomb coefficient mu; final press uy and shear ux of the top edge.  Returns
    0, or -1 on a bad element. */
-static int scene_build(Scene *s, long nx, long ny, double e, double nu, double w, double h,
+static inline int scene_build(Scene *s, long nx, long ny, double e, double nu, double w, double h,
                        double curved, double mu, double uy, double ux)
 {
     long nnode = (nx + 1) * (ny + 1), nelem = nx * ny, i, j, k, el, a, b, c;
@@ -277,7 +298,7 @@ static int scene_build(Scene *s, long nx, long ny, double e, double nu, double w
 }
 
 /* The load of step k: f = -K_fp u_p (f has neq entries). */
-static void scene_load(const Scene *s, long k, double *f)
+static inline void scene_load(const Scene *s, long k, double *f)
 {
     long i, a;
     for (i = 0; i < s->neq; i++) f[i] = 0.0;
@@ -288,7 +309,7 @@ static void scene_load(const Scene *s, long k, double *f)
     }
 }
 
-static void scene_free(Scene *s)
+static inline void scene_free(Scene *s)
 {
     trip_free(&s->kff);
     trip_free(&s->kfp);

@@ -103,23 +103,6 @@ static void library_error(const char *what, DsStatus st)
             (int)st, ds_last_error_message());
 }
 
-/* A borrowed 0-based int32 COO matrix for the library (p = columns, i = rows). */
-static DsMatrix coo(const Triplets *t, long nrows, long ncols)
-{
-    DsMatrix a;
-    a.format = DS_FORMAT_COO;
-    a.index_type = DS_INDEX_TYPE_I32;
-    a.base = 0;
-    a.storage = DS_STORAGE_FULL;
-    a.nrows = nrows;
-    a.ncols = ncols;
-    a.nnz = t->n;
-    a.p = t->col;
-    a.i = t->row;
-    a.x = t->val;
-    return a;
-}
-
 static double max_abs(const double *x, long n)
 {
     double m = 0.0;
@@ -295,8 +278,8 @@ int main(int argc, char **argv)
         sm.p = NULL;
         sm.i = NULL;
         sm.x = schur;
-        nm = coo(&nc_mat, sc.m, nc);
-        tm = coo(&tc_mat, sc.m, nc);
+        nm = coo_matrix(&nc_mat, sc.m, nc);
+        tm = coo_matrix(&tc_mat, sc.m, nc);
         t0 = now();
         st = ds_problem_new(2, &sm, &nm, &tm, &prob);
         t_create = now() - t0;
@@ -304,9 +287,9 @@ int main(int argc, char **argv)
             library_error("ds_problem_new (interface)", st);
             finish(2);
         }
-        km = coo(&sc.kff, sc.neq, sc.neq);
-        nf = coo(&sc.nmat, sc.m, sc.neq);
-        tf = coo(&sc.tmat, sc.m, sc.neq);
+        km = coo_matrix(&sc.kff, sc.neq, sc.neq);
+        nf = coo_matrix(&sc.nmat, sc.m, sc.neq);
+        tf = coo_matrix(&sc.tmat, sc.m, sc.neq);
         t0 = now();
         st = ds_problem_new(2, &km, &nf, &tf, &ref);
         t_ref_create = now() - t0;

@@ -51,6 +51,8 @@
 #include <cs.h>
 
 #include "dualsplit.h"
+/* The Q4 element, xcalloc (the plain demo's, shared with block2d.c). */
+#include "block2d_scene.h"
 
 /* cholmod_l and cs_dl use SuiteSparse_long, cs_di and cholmod (int) use int. */
 typedef char assert_suitesparse_long_is_64_bit[sizeof(SuiteSparse_long) == sizeof(int64_t) ? 1 : -1];
@@ -95,77 +97,8 @@ static DsMatrix ds_matrix_from_cs(const cs_di *a)
 }
 
 /* ------------------------------------------------------------------------- */
-/* element (as in block2d.c)                                                   */
-/* ------------------------------------------------------------------------- */
-
-static void plane_strain_d(double e, double nu, double d[3][3])
-{
-    double c = e / ((1.0 + nu) * (1.0 - 2.0 * nu));
-    d[0][0] = c * (1.0 - nu); d[0][1] = c * nu;         d[0][2] = 0.0;
-    d[1][0] = c * nu;         d[1][1] = c * (1.0 - nu); d[1][2] = 0.0;
-    d[2][0] = 0.0;            d[2][1] = 0.0;            d[2][2] = c * (1.0 - 2.0 * nu) / 2.0;
-}
-
-static int q4_stiffness(const double xe[4], const double ye[4], double d[3][3], double ke[8][8])
-{
-    static const double xi_a[4] = {-1.0, 1.0, 1.0, -1.0};
-    static const double eta_a[4] = {-1.0, -1.0, 1.0, 1.0};
-    const double gp = 1.0 / sqrt(3.0);
-    int ig, jg, a, b, k, l;
-
-    for (a = 0; a < 8; a++)
-        for (b = 0; b < 8; b++) ke[a][b] = 0.0;
-    for (ig = 0; ig < 2; ig++)
-        for (jg = 0; jg < 2; jg++) {
-            double xi = ig ? gp : -gp, eta = jg ? gp : -gp;
-            double dxi[4], deta[4], dx[4], dy[4], bm[3][8], db[3][8];
-            double j00 = 0.0, j01 = 0.0, j10 = 0.0, j11 = 0.0, det;
-            for (a = 0; a < 4; a++) {
-                dxi[a] = 0.25 * xi_a[a] * (1.0 + eta * eta_a[a]);
-                deta[a] = 0.25 * eta_a[a] * (1.0 + xi * xi_a[a]);
-                j00 += dxi[a] * xe[a];
-                j01 += dxi[a] * ye[a];
-                j10 += deta[a] * xe[a];
-                j11 += deta[a] * ye[a];
-            }
-            det = j00 * j11 - j01 * j10;
-            if (!(det > 0.0)) return -1;
-            for (a = 0; a < 4; a++) {
-                dx[a] = (j11 * dxi[a] - j01 * deta[a]) / det;
-                dy[a] = (-j10 * dxi[a] + j00 * deta[a]) / det;
-                bm[0][2 * a] = dx[a]; bm[0][2 * a + 1] = 0.0;
-                bm[1][2 * a] = 0.0;   bm[1][2 * a + 1] = dy[a];
-                bm[2][2 * a] = dy[a]; bm[2][2 * a + 1] = dx[a];
-            }
-            for (k = 0; k < 3; k++)
-                for (b = 0; b < 8; b++) {
-                    double s = 0.0;
-                    for (l = 0; l < 3; l++) s += d[k][l] * bm[l][b];
-                    db[k][b] = s;
-                }
-            for (a = 0; a < 8; a++)
-                for (b = 0; b < 8; b++) {
-                    double s = 0.0;
-                    for (k = 0; k < 3; k++) s += bm[k][a] * db[k][b];
-                    ke[a][b] += s * det;
-                }
-        }
-    return 0;
-}
-
-/* ------------------------------------------------------------------------- */
 /* small helpers                                                               */
 /* ------------------------------------------------------------------------- */
-
-static void *xcalloc(size_t count, size_t size)
-{
-    void *p = calloc(count > 0 ? count : 1, size > 0 ? size : 1);
-    if (p == NULL) {
-        fprintf(stderr, "suitesparse_block2d: out of memory\n");
-        exit(2);
-    }
-    return p;
-}
 
 static int parse_double(const char *s, double *v)
 {
@@ -231,9 +164,8 @@ static int dense_cholesky_solve(double *s, long n, double *rhs)
 /* main                                                                        */
 /* ------------------------------------------------------------------------- */
 
-#define N_PRESS 5
-#define N_SHEAR 5
-#define N_STEPS (N_PRESS + N_SHEAR)
+/* N_PRESS = N_SHEAR = 5 (block2d_scene.h): the demo's press and shear only. */
+#define N_HISTORY (N_PRESS + N_SHEAR)
 
 int main(int argc, char **argv)
 {
@@ -417,7 +349,7 @@ int main(int argc, char **argv)
 
     /* ---- part 1: Coulomb history with ds_step ------------------------------- */
     for (i = 0; i < m; i++) bound[i] = mu_c;
-    for (k = 0; k < N_STEPS; k++) {
+    for (k = 0; k < N_HISTORY; k++) {
         double sy = k < N_PRESS ? uy * (double)(k + 1) / N_PRESS : uy;
         double sx = k < N_PRESS ? 0.0 : ux * (double)(k + 1 - N_PRESS) / N_SHEAR;
         double sum_n = 0.0, sum_t = 0.0;
@@ -572,7 +504,7 @@ int main(int argc, char **argv)
 
     printf("SUMMARY steps=%ld contacts=%ld dofs=%ld max_err=%.3e all_converged=%d "
            "total_outer=%ld shear_max_slip=%ld shear_max_stick=%ld k_index=%s k_storage=%s\n",
-           steps_done, m, neq, max_err, all_converged && steps_done == N_STEPS, total_outer,
+           steps_done, m, neq, max_err, all_converged && steps_done == N_HISTORY, total_outer,
            shear_max_slip, shear_max_stick, km.index_type == DS_INDEX_TYPE_I64 ? "i64" : "i32",
            km.storage == DS_STORAGE_UPPER ? "upper" : "other");
 

@@ -532,9 +532,7 @@ impl Factor {
         );
         self.threads.run(self.parallel, |par| {
             let req = symbolic.factorize_numeric_llt_scratch::<f64>(par, Default::default());
-            let mut mem = MemBuffer::try_new(req).map_err(|_| {
-                crate::Error::new(ErrorKind::OutOfMemory, "K: factorisation workspace")
-            })?;
+            let mut mem = workspace(req)?;
             let mut values = self.values_vec()?;
             let result = symbolic.factorize_numeric_llt::<f64>(
                 &mut values,
@@ -569,9 +567,7 @@ impl Factor {
         }
         self.threads.run(self.parallel, |par| {
             let req = cholesky_in_place_scratch::<f64>(n, par, Default::default());
-            let mut mem = MemBuffer::try_new(req).map_err(|_| {
-                crate::Error::new(ErrorKind::OutOfMemory, "K: factorisation workspace")
-            })?;
+            let mut mem = workspace(req)?;
             let l = faer::MatMut::from_column_major_slice_mut(&mut values, n, n);
             let result = cholesky_in_place(
                 l,
@@ -840,6 +836,12 @@ impl Factor {
         let m = faer::MatMut::from_column_major_slice_mut(x, n, 1);
         self.solve_in_place(m, MemStack::new(&mut mem));
     }
+}
+
+/// The factorisation's workspace, or `OutOfMemory`.
+fn workspace(req: StackReq) -> Result<MemBuffer> {
+    MemBuffer::try_new(req)
+        .map_err(|_| crate::Error::new(ErrorKind::OutOfMemory, "K: factorisation workspace"))
 }
 
 /// rhs := P^T L^-T L^-1 P rhs for a dense L (`values`, n x n column-major, lower

@@ -55,9 +55,9 @@ pub enum Ordering {
     Amd,
     /// Nested dissection: METIS_NodeND (METIS 5, built from vendored sources).
     Metis,
-    /// Reported only (never an option: `BadArgument`): K had every entry stored (a
-    /// dense K, `Format::Dense`) and was factored by dense Cholesky, without a
-    /// fill-reducing ordering or a symbolic analysis.
+    /// Reported only (never an option: `BadArgument`): K has every entry stored (a
+    /// dense K, `Format::Dense`, or a sparse pattern that is full) and was factored
+    /// by dense Cholesky, without a fill-reducing ordering or a symbolic analysis.
     Dense,
 }
 

@@ -4,7 +4,8 @@
 //!   multipliers agree to 1e-12 relative at tol 1e-13, every method, Tresca and
 //!   Coulomb, 2D and 3D, full / upper / lower storage with a padded leading
 //!   dimension whose padding (and unread triangle) holds NaN;
-//! - the KKT conditions of the full problem;
+//! - the KKT conditions of the full problem, and the frictionless patch test's
+//!   closed form (uniform pressure, tributary lengths);
 //! - the interface problem: K condensed onto the contact DOFs by hand (dense
 //!   Schur complement S = K_CC - K_CI K_II^-1 K_IC, reduced load), solved by the
 //!   library with S dense, gives the full problem's multipliers and, expanded,
@@ -90,6 +91,12 @@ impl CscView {
     }
 }
 
+/// The problem of `sc` with K given by `k` (N and T sparse).
+fn create(sc: &Scene, k: &MatrixView<'_>, o: &Options) -> dualsplit::Result<ContactProblem> {
+    let (nn, tt) = (CscView::of(&sc.n), CscView::of(&sc.t));
+    ContactProblem::with_options(sc.d, k, &nn.view(&sc.n), &tt.view(&sc.t), o)
+}
+
 fn tight(method: Method) -> Options {
     Options {
         tol: 1e-13,
@@ -145,21 +152,13 @@ fn a_dense_k_gives_the_sparse_answer_with_every_method() {
         let p = vec![0.05; m];
         let mu = vec![0.3; m];
         let csc = CscView::of(&sc.k);
-        let (nn, tt) = (CscView::of(&sc.n), CscView::of(&sc.t));
         for (law, friction) in [
             ("Tresca", Friction::Tresca(&p)),
             ("Coulomb", Friction::Coulomb(&mu)),
         ] {
             for method in Method::ALL {
                 let o = tight(method);
-                let mut sparse = ContactProblem::with_options(
-                    sc.d,
-                    &csc.view(&sc.k),
-                    &nn.view(&sc.n),
-                    &tt.view(&sc.t),
-                    &o,
-                )
-                .unwrap();
+                let mut sparse = create(&sc, &csc.view(&sc.k), &o).unwrap();
                 let want = sparse.solve(&sc.f, &sc.g, friction, &o).unwrap();
                 for (storage, ld) in [
                     (Storage::Full, n),
@@ -168,14 +167,8 @@ fn a_dense_k_gives_the_sparse_answer_with_every_method() {
                 ] {
                     let what = format!("{name}, {law}, {}, {storage:?} ld {ld}", method.name());
                     let x = laid_out(&sc.k, ld, storage);
-                    let mut pb = ContactProblem::with_options(
-                        sc.d,
-                        &dense_view(&x, n, ld, storage),
-                        &nn.view(&sc.n),
-                        &tt.view(&sc.t),
-                        &o,
-                    )
-                    .unwrap_or_else(|e| panic!("{what}: {e}"));
+                    let mut pb = create(&sc, &dense_view(&x, n, ld, storage), &o)
+                        .unwrap_or_else(|e| panic!("{what}: {e}"));
                     let sol = pb.solve(&sc.f, &sc.g, friction, &o).unwrap();
                     assert_converged(&what, &sol);
                     assert_eq!(sol.report.ordering, Ordering::Dense, "{what}");
@@ -193,17 +186,9 @@ fn a_dense_k_runs_matrix_free_and_refactors() {
     let (_, sc) = scenes().remove(1);
     let n = sc.k.nrows;
     let mu = vec![0.3; sc.m()];
-    let (nn, tt) = (CscView::of(&sc.n), CscView::of(&sc.t));
     let x = laid_out(&sc.k, n, Storage::Full);
     let o = tight(Method::Auto);
-    let mut dense_pb = ContactProblem::with_options(
-        sc.d,
-        &dense_view(&x, n, n, Storage::Full),
-        &nn.view(&sc.n),
-        &tt.view(&sc.t),
-        &o,
-    )
-    .unwrap();
+    let mut dense_pb = create(&sc, &dense_view(&x, n, n, Storage::Full), &o).unwrap();
     let want = dense_pb
         .solve(&sc.f, &sc.g, Friction::Coulomb(&mu), &o)
         .unwrap();
@@ -213,14 +198,7 @@ fn a_dense_k_runs_matrix_free_and_refactors() {
         dual_form: DualForm::MatrixFree,
         ..tight(Method::Newton)
     };
-    let mut pb = ContactProblem::with_options(
-        sc.d,
-        &dense_view(&x, n, n, Storage::Full),
-        &nn.view(&sc.n),
-        &tt.view(&sc.t),
-        &free,
-    )
-    .unwrap();
+    let mut pb = create(&sc, &dense_view(&x, n, n, Storage::Full), &free).unwrap();
     assert!(pb.is_matrix_free());
     let sol = pb
         .solve(&sc.f, &sc.g, Friction::Coulomb(&mu), &free)
@@ -235,14 +213,7 @@ fn a_dense_k_runs_matrix_free_and_refactors() {
     let got = dense_pb
         .solve(&sc.f, &sc.g, Friction::Coulomb(&mu), &o)
         .unwrap();
-    let mut fresh = ContactProblem::with_options(
-        sc.d,
-        &dense_view(&x2, n, n, Storage::Full),
-        &nn.view(&sc.n),
-        &tt.view(&sc.t),
-        &o,
-    )
-    .unwrap();
+    let mut fresh = create(&sc, &dense_view(&x2, n, n, Storage::Full), &o).unwrap();
     let want2 = fresh
         .solve(&sc.f, &sc.g, Friction::Coulomb(&mu), &o)
         .unwrap();
@@ -352,16 +323,8 @@ fn the_interface_problem_on_a_schur_complement_gives_the_full_answer_over_a_hist
         assert!(nc < sc.k.nrows, "{name}: the scene has interior DOFs");
         let mu = vec![0.3; sc.m()];
         let o = tight(Method::Auto);
-        let (nn, tt) = (CscView::of(&sc.n), CscView::of(&sc.t));
         let csc = CscView::of(&sc.k);
-        let mut full = ContactProblem::with_options(
-            sc.d,
-            &csc.view(&sc.k),
-            &nn.view(&sc.n),
-            &tt.view(&sc.t),
-            &o,
-        )
-        .unwrap();
+        let mut full = create(&sc, &csc.view(&sc.k), &o).unwrap();
         let (nnc, ttc) = (CscView::of(&ifc.n_c), CscView::of(&ifc.t_c));
         let mut interface = ContactProblem::with_options(
             sc.d,
@@ -537,7 +500,6 @@ fn bad_dense_input_is_refused_and_the_handle_stays_usable() {
 fn dense_n_and_t_are_their_nonzeros() {
     let (_, sc) = scenes().remove(0);
     let csc = CscView::of(&sc.k);
-    let (nn, tt) = (CscView::of(&sc.n), CscView::of(&sc.t));
     let to_dense = |a: &Csc| {
         let d = dense(a);
         (0..a.nrows * a.ncols)
@@ -559,9 +521,7 @@ fn dense_n_and_t_are_their_nonzeros() {
     }
     let p = vec![0.05; sc.m()];
     let o = tight(Method::Auto);
-    let mut a =
-        ContactProblem::with_options(sc.d, &csc.view(&sc.k), &nn.view(&sc.n), &tt.view(&sc.t), &o)
-            .unwrap();
+    let mut a = create(&sc, &csc.view(&sc.k), &o).unwrap();
     let mut b = ContactProblem::with_options(
         sc.d,
         &csc.view(&sc.k),
@@ -584,17 +544,9 @@ fn a_dense_problem_dumps_and_replays() {
     let (_, sc) = scenes().remove(1);
     let n = sc.k.nrows;
     let p = vec![0.05; sc.m()];
-    let (nn, tt) = (CscView::of(&sc.n), CscView::of(&sc.t));
     let x = laid_out(&sc.k, n, Storage::Upper);
     let o = tight(Method::Auto);
-    let mut pb = ContactProblem::with_options(
-        sc.d,
-        &dense_view(&x, n, n, Storage::Upper),
-        &nn.view(&sc.n),
-        &tt.view(&sc.t),
-        &o,
-    )
-    .unwrap();
+    let mut pb = create(&sc, &dense_view(&x, n, n, Storage::Upper), &o).unwrap();
     let want = pb.solve(&sc.f, &sc.g, Friction::Tresca(&p), &o).unwrap();
     let dir = std::env::temp_dir().join(format!("dualsplit-dense-dump-{}", std::process::id()));
     pb.write_folder(&dir, &sc.f, &sc.g, Friction::Tresca(&p))
@@ -613,4 +565,54 @@ fn a_dense_problem_dumps_and_replays() {
         .unwrap();
     assert_eq!(got.report.ordering, Ordering::Dense);
     assert_agree("replayed dense K", &got, &want, 1e-12);
+}
+
+/// The frictionless patch test (tests/patch_test.rs) with K given dense: a Q4
+/// block on a flat foundation, top pressed down by delta, transmits the uniform
+/// pressure E/(1-nu^2) delta/H exactly: lambda_N,i = that pressure times node i's
+/// tributary length, lambda_T = 0; and the sparse path gives the same to 1e-12.
+#[test]
+fn the_patch_test_with_a_dense_k() {
+    let (e, nu, l, h, delta) = (210.0, 0.3, 3.0, 1.5, 0.01);
+    let mesh = Mesh::grid2d(6, 3, l, h);
+    let top = mesh.top_nodes();
+    let mut prescribed: Vec<(usize, f64)> = top.iter().map(|&a| (2 * a + 1, -delta)).collect();
+    prescribed.push((2 * top[0], 0.0));
+    let bottom = mesh.bottom_nodes();
+    let f_ext = vec![0.0; mesh.n_dofs()];
+    let sc = Scene::build(mesh, e, nu, &prescribed, &f_ext, &bottom, |_| 0.0);
+    let m = sc.m();
+    let xs: Vec<f64> = sc
+        .contact_nodes
+        .iter()
+        .map(|&a| sc.mesh.coords[a][0])
+        .collect();
+    let pressure = e / (1.0 - nu * nu) * delta / h;
+    let exact: Vec<f64> = (0..m)
+        .map(|i| {
+            let left = if i > 0 { xs[i] - xs[i - 1] } else { 0.0 };
+            let right = if i + 1 < m { xs[i + 1] - xs[i] } else { 0.0 };
+            pressure * 0.5 * (left + right)
+        })
+        .collect();
+    let n = sc.k.nrows;
+    let zeros = vec![0.0; m];
+    let kk = CscView::of(&sc.k);
+    let x = laid_out(&sc.k, n, Storage::Lower);
+    for (law, friction) in [
+        ("Tresca p = 0", Friction::Tresca(&zeros)),
+        ("Coulomb mu = 0", Friction::Coulomb(&zeros)),
+    ] {
+        let o = tight(Method::Auto);
+        let mut dense_pb = create(&sc, &dense_view(&x, n, n, Storage::Lower), &o).unwrap();
+        let got = dense_pb.solve(&sc.f, &sc.g, friction, &o).unwrap();
+        assert_converged(law, &got);
+        assert_eq!(got.report.ordering, Ordering::Dense);
+        let scale = norm_inf(&exact);
+        assert_close(law, &got.lambda_n, &exact, 1e-10, scale);
+        assert_close(law, &got.lambda_t, &zeros, 1e-10, scale);
+        let mut sparse_pb = create(&sc, &kk.view(&sc.k), &o).unwrap();
+        let want = sparse_pb.solve(&sc.f, &sc.g, friction, &o).unwrap();
+        assert_agree(law, &got, &want, 1e-12);
+    }
 }

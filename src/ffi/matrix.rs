@@ -101,16 +101,7 @@ impl DsMatrix {
         }
         let index_type = DsIndexType::parse(self.index_type, &format!("{what}.index_type"))?;
         let storage = DsStorage::parse(self.storage, &format!("{what}.storage"))?;
-        let base: usize = match self.base {
-            0 => 0,
-            1 => 1,
-            b => {
-                return Err(Error::new(
-                    ErrorKind::BadArgument,
-                    format!("{what}: base = {b} is not 0 or 1"),
-                ));
-            }
-        };
+        let base = self.base_of(what)?;
         let nrows = size(self.nrows, what, "nrows")?;
         let ncols = size(self.ncols, what, "ncols")?;
         let format = match format {
@@ -175,6 +166,18 @@ impl DsMatrix {
 }
 
 impl DsMatrix {
+    /// The index base, 0 or 1, or `BadArgument`.
+    fn base_of(&self, what: &str) -> Result<usize> {
+        match self.base {
+            0 => Ok(0),
+            1 => Ok(1),
+            b => Err(Error::new(
+                ErrorKind::BadArgument,
+                format!("{what}: base = {b} is not 0 or 1"),
+            )),
+        }
+    }
+
     /// [`DsMatrix::view`] of a DS_FORMAT_DENSE matrix: `nnz` is the leading
     /// dimension; `p`, `i` and `index_type` are not read.
     ///
@@ -182,16 +185,7 @@ impl DsMatrix {
     /// `x` must be NULL or valid for reads of `nnz (ncols - 1) + nrows` values.
     unsafe fn dense_view<'a>(&self, what: &str) -> Result<MatrixView<'a>> {
         let storage = DsStorage::parse(self.storage, &format!("{what}.storage"))?;
-        let base: usize = match self.base {
-            0 => 0,
-            1 => 1,
-            b => {
-                return Err(Error::new(
-                    ErrorKind::BadArgument,
-                    format!("{what}: base = {b} is not 0 or 1"),
-                ));
-            }
-        };
+        let base = self.base_of(what)?;
         let nrows = size(self.nrows, what, "nrows")?;
         let ncols = size(self.ncols, what, "ncols")?;
         let ld = size(self.nnz, what, "nnz (the dense leading dimension)")?;

@@ -119,9 +119,9 @@ pub enum DsOrdering {
     /// Nested dissection (METIS_NodeND, METIS 5 built into the library).
     Metis = 2,
     /// Reported only (DsReport.ordering, DsInfo.ordering; as an option:
-    /// DS_STATUS_BAD_ARGUMENT): K was given with every entry stored
-    /// (DS_FORMAT_DENSE) and factored by dense Cholesky, without a fill-reducing
-    /// ordering. Added in version 0.7.
+    /// DS_STATUS_BAD_ARGUMENT): K has every entry stored (DS_FORMAT_DENSE, or a
+    /// sparse pattern that is full) and was factored by dense Cholesky, without a
+    /// fill-reducing ordering. Added in version 0.7.
     Dense = 3,
 }
 

@@ -95,60 +95,20 @@ pub(super) fn parse_header(text: &str, path: &Path) -> Result<Header> {
         ));
     };
     let tokens: Vec<&str> = size_text.split_whitespace().take(4).collect();
-    if array {
-        if tokens.len() != 2 {
-            return Err(line_err(
-                path,
-                size_line,
-                format!(
-                    "bad size line \"{}\": expected two integers \"rows columns\" (array)",
-                    clip(size_text)
-                ),
-            ));
-        }
-        let nrows = parse_count(tokens[0], path, size_line, "row count")?;
-        let ncols = parse_count(tokens[1], path, size_line, "column count")?;
-        if symmetric && nrows != ncols {
-            return Err(line_err(
-                path,
-                size_line,
-                format!("a symmetric matrix must be square, got {nrows} x {ncols}"),
-            ));
-        }
-        let nnz = if symmetric {
-            nrows.checked_mul(nrows.saturating_add(1)).map(|v| v / 2)
-        } else {
-            nrows.checked_mul(ncols)
-        };
-        let Some(nnz) = nnz else {
-            return Err(line_err(
-                path,
-                size_line,
-                format!("a {nrows} x {ncols} array has too many entries"),
-            ));
-        };
-        return Ok(Header {
-            nrows,
-            ncols,
-            nnz,
-            symmetric,
-            array,
-            size_line,
-        });
-    }
-    if tokens.len() != 3 {
+    let (want, form) = if array {
+        (2, "two integers \"rows columns\" (array)")
+    } else {
+        (3, "three integers \"rows columns entries\"")
+    };
+    if tokens.len() != want {
         return Err(line_err(
             path,
             size_line,
-            format!(
-                "bad size line \"{}\": expected three integers \"rows columns entries\"",
-                clip(size_text)
-            ),
+            format!("bad size line \"{}\": expected {form}", clip(size_text)),
         ));
     }
     let nrows = parse_count(tokens[0], path, size_line, "row count")?;
     let ncols = parse_count(tokens[1], path, size_line, "column count")?;
-    let nnz = parse_count(tokens[2], path, size_line, "entry count")?;
     if symmetric && nrows != ncols {
         return Err(line_err(
             path,
@@ -156,6 +116,19 @@ pub(super) fn parse_header(text: &str, path: &Path) -> Result<Header> {
             format!("a symmetric matrix must be square, got {nrows} x {ncols}"),
         ));
     }
+    // An array holds every value (symmetric: the lower triangle).
+    let nnz = match (array, symmetric) {
+        (false, _) => Some(parse_count(tokens[2], path, size_line, "entry count")?),
+        (true, true) => nrows.checked_mul(nrows.saturating_add(1)).map(|v| v / 2),
+        (true, false) => nrows.checked_mul(ncols),
+    };
+    let Some(nnz) = nnz else {
+        return Err(line_err(
+            path,
+            size_line,
+            format!("a {nrows} x {ncols} array has too many entries"),
+        ));
+    };
     Ok(Header {
         nrows,
         ncols,
