@@ -325,8 +325,8 @@ typedef struct DsProblem DsProblem;
  Errors when a matrix is read: DS_STATUS_BAD_ARGUMENT (unknown format, index_type
  or storage, base not 0 or 1), DS_STATUS_BAD_INDEX (last pointer below base, index
  out of range, pointers not monotone), DS_STATUS_BAD_SIZE (negative nrows, ncols or
- COO nnz, DENSE leading dimension below nrows), DS_STATUS_NULL_POINTER (p, i or x NULL for a non-empty array),
- DS_STATUS_NOT_FINITE (NaN or infinity in x).
+ COO nnz, DENSE leading dimension below nrows), DS_STATUS_NULL_POINTER (p, i or x
+ NULL for a non-empty array), DS_STATUS_NOT_FINITE (NaN or infinity in x).
  */
 typedef struct DsMatrix {
   /*
@@ -423,7 +423,11 @@ typedef struct DsOptions {
    */
   int64_t max_inner;
   /*
-   A DsDualForm value (default DS_DUAL_FORM_AUTO). Added in version 0.2.
+   A DsDualForm value (default DS_DUAL_FORM_AUTO): read by every solve, and by
+   ds_problem_new_opts, which creates the handle in that form
+   (DS_DUAL_FORM_MATRIX_FREE: K factored in the best plain ordering, nothing
+   c x c formed; DS_DUAL_FORM_DENSE: contact DOFs last and A formed; AUTO: dense
+   up to 8000 dual unknowns where it fits max_memory). Added in version 0.2.
    */
   int32_t dual_form;
   /*

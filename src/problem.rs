@@ -338,7 +338,9 @@ impl ContactProblem {
             let factor = Factor::analyse(k, &last, opts.ordering, threads.clone(), Ledger::new())?;
             let sizes = Self::sizes_of(k, n, t, d, &factor);
             let dense = Condensation::of(true, DualForm::Dense, sizes.c);
-            if limit.is_none_or(|l| sizes.setup(dense) <= l) {
+            // Asked for, the dense route is kept whatever it needs (`analysed`
+            // refuses it with OutOfMemory); AUTO falls back to the matrix-free one.
+            if opts.dual_form == DualForm::Dense || limit.is_none_or(|l| sizes.setup(dense) <= l) {
                 let form = DualForm::Dense;
                 return Ok((factor, Plan { sizes, form }, limit));
             }
@@ -358,11 +360,27 @@ impl ContactProblem {
         let how = Condensation::of(true, form, sizes.c);
         let need = sizes.setup(how);
         let free = Condensation::MatrixFree;
-        let hint = if how != free && sizes.setup(free) < need {
+        let fits = limit.is_none_or(|l| need <= l);
+        // Refused on the dense route: what the matrix-free one would need, from
+        // the analysis it would use (the plain factor, not the contacts-last one).
+        let free_need = match (fits, how != free) {
+            (false, true) => {
+                let plain = Factor::analyse(
+                    k,
+                    &[],
+                    opts.ordering,
+                    factor.threads().clone(),
+                    Ledger::new(),
+                )?;
+                Some(Self::sizes_of(k, n, t, d, &plain).setup(free))
+            }
+            _ => None,
+        };
+        let hint = if let Some(free_need) = free_need.filter(|&f| f < need) {
             format!(
                 "the matrix-free dual (dual_form = matrix-free, method auto, newton or mprgp) would need \
                  about {}",
-                memory::human(sizes.setup(free))
+                memory::human(free_need)
             )
         } else {
             format!(

@@ -616,3 +616,17 @@ fn the_patch_test_with_a_dense_k() {
         assert_agree(law, &got, &want, 1e-12);
     }
 }
+
+/// DS_ORDERING_DENSE is reported, never chosen: as an option it is refused.
+#[test]
+fn the_dense_ordering_is_not_an_option() {
+    let (_, sc) = scenes().remove(0);
+    let csc = CscView::of(&sc.k);
+    let o = Options {
+        ordering: Ordering::Dense,
+        ..Options::default()
+    };
+    let e = create(&sc, &csc.view(&sc.k), &o).err().expect("refused");
+    assert_eq!(e.kind, dualsplit::ErrorKind::BadArgument, "{e}");
+    assert!(e.message.contains("reported, not chosen"), "{e}");
+}

@@ -543,3 +543,39 @@ fn the_matrix_free_path_allocates_nothing_c_by_c() {
         "dense: largest allocation {dense} < {c2} bytes"
     );
 }
+
+/// A dense setup refused by max_memory names what the matrix-free dual would
+/// need, predicted from the plain factor it would use (its own analysis), not from
+/// the contacts-last one.
+#[test]
+fn a_refused_dense_setup_names_the_matrix_free_need_of_the_plain_factor() {
+    // Serial: the other tests count this process's allocations.
+    let _serial = SERIAL.lock().unwrap_or_else(|e| e.into_inner());
+    let sc = block3d();
+    let with = |dual_form, max_memory| Options {
+        dual_form,
+        max_memory,
+        ..one_thread()
+    };
+    let analyse = |o: &Options| ContactProblem::analyse_csc(sc.d, &sc.k, &sc.n, &sc.t, o).unwrap();
+    let dense = analyse(&with(DualForm::Dense, 0));
+    let free = analyse(&with(DualForm::MatrixFree, 0));
+    assert!(free.setup_bytes < dense.setup_bytes, "{free:?} {dense:?}");
+    let limit = (free.setup_bytes + dense.setup_bytes) / 2;
+    let e = ContactProblem::from_csc_with(
+        sc.d,
+        sc.k.clone(),
+        sc.n.clone(),
+        sc.t.clone(),
+        &with(DualForm::Dense, limit),
+    )
+    .err()
+    .expect("the dense setup does not fit");
+    assert_eq!(e.kind, ErrorKind::OutOfMemory, "{e}");
+    let mb = format!("about {:.1} MB", free.setup_bytes as f64 / 1e6);
+    assert!(
+        e.message.contains("matrix-free dual") && e.message.contains(&mb),
+        "{} lacks {mb}",
+        e.message
+    );
+}

@@ -17,8 +17,8 @@ use std::ffi::c_void;
 /// Errors when a matrix is read: DS_STATUS_BAD_ARGUMENT (unknown format, index_type
 /// or storage, base not 0 or 1), DS_STATUS_BAD_INDEX (last pointer below base, index
 /// out of range, pointers not monotone), DS_STATUS_BAD_SIZE (negative nrows, ncols or
-/// COO nnz, DENSE leading dimension below nrows), DS_STATUS_NULL_POINTER (p, i or x NULL for a non-empty array),
-/// DS_STATUS_NOT_FINITE (NaN or infinity in x).
+/// COO nnz, DENSE leading dimension below nrows), DS_STATUS_NULL_POINTER (p, i or x
+/// NULL for a non-empty array), DS_STATUS_NOT_FINITE (NaN or infinity in x).
 #[repr(C)]
 #[derive(Copy, Clone, Debug)]
 pub struct DsMatrix {

@@ -42,7 +42,11 @@ pub struct DsOptions {
     /// Maximum number of inner iterations per sub-problem (Gauss-Seidel sweeps,
     /// MPRGP iterations), >= 1 (default 1000).
     pub max_inner: i64,
-    /// A DsDualForm value (default DS_DUAL_FORM_AUTO). Added in version 0.2.
+    /// A DsDualForm value (default DS_DUAL_FORM_AUTO): read by every solve, and by
+    /// ds_problem_new_opts, which creates the handle in that form
+    /// (DS_DUAL_FORM_MATRIX_FREE: K factored in the best plain ordering, nothing
+    /// c x c formed; DS_DUAL_FORM_DENSE: contact DOFs last and A formed; AUTO: dense
+    /// up to 8000 dual unknowns where it fits max_memory). Added in version 0.2.
     pub dual_form: i32,
     /// Wall-clock budget of one ds_solve / ds_step in seconds, >= 0, 0 for none
     /// (default 0). No outer iteration starts after it; the solve then returns

@@ -274,6 +274,9 @@ impl Csc {
                 format!("{what} must be square, got {} x {}", view.nrows, view.ncols),
             );
         }
+        if let Format::Dense { ld } = view.format {
+            return symmetric_from_dense(view, ld, what, base);
+        }
         let n = view.nrows;
         // Room for the mirrored entries of a one-triangle K.
         let extra = if view.storage == Storage::Full {
@@ -281,9 +284,6 @@ impl Csc {
         } else {
             view.i.len()
         };
-        if let Format::Dense { ld } = view.format {
-            return symmetric_from_dense(view, ld, what, base);
-        }
         let mut t = collect(view, what, base, extra)?;
         match view.storage {
             Storage::Full => {
