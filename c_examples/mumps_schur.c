@@ -75,7 +75,8 @@ static double now(void)
 
 static int rank = 0, nprocs = 1;
 
-/* Ends the program on every rank. */
+/* Ends the program on every rank from wherever it stands (an error, or bad
+   options): with MPI a nonzero code aborts the other ranks too. */
 static void finish(int code)
 {
 #ifdef MUMPS_SCHUR_MPI
@@ -413,11 +414,7 @@ int main(int argc, char **argv)
     free(f); free(rhs); free(red); free(uc); free(ln); free(lt);
     free(uref); free(lnref); free(ltref);
 #ifdef MUMPS_SCHUR_MPI
-    if (exit_code != 0) {
-        MPI_Finalize();
-        return exit_code;
-    }
+    MPI_Finalize();
 #endif
-    finish(exit_code);
     return exit_code;
 }

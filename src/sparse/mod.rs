@@ -19,7 +19,10 @@ mod validate;
 use crate::error::{ErrorKind, Result, fail};
 use assemble::{Triplets, assemble, filled, try_copy, zeroed};
 pub(crate) use validate::dense_len;
-use validate::{check_base, check_sums_finite, check_symmetric, collect, collect_dense};
+use validate::{
+    check_base, check_dense_len, check_sums_finite, check_symmetric, collect, collect_dense,
+    dense_not_finite,
+};
 
 /// Layout of a borrowed sparse matrix, named as in CSparse.
 #[derive(Copy, Clone, Debug, PartialEq, Eq)]
@@ -117,16 +120,7 @@ pub const SYMMETRY_TOL: f64 = 1e-10;
 /// `NotSymmetric` (the worst pair), `OutOfMemory`.
 fn symmetric_from_dense(view: &MatrixView<'_>, ld: usize, what: &str, base: usize) -> Result<Csc> {
     let n = view.nrows;
-    let len = dense_len(n, n, ld, what)?;
-    if view.x.len() < len {
-        return fail(
-            ErrorKind::BadSize,
-            format!(
-                "{what}: dense x has {} values, {n} x {n} with leading dimension {ld} needs {len}",
-                view.x.len()
-            ),
-        );
-    }
+    check_dense_len(view, ld, what)?;
     let entries = n.checked_mul(n).ok_or_else(|| {
         crate::Error::new(
             ErrorKind::OutOfMemory,
@@ -146,20 +140,13 @@ fn symmetric_from_dense(view: &MatrixView<'_>, ld: usize, what: &str, base: usiz
         for r in 0..n {
             let v = view.x[at(r, c)];
             if !v.is_finite() {
+                // Named where it is stored (the stored triangle for UPPER / LOWER).
                 let (sr, sc) = if at(r, c) == r + c * ld {
                     (r, c)
                 } else {
                     (c, r)
                 };
-                return fail(
-                    ErrorKind::NotFinite,
-                    format!(
-                        "{what}: dense entry (row {}, column {}) = x[{}] is {v}",
-                        sr + base,
-                        sc + base,
-                        sr + sc * ld
-                    ),
-                );
+                return dense_not_finite(what, sr, sc, ld, base, v);
             }
             values[r + c * n] = v;
             row_idx[r + c * n] = r;

@@ -249,13 +249,9 @@ pub(crate) fn dense_len(nrows: usize, ncols: usize, ld: usize, what: &str) -> Re
         })
 }
 
-/// The nonzeros of a dense general view (N, T) as 0-based triplets, column by
-/// column. Every value is checked for finiteness; messages give rows and columns
-/// in `base`. (A dense K is read by `symmetric_from_dense`, every entry kept.)
-pub(super) fn collect_dense(view: &MatrixView<'_>, what: &str, base: usize) -> Result<Triplets> {
-    let Format::Dense { ld } = view.format else {
-        unreachable!("collect_dense reads dense views");
-    };
+/// `BadSize` unless the dense `view` (leading dimension `ld`) holds the
+/// [`dense_len`] values its dimensions need.
+pub(super) fn check_dense_len(view: &MatrixView<'_>, ld: usize, what: &str) -> Result<()> {
     let (nrows, ncols) = (view.nrows, view.ncols);
     let len = dense_len(nrows, ncols, ld, what)?;
     if view.x.len() < len {
@@ -268,20 +264,45 @@ pub(super) fn collect_dense(view: &MatrixView<'_>, what: &str, base: usize) -> R
             ),
         );
     }
+    Ok(())
+}
+
+/// `NotFinite` for the value `v` of a dense view at (r, c), 0-based, named in the
+/// caller's `base` with its position in x.
+pub(super) fn dense_not_finite<T>(
+    what: &str,
+    r: usize,
+    c: usize,
+    ld: usize,
+    base: usize,
+    v: f64,
+) -> Result<T> {
+    fail(
+        ErrorKind::NotFinite,
+        format!(
+            "{what}: dense entry (row {}, column {}) = x[{}] is {v}",
+            r + base,
+            c + base,
+            r + c * ld
+        ),
+    )
+}
+
+/// The nonzeros of a dense general view (N, T) as 0-based triplets, column by
+/// column. Every value is checked for finiteness; messages give rows and columns
+/// in `base`. (A dense K is read by `symmetric_from_dense`, every entry kept.)
+pub(super) fn collect_dense(view: &MatrixView<'_>, what: &str, base: usize) -> Result<Triplets> {
+    let Format::Dense { ld } = view.format else {
+        unreachable!("collect_dense reads dense views");
+    };
+    let (nrows, ncols) = (view.nrows, view.ncols);
+    check_dense_len(view, ld, what)?;
     let mut t = Triplets::default();
     for c in 0..ncols {
         for r in 0..nrows {
             let v = view.x[r + c * ld];
             if !v.is_finite() {
-                return fail(
-                    ErrorKind::NotFinite,
-                    format!(
-                        "{what}: dense entry (row {}, column {}) = x[{}] is {v}",
-                        r + base,
-                        c + base,
-                        r + c * ld
-                    ),
-                );
+                return dense_not_finite(what, r, c, ld, base, v);
             }
             if v != 0.0 {
                 t.push(r, c, v);
