@@ -1,21 +1,36 @@
 //! The contacts' d x d diagonal blocks of A = B K^-1 B^T, from K's factor and
-//! without forming anything c x c: with L L^T = P K P^T and W_i = L^-1 P B_i^T
-//! (B_i: contact i's d rows of B), A_ii = W_i^T W_i. Each W_i is a sparse forward
-//! solve: its nonzeros lie in the supernodes on the elimination-tree paths from
-//! the supernodes of B_i's DOFs to the root, and only those are touched.
+//! without forming anything c x c. Two ways, chosen by their flop counts:
 //!
-//! Contacts are taken GROUP at a time, sorted by their first supernode so that a
-//! group's paths share most of their supernodes (the separators above a patch of
-//! the contact face); a group's forward solve runs on a dense block of the rows of
-//! the union of its paths, by dense triangular solves and products per supernode
-//! (BLAS-3), and groups run in parallel on the problem's threads.
+//! - **Selected inversion** (`crate::selected_inverse`): A_ii = B_i Z B_i^T needs
+//!   the entries of Z = K^-1 between contact i's DOFs; when they all lie on the
+//!   factor's pattern (the DOFs of one node, of neighbouring nodes, or of two
+//!   bodies, whose entries are zero), they come from Takahashi's recurrence on
+//!   the supernodes above the contact face, visited once for all contacts.
+//!   About twice the factorisation's flops on those supernodes.
+//! - **Forward solves**: with L L^T = P K P^T and W_i = L^-1 P B_i^T (B_i:
+//!   contact i's d rows of B), A_ii = W_i^T W_i. Each W_i is a sparse forward
+//!   solve whose nonzeros lie in the supernodes on the elimination-tree paths
+//!   from the supernodes of B_i's DOFs to the root. Contacts are taken GROUP at a
+//!   time, sorted by their first supernode so that a group's paths share most of
+//!   their supernodes; a group's solve runs on a dense block of the rows of the
+//!   union of its paths, by dense triangular solves and products per supernode
+//!   (BLAS-3), and groups run in parallel on the problem's threads. Cheaper for
+//!   a few contacts (each pays only its path; the selected inversion pays
+//!   every top separator in full), and the only way for contacts whose DOFs are
+//!   off the pattern.
+//!
+//! On the slab (3d-64x64x6, c = 12,675) the forward solves need 3.5 x
+//! the factorisation's flops (every contact's path crosses the top separators,
+//! w^2 per column there), the selected inversion 2.0 x.
 //!
 //! The matrix-free dual needs these blocks for rho (the error measure,
 //! docs/design.md section 5), for the diagonal of A and for Newton's
 //! preconditioner.
 
 use crate::factor::Factor;
+use crate::selected_inverse::{Place, Selection, Term, place};
 use crate::sparse::Csc;
+use crate::supernode_tree::Tree;
 use faer::linalg::matmul::matmul;
 use faer::linalg::triangular_solve::solve_lower_triangular_in_place;
 use faer::{Accum, Mat, MatMut, Par};
@@ -28,41 +43,6 @@ const GROUP: usize = 32;
 /// rows m + (d-1) i ..).
 fn rows_of(i: usize, m: usize, d: usize) -> impl Iterator<Item = usize> {
     std::iter::once(i).chain((0..d - 1).map(move |s| m + (d - 1) * i + s))
-}
-
-/// The supernodal tree of a factor: per column its supernode, per supernode its
-/// parent (usize::MAX at a root).
-struct Tree {
-    of_col: Vec<usize>,
-    parent: Vec<usize>,
-    begin: Vec<usize>,
-    width: Vec<usize>,
-}
-
-impl Tree {
-    fn of(factor: &Factor) -> Tree {
-        let sym = factor.supernodal_symbolic();
-        let ns = sym.n_supernodes();
-        let (begin, end) = (sym.supernode_begin(), sym.supernode_end());
-        let mut of_col = vec![0usize; factor.n()];
-        for s in 0..ns {
-            of_col[begin[s]..end[s]].fill(s);
-        }
-        let parent = (0..ns)
-            .map(|s| {
-                sym.supernode(s)
-                    .pattern()
-                    .first()
-                    .map_or(usize::MAX, |&row| of_col[row])
-            })
-            .collect();
-        Tree {
-            of_col,
-            parent,
-            begin: begin[..ns].to_vec(),
-            width: (0..ns).map(|s| end[s] - begin[s]).collect(),
-        }
-    }
 }
 
 /// One worker's scratch: the marks and local offsets of supernodes, the list of a
@@ -99,17 +79,200 @@ impl Scratch {
 /// `[i d^2 .. (i+1) d^2]`, row-major, its rows and columns contact i's rows of B
 /// (normal first). Contacts without entries in B get a zero block.
 pub(crate) fn contact_blocks(factor: &Factor, b: &Csc, m: usize, d: usize) -> Vec<f64> {
+    contact_blocks_by(factor, b, m, d, Route::Cheaper)
+}
+
+/// How the blocks of the contacts on the factor's pattern are computed.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(crate) enum Route {
+    /// Selected inversion where it needs fewer flops than the forward solves.
+    Cheaper,
+    /// Forward solves for every contact.
+    Forward,
+    /// Selected inversion for every contact on the pattern.
+    Selected,
+}
+
+/// [`contact_blocks`] by the given route (contacts off the pattern always by
+/// forward solves).
+pub(crate) fn contact_blocks_by(
+    factor: &Factor,
+    b: &Csc,
+    m: usize,
+    d: usize,
+    route: Route,
+) -> Vec<f64> {
     if factor.is_dense() {
         return dense_blocks(factor, b, m, d);
     }
     let bt = b.transpose();
     let tree = Tree::of(factor);
     let new_of = factor.new_of_old();
-    let ns = tree.parent.len();
-    let order = ordered(&tree, &new_of, &bt, m, d);
+    let plan = Plan::new(factor, &tree, &new_of, &bt, m, d, route);
+    let dd = d * d;
+    let mut blocks = match &plan.selection {
+        Some(sel) => {
+            let mut upper = sel.sums(factor, &tree, m * dd);
+            for i in 0..m {
+                for a in 0..d {
+                    for e in 0..a {
+                        upper[i * dd + a * d + e] = upper[i * dd + e * d + a];
+                    }
+                }
+            }
+            upper
+        }
+        None => vec![0.0; m * dd],
+    };
+    forward_blocks(
+        factor,
+        &tree,
+        &new_of,
+        &bt,
+        m,
+        d,
+        &plan.forward,
+        &mut blocks,
+    );
+    blocks
+}
+
+/// Which contacts go which way.
+struct Plan {
+    /// The selected inversion of the contacts whose blocks lie on the factor's
+    /// pattern, when it is taken: the terms of entry (a, e), a <= e, of contact
+    /// i go to slot i d^2 + a d + e.
+    selection: Option<Selection>,
+    /// The contacts solved forward, as (first supernode, contact) pairs sorted
+    /// by their first (deepest) supernode: the order they are solved in.
+    forward: Vec<(usize, usize)>,
+}
+
+impl Plan {
+    #[allow(clippy::too_many_arguments)]
+    fn new(
+        factor: &Factor,
+        tree: &Tree,
+        new_of: &[usize],
+        bt: &Csc,
+        m: usize,
+        d: usize,
+        route: Route,
+    ) -> Plan {
+        let order = ordered(tree, new_of, bt, m, d);
+        if route == Route::Forward {
+            return Plan {
+                selection: None,
+                forward: order,
+            };
+        }
+        let dd = d * d;
+        let mut terms = Vec::new();
+        let (mut on, mut off) = (Vec::new(), Vec::new());
+        let mut entries = Vec::new();
+        let mut mine = Vec::new();
+        'contacts: for &(s0, i) in &order {
+            entries.clear();
+            for (a, r) in rows_of(i, m, d).enumerate() {
+                for p in bt.col_ptr[r]..bt.col_ptr[r + 1] {
+                    entries.push((a, new_of[bt.row_idx[p]], bt.values[p]));
+                }
+            }
+            mine.clear();
+            for &(a, j, x) in &entries {
+                for &(e, k, y) in entries.iter().filter(|&&(e, _, _)| e >= a) {
+                    match place(factor, tree, j, k) {
+                        Place::At { s, row, col } => mine.push(Term {
+                            slot: i * dd + a * d + e,
+                            s,
+                            row,
+                            col,
+                            coef: x * y,
+                        }),
+                        Place::Zero => {}
+                        Place::Outside => {
+                            off.push((s0, i));
+                            continue 'contacts;
+                        }
+                    }
+                }
+            }
+            terms.extend_from_slice(&mine);
+            on.push((s0, i));
+        }
+        let selection = Selection::new(factor, tree, terms);
+        let taken = route == Route::Selected
+            || selection.flops() < forward_flops(factor, tree, new_of, bt, m, d, &on);
+        if taken {
+            Plan {
+                selection: Some(selection),
+                forward: off,
+            }
+        } else {
+            Plan {
+                selection: None,
+                forward: order,
+            }
+        }
+    }
+}
+
+/// Flops of the forward solves of `contacts` ((first supernode, contact)
+/// pairs): per row of B, w^2 + 2 w r for each supernode (width w, r rows below)
+/// on the paths from its DOFs to the root.
+fn forward_flops(
+    factor: &Factor,
+    tree: &Tree,
+    new_of: &[usize],
+    bt: &Csc,
+    m: usize,
+    d: usize,
+    contacts: &[(usize, usize)],
+) -> f64 {
+    let sym = factor.supernodal_symbolic();
+    let cost: Vec<f64> = (0..tree.len())
+        .map(|s| {
+            let (w, r) = (
+                tree.width[s] as f64,
+                sym.supernode(s).pattern().len() as f64,
+            );
+            w * w + 2.0 * w * r
+        })
+        .collect();
+    let mut mark = vec![usize::MAX; tree.len()];
+    let mut total = 0.0;
+    for &(_, i) in contacts {
+        for r in rows_of(i, m, d) {
+            for &dof in &bt.row_idx[bt.col_ptr[r]..bt.col_ptr[r + 1]] {
+                let mut s = tree.of_col[new_of[dof]];
+                while s != usize::MAX && mark[s] != r {
+                    mark[s] = r;
+                    total += cost[s];
+                    s = tree.parent[s];
+                }
+            }
+        }
+    }
+    total
+}
+
+/// The blocks of the contacts `order` ((first supernode, contact) pairs sorted
+/// by supernode) by grouped sparse forward solves, written into `blocks`.
+#[allow(clippy::too_many_arguments)]
+fn forward_blocks(
+    factor: &Factor,
+    tree: &Tree,
+    new_of: &[usize],
+    bt: &Csc,
+    m: usize,
+    d: usize,
+    order: &[(usize, usize)],
+    blocks: &mut [f64],
+) {
+    let ns = tree.len();
     let groups: Vec<&[(usize, usize)]> = order.chunks(GROUP).collect();
     let solve_group = |group: &[(usize, usize)], ws: &mut Scratch| {
-        group_blocks(factor, &tree, &new_of, &bt, m, d, group, ws)
+        group_blocks(factor, tree, new_of, bt, m, d, group, ws)
     };
     let (nnz, flops) = factor.nnz_and_flops();
     let parallel = groups.len() > 1 && flops > 1e7 && nnz > 0;
@@ -124,13 +287,11 @@ pub(crate) fn contact_blocks(factor: &Factor, b: &Csc, m: usize, d: usize) -> Ve
             .collect(),
     });
     let dd = d * d;
-    let mut blocks = vec![0.0; m * dd];
     for (group, res) in groups.iter().zip(&results) {
         for (slot, &(_, i)) in group.iter().enumerate() {
             blocks[i * dd..(i + 1) * dd].copy_from_slice(&res[slot * dd..(slot + 1) * dd]);
         }
     }
-    blocks
 }
 
 /// [`contact_blocks`] of a dense factor (K had every entry stored): W_i = L^-1 P
@@ -174,11 +335,13 @@ fn ordered(tree: &Tree, new_of: &[usize], bt: &Csc, m: usize, d: usize) -> Vec<(
     order
 }
 
-/// The bytes [`contact_blocks`] works in per thread, from the symbolic factor
-/// alone (known before the numeric factorisation): the largest group's dense
-/// block (the rows of the union of its paths, times its columns), the largest
-/// product buffer (rows below a supernode of a group's union, times the
-/// group's columns), and the per-supernode marks.
+/// The bytes [`contact_blocks`] works in, from the symbolic factor alone (known
+/// before the numeric factorisation): the selected inversion's terms and blocks
+/// (`Selection::work_bytes`) when it is taken, or per thread, for the forward
+/// solves, the largest group's dense block (the rows of the union of its
+/// paths, times its columns), the largest product buffer (rows below a
+/// supernode of a group's union, times the group's columns), and the
+/// per-supernode marks.
 pub(crate) fn work_bytes(factor: &Factor, b: &Csc, m: usize, d: usize) -> usize {
     if factor.is_dense() {
         return (d + 1) * factor.n() * std::mem::size_of::<f64>();
@@ -186,9 +349,29 @@ pub(crate) fn work_bytes(factor: &Factor, b: &Csc, m: usize, d: usize) -> usize 
     let bt = b.transpose();
     let tree = Tree::of(factor);
     let new_of = factor.new_of_old();
-    let ns = tree.parent.len();
+    let plan = Plan::new(factor, &tree, &new_of, &bt, m, d, Route::Cheaper);
+    let threads = factor.threads().count();
+    let selected = plan
+        .selection
+        .as_ref()
+        .map_or(0, |sel| sel.work_bytes(factor, &tree, threads));
+    let forward = threads * forward_work_bytes(factor, &tree, &new_of, &bt, m, d, &plan.forward);
+    selected.max(forward)
+}
+
+/// The bytes one thread works in while the contacts `order` are solved
+/// forward.
+fn forward_work_bytes(
+    factor: &Factor,
+    tree: &Tree,
+    new_of: &[usize],
+    bt: &Csc,
+    m: usize,
+    d: usize,
+    order: &[(usize, usize)],
+) -> usize {
+    let ns = tree.len();
     let sym = factor.supernodal_symbolic();
-    let order = ordered(&tree, &new_of, &bt, m, d);
     let mut mark = vec![usize::MAX; ns];
     let (mut block, mut buf) = (0, 0);
     for (g, group) in order.chunks(GROUP).enumerate() {
@@ -341,9 +524,60 @@ mod tests {
     use crate::threads::Threads;
     use std::sync::Arc;
 
+    /// B K^-1 B^T formed column by column with full solves (c x c, column-major).
+    fn dense_a(f: &Factor, b: &Csc) -> Vec<f64> {
+        let (c, n) = (b.nrows, f.n());
+        let bt = b.transpose();
+        let mut dense = vec![0.0; c * c];
+        for r in 0..c {
+            let mut x = vec![0.0; n];
+            for p in bt.col_ptr[r]..bt.col_ptr[r + 1] {
+                x[bt.row_idx[p]] = bt.values[p];
+            }
+            f.solve_vec(&mut x);
+            b.mul_vec(&x, &mut dense[r * c..(r + 1) * c]);
+        }
+        dense
+    }
+
+    /// Every contact's block by `route` against the dense A.
+    fn check_blocks(f: &Factor, b: &Csc, m: usize, d: usize, route: Route, what: &str) {
+        let c = b.nrows;
+        let dense = dense_a(f, b);
+        let blocks = contact_blocks_by(f, b, m, d, route);
+        for i in 0..m {
+            let rows: Vec<usize> = rows_of(i, m, d).collect();
+            for a in 0..d {
+                for bb in 0..d {
+                    let want = dense[rows[a] + rows[bb] * c];
+                    let got = blocks[i * d * d + a * d + bb];
+                    assert!(
+                        (got - want).abs() <= 1e-13 * want.abs().max(1e-3),
+                        "{what} {route:?} contact {i} ({a},{bb}): {got} vs {want}"
+                    );
+                }
+            }
+        }
+    }
+
+    /// How many contacts `route` takes by selected inversion.
+    fn selected(f: &Factor, b: &Csc, m: usize, d: usize, route: Route) -> usize {
+        let tree = Tree::of(f);
+        let bt = b.transpose();
+        let plan = Plan::new(f, &tree, &f.new_of_old(), &bt, m, d, route);
+        let with_entries = ordered(&tree, &f.new_of_old(), &bt, m, d).len();
+        if plan.selection.is_some() {
+            with_entries - plan.forward.len()
+        } else {
+            0
+        }
+    }
+
     /// The blocks against B K^-1 B^T formed column by column with full solves,
-    /// for both orderings, 1 and 2 threads, d = 2 and 3, with a contact whose rows
-    /// are empty and contacts whose rows touch several DOFs.
+    /// by every route, for both orderings, 1 and 2 threads, d = 2 and 3, with a
+    /// contact whose rows are empty and contacts whose rows touch several DOFs,
+    /// some of them far apart (off the factor's pattern: solved forward even on
+    /// the selected route).
     #[test]
     fn blocks_match_the_dense_a() {
         let (nx, ny) = (23, 17);
@@ -364,37 +598,72 @@ mod tests {
             let nm = Csc::from_triplets(m, n, &nt);
             let tm = Csc::from_triplets((d - 1) * m, n, &tt);
             let b = stack_rows(&nm, &tm);
-            let c = d * m;
             for (ordering, threads) in [(Ordering::Amd, 1), (Ordering::Metis, 2)] {
                 let f =
                     Factor::with_last(&k, &[], ordering, Arc::new(Threads::new(threads))).unwrap();
-                let blocks = contact_blocks(&f, &b, m, d);
-                let bt = b.transpose();
-                let mut dense = vec![0.0; c * c];
-                for r in 0..c {
-                    let mut x = vec![0.0; n];
-                    for p in bt.col_ptr[r]..bt.col_ptr[r + 1] {
-                        x[bt.row_idx[p]] = bt.values[p];
-                    }
-                    f.solve_vec(&mut x);
-                    b.mul_vec(&x, &mut dense[r * c..(r + 1) * c]);
+                for route in [Route::Cheaper, Route::Forward, Route::Selected] {
+                    check_blocks(&f, &b, m, d, route, &format!("d {d} {ordering:?}"));
+                    // The last contact has no entries: a zero block.
+                    let blocks = contact_blocks_by(&f, &b, m, d, route);
+                    assert!(blocks[(m - 1) * d * d..].iter().all(|&v| v == 0.0));
                 }
-                for i in 0..m {
-                    let rows: Vec<usize> = rows_of(i, m, d).collect();
-                    for a in 0..d {
-                        for bb in 0..d {
-                            let want = dense[rows[a] + rows[bb] * c];
-                            let got = blocks[i * d * d + a * d + bb];
-                            assert!(
-                                (got - want).abs() <= 1e-13 * want.abs().max(1e-3),
-                                "d {d} contact {i} ({a},{bb}): {got} vs {want}"
-                            );
-                        }
-                    }
-                }
-                // The last contact has no entries: a zero block.
-                assert!(blocks[(m - 1) * d * d..].iter().all(|&v| v == 0.0));
+                let on = selected(&f, &b, m, d, Route::Selected);
+                assert!(on > 0 && on < m - 1, "{on} of {} contacts selected", m - 1);
+                assert_eq!(selected(&f, &b, m, d, Route::Forward), 0);
             }
+        }
+    }
+
+    /// Contacts on the bottom row of a grid (each touching its node's DOF and a
+    /// neighbour's, all on the factor's pattern) and two-body contacts between
+    /// two disconnected grids (entries between the bodies are zeros of K^-1):
+    /// every contact goes by selected inversion, which the cheaper route takes
+    /// when the contacts are many, and the blocks match the dense A.
+    #[test]
+    fn selected_inversion_covers_face_and_two_body_contacts() {
+        let (nx, ny) = (40, 12);
+        let one = grid(nx, ny);
+        let n1 = nx * ny;
+        // Two copies of the grid, block diagonal.
+        let mut t = Vec::new();
+        for j in 0..n1 {
+            for p in one.col_ptr[j]..one.col_ptr[j + 1] {
+                t.push((one.row_idx[p], j, one.values[p]));
+                t.push((n1 + one.row_idx[p], n1 + j, one.values[p]));
+            }
+        }
+        let k = Csc::from_triplets(2 * n1, 2 * n1, &t);
+        let n = 2 * n1;
+        let d = 2;
+        // Face contacts on the first body's bottom row, two-body contacts
+        // between the first body's top row and the second's bottom row.
+        let mut nt = Vec::new();
+        let mut tt = Vec::new();
+        let mut m = 0;
+        for i in 0..nx - 1 {
+            nt.push((m, i, -1.0));
+            tt.push((m, i + 1, 0.5));
+            tt.push((m, i, 1.0));
+            m += 1;
+        }
+        for i in 0..nx {
+            let top = i + nx * (ny - 1);
+            nt.push((m, top, 1.0));
+            nt.push((m, n1 + i, -1.0));
+            tt.push((m, top, 0.7));
+            tt.push((m, n1 + i, -0.7));
+            m += 1;
+        }
+        let b = stack_rows(
+            &Csc::from_triplets(m, n, &nt),
+            &Csc::from_triplets(m, n, &tt),
+        );
+        for (ordering, threads) in [(Ordering::Amd, 1), (Ordering::Metis, 2)] {
+            let f = Factor::with_last(&k, &[], ordering, Arc::new(Threads::new(threads))).unwrap();
+            for route in [Route::Cheaper, Route::Selected] {
+                check_blocks(&f, &b, m, d, route, &format!("{ordering:?}"));
+            }
+            assert_eq!(selected(&f, &b, m, d, Route::Selected), m);
         }
     }
 }

@@ -21,7 +21,9 @@ mod options;
 mod ordering;
 mod problem;
 mod report;
+mod selected_inverse;
 mod sparse;
+mod supernode_tree;
 mod threads;
 
 pub use error::{Error, ErrorKind, Result};

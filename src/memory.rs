@@ -110,8 +110,8 @@ pub(crate) struct Sizes {
     pub solve_scratch: usize,
     /// The problem's threads.
     pub threads: usize,
-    /// Bytes one thread works in while the matrix-free dual's contact blocks
-    /// are formed (`contact_blocks::work_bytes`).
+    /// Bytes the threads work in together while the matrix-free dual's contact
+    /// blocks are formed (`contact_blocks::work_bytes`).
     pub blocks_work: usize,
 }
 
@@ -136,12 +136,12 @@ impl Sizes {
                 a,
             ),
             // The contacts' diagonal blocks (d c doubles at most) and, while
-            // they are formed, a block of their sparse forward solves per thread
-            // (`blocks_work`); then one product's n-vector and solve workspace,
+            // they are formed, what their selected inversion or forward solves
+            // work in on all threads (`blocks_work`); then one product's n-vector and solve workspace,
             // and L's values in single precision (the rough products).
             Condensation::MatrixFree => {
                 let held = 3 * self.c * F64 + self.n * F64 + self.solve_scratch + self.factor / 2;
-                (held + self.threads * self.blocks_work, held)
+                (held + self.blocks_work, held)
             }
         }
     }
