@@ -291,6 +291,24 @@ impl Dual {
         self.free.as_ref().map(|f| &f.blocks[i * dd..(i + 1) * dd])
     }
 
+    /// Hands K over to a matrix-free dual, which forms G = B K B^T from it (the
+    /// lumped preconditioner of Newton's reduced systems); nothing on a dense
+    /// dual.
+    pub(crate) fn set_lumped(&mut self, k: &Csc) {
+        if let Some(f) = &mut self.free {
+            let g = crate::sparse::congruence(k, &self.rows, &f.bt);
+            let claim = self.ledger.claim(g.bytes());
+            f.lumped = Some((g, claim));
+        }
+    }
+
+    /// G = B K B^T when a matrix-free dual holds it ([`Dual::set_lumped`]).
+    pub(crate) fn lumped(&self) -> Option<&Csc> {
+        self.free
+            .as_ref()
+            .and_then(|f| f.lumped.as_ref().map(|(g, _)| g))
+    }
+
     /// True when every DOF B touches is among the DOFs `factor` orders last.
     pub(crate) fn trailing_of(factor: &Factor, b: &Csc) -> bool {
         !factor.last().is_empty() && {
@@ -407,6 +425,10 @@ struct Operator {
     single: Vec<f32>,
     work_single: std::cell::RefCell<(Vec<f32>, MemBuffer)>,
     _single_claim: Claim,
+    /// G = B K B^T (c x c, sparse), the lumped approximation of A^-1 that
+    /// preconditions Newton's reduced systems, once K is handed over
+    /// ([`Dual::set_lumped`]), with its bytes on the ledger.
+    lumped: Option<(Csc, Claim)>,
 }
 
 impl Operator {
@@ -430,6 +452,7 @@ impl Operator {
                 MemBuffer::new(factor.solve_scratch(1)),
             )),
             _single_claim: factor.ledger().claim(single.len() * 4),
+            lumped: None,
             single,
             work_single: std::cell::RefCell::new((
                 vec![0.0; factor.n()],

@@ -113,6 +113,8 @@ pub(crate) struct Sizes {
     /// Bytes the threads work in together while the matrix-free dual's contact
     /// blocks are formed (`contact_blocks::work_bytes`).
     pub blocks_work: usize,
+    /// Bytes of G = B K B^T, the lumped preconditioner a matrix-free dual holds.
+    pub lumped: usize,
 }
 
 /// Predicted bytes, what the counted allocations will reach.
@@ -138,9 +140,14 @@ impl Sizes {
             // The contacts' diagonal blocks (d c doubles at most) and, while
             // they are formed, what their selected inversion or forward solves
             // work in on all threads (`blocks_work`); then one product's n-vector and solve workspace,
-            // and L's values in single precision (the rough products).
+            // L's values in single precision (the rough products) and the
+            // lumped preconditioner G = B K B^T.
             Condensation::MatrixFree => {
-                let held = 3 * self.c * F64 + self.n * F64 + self.solve_scratch + self.factor / 2;
+                let held = 3 * self.c * F64
+                    + self.n * F64
+                    + self.solve_scratch
+                    + self.factor / 2
+                    + self.lumped;
                 (held + self.blocks_work, held)
             }
         }

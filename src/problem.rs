@@ -155,7 +155,8 @@ impl ContactProblem {
         let inputs = factor.ledger().claim(plan.sizes.inputs);
         factor.refactor(&k)?;
         let factor = Arc::new(factor);
-        let dual = Dual::build(&factor, &n, &t, d, plan.form)?;
+        let mut dual = Dual::build(&factor, &n, &t, d, plan.form)?;
+        dual.set_lumped(&k);
         let ndof = k.nrows;
         let c = dual.c;
         Ok(ContactProblem {
@@ -277,6 +278,7 @@ impl ContactProblem {
 
     /// The sizes of a problem's memory predictions, after K's analysis.
     fn sizes_of(k: &Csc, n: &Csc, t: &Csc, d: usize, factor: &Factor) -> Sizes {
+        let b = stack_rows(n, t);
         Sizes {
             n: k.nrows,
             c: d * n.nrows,
@@ -286,7 +288,8 @@ impl ContactProblem {
             factor_scratch: factor.factor_scratch_bytes(),
             solve_scratch: factor.solve_scratch(BLOCK).size_bytes(),
             threads: factor.threads().count(),
-            blocks_work: crate::contact_blocks::work_bytes(factor, &stack_rows(n, t), n.nrows, d),
+            blocks_work: crate::contact_blocks::work_bytes(factor, &b, n.nrows, d),
+            lumped: crate::sparse::congruence_bytes(k, &b, &b.transpose()),
         }
     }
 
@@ -426,6 +429,7 @@ impl ContactProblem {
         fresh.refactor(&k)?;
         let fresh = Arc::new(fresh);
         self.dual = Dual::build(&fresh, &self.n, &self.t, self.d, self.current_form())?;
+        self.dual.set_lumped(&k);
         self.factor = fresh;
         self.k = k;
         Ok(())
@@ -438,14 +442,11 @@ impl ContactProblem {
         let n = Csc::from_view(n, "N")?;
         let t = Csc::from_view(t, "T")?;
         check_shapes(self.factor.n(), self.d, &n, &t)?;
+        let b = stack_rows(&n, &t);
         let next = Sizes {
             c: self.d * n.nrows,
-            blocks_work: crate::contact_blocks::work_bytes(
-                &self.factor,
-                &stack_rows(&n, &t),
-                n.nrows,
-                self.d,
-            ),
+            blocks_work: crate::contact_blocks::work_bytes(&self.factor, &b, n.nrows, self.d),
+            lumped: crate::sparse::congruence_bytes(&self.k, &b, &b.transpose()),
             ..self.sizes
         };
         let how = Condensation::of(
@@ -463,12 +464,14 @@ impl ContactProblem {
             "replacing N and T (the new dual is formed beside the old one)",
             "the problem's max_memory (set at creation) must allow for it",
         )?;
-        let dual = Dual::build_with(&self.factor, &n, &t, self.d, how)?;
+        let mut dual = Dual::build_with(&self.factor, &n, &t, self.d, how)?;
+        dual.set_lumped(&self.k);
         if dual.c != self.dual.c {
             self.lam_hist = vec![0.0; dual.c];
         }
         self.sizes.c = dual.c;
         self.sizes.blocks_work = next.blocks_work;
+        self.sizes.lumped = next.lumped;
         self.sizes.inputs = self.k.bytes() + n.bytes() + t.bytes();
         self.inputs.resize(self.sizes.inputs);
         self.dual = dual;
@@ -553,6 +556,7 @@ impl ContactProblem {
         self.factor.ledger().reset_peak();
         if next != now {
             self.dual = Dual::build_with(&self.factor, &self.n, &self.t, self.d, next)?;
+            self.dual.set_lumped(&self.k);
         }
         Ok(need)
     }

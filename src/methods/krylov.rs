@@ -2,20 +2,20 @@
 //! (`newton.rs`): preconditioned conjugate gradients where the system is
 //! symmetric (Tresca, and Coulomb contacts whose normal force does not drag a
 //! slip force), restarted GMRES with right preconditioning otherwise. Both take
-//! the operator as a closure (one product with A each) and a diagonal
-//! preconditioner, stop at |M z - rhs| <= eta |rhs| or after `max_it` products,
+//! the operator as a closure (one product with A each) and the preconditioner
+//! as another (y := P x, P symmetric positive definite), stop at |M z - rhs| <= eta |rhs| or after `max_it` products,
 //! and return the products used; None when the iteration broke down (a
 //! non-finite value, or CG meeting a direction of non-positive curvature).
 
 /// Restart length of GMRES.
 pub(super) const RESTART: usize = 40;
 
-/// z := approximately M^-1 rhs by preconditioned CG from z = 0 (`pre`: the
-/// inverse of M's diagonal).
+/// z := approximately M^-1 rhs by preconditioned CG from z = 0 (`pre`: y := P x,
+/// P ~ M^-1).
 pub(super) fn pcg(
     op: &mut dyn FnMut(&[f64], &mut [f64]),
     rhs: &[f64],
-    pre: &[f64],
+    pre: &mut dyn FnMut(&[f64], &mut [f64]),
     eta: f64,
     max_it: usize,
     z: &mut [f64],
@@ -24,7 +24,8 @@ pub(super) fn pcg(
     z.iter_mut().for_each(|v| *v = 0.0);
     let mut r = rhs.to_vec();
     let stop = eta * norm(rhs);
-    let mut y: Vec<f64> = r.iter().zip(pre).map(|(a, b)| a * b).collect();
+    let mut y = vec![0.0; k];
+    pre(&r, &mut y);
     let mut p = y.clone();
     let mut q = vec![0.0; k];
     let mut ry = dot(&r, &y);
@@ -42,9 +43,7 @@ pub(super) fn pcg(
             z[j] += alpha * p[j];
             r[j] -= alpha * q[j];
         }
-        for j in 0..k {
-            y[j] = r[j] * pre[j];
-        }
+        pre(&r, &mut y);
         let ry_next = dot(&r, &y);
         let beta = ry_next / ry;
         ry = ry_next;
@@ -56,11 +55,11 @@ pub(super) fn pcg(
 }
 
 /// z := approximately M^-1 rhs by GMRES(RESTART) with right preconditioning
-/// M diag(pre) x = rhs, z = diag(pre) x, from z = 0.
+/// M P x = rhs, z = P x, from z = 0 (`pre`: y := P x).
 pub(super) fn gmres(
     op: &mut dyn FnMut(&[f64], &mut [f64]),
     rhs: &[f64],
-    pre: &[f64],
+    pre: &mut dyn FnMut(&[f64], &mut [f64]),
     eta: f64,
     max_it: usize,
     z: &mut [f64],
@@ -97,9 +96,7 @@ pub(super) fn gmres(
         g[0] = beta;
         let mut used = 0;
         for col in 0..RESTART {
-            for j in 0..k {
-                t[j] = pre[j] * basis[col * k + j];
-            }
+            pre(&basis[col * k..(col + 1) * k], &mut t);
             let (done, next) = basis.split_at_mut((col + 1) * k);
             let w = &mut next[..k];
             op(&t, w);
@@ -141,7 +138,7 @@ pub(super) fn gmres(
         if used == 0 {
             return None;
         }
-        // Back substitution for y (in g), then z += diag(pre) V y.
+        // Back substitution for y (in g), then z += P V y.
         for i in (0..used).rev() {
             let mut s = g[i];
             for l in i + 1..used {
@@ -149,10 +146,16 @@ pub(super) fn gmres(
             }
             g[i] = s / h[i + i * ld];
         }
+        // z += P (V y): the combination first, then one preconditioning.
+        r.iter_mut().for_each(|v| *v = 0.0);
         for l in 0..used {
             for j in 0..k {
-                z[j] += pre[j] * g[l] * basis[l * k + j];
+                r[j] += g[l] * basis[l * k + j];
             }
+        }
+        pre(&r, &mut t);
+        for j in 0..k {
+            z[j] += t[j];
         }
         if !z.iter().all(|v| v.is_finite()) {
             return None;
@@ -203,20 +206,24 @@ mod tests {
     fn cg_and_gmres_solve_to_the_requested_residual() {
         let k = 200;
         let rhs: Vec<f64> = (0..k).map(|i| (i as f64 * 0.37).sin() + 0.1).collect();
-        let pre: Vec<f64> = (0..k).map(|i| 1.0 / (4.0 + i as f64 * 0.01)).collect();
+        let mut pre = |x: &[f64], y: &mut [f64]| {
+            for (i, (yi, xi)) in y.iter_mut().zip(x).enumerate() {
+                *yi = xi / (4.0 + i as f64 * 0.01);
+            }
+        };
         let mut z = vec![0.0; k];
         let mut sym = tridiag(k, 0.0);
-        let its = pcg(&mut sym, &rhs, &pre, 1e-12, 500, &mut z).unwrap();
+        let its = pcg(&mut sym, &rhs, &mut pre, 1e-12, 500, &mut z).unwrap();
         assert!(residual(&mut sym, &z, &rhs) <= 1e-12, "cg");
         assert!(its < 100, "{its}");
         // Nonsymmetric: GMRES, across restarts (RESTART < iterations needed at
         // 1e-13 only when the matrix is harder; here one cycle may do).
         let mut skew = tridiag(k, 0.5);
-        let its = gmres(&mut skew, &rhs, &pre, 1e-13, 500, &mut z).unwrap();
+        let its = gmres(&mut skew, &rhs, &mut pre, 1e-13, 500, &mut z).unwrap();
         assert!(residual(&mut skew, &z, &rhs) <= 1e-13, "gmres");
         assert!(its < 200, "{its}");
         // A loose eta stops early.
-        let its_loose = gmres(&mut skew, &rhs, &pre, 1e-2, 500, &mut z).unwrap();
+        let its_loose = gmres(&mut skew, &rhs, &mut pre, 1e-2, 500, &mut z).unwrap();
         assert!(its_loose < its);
         assert!(residual(&mut skew, &z, &rhs) <= 1e-2);
     }

@@ -12,12 +12,14 @@
 //! and pointer positions as `p[k]` (base 0) or `p(k)` (base 1).
 
 mod assemble;
+mod congruence;
 #[cfg(test)]
 mod tests;
 mod validate;
 
 use crate::error::{ErrorKind, Result, fail};
 use assemble::{Triplets, assemble, filled, try_copy, zeroed};
+pub(crate) use congruence::{congruence, congruence_bytes};
 pub(crate) use validate::dense_len;
 use validate::{
     check_base, check_dense_len, check_sums_finite, check_symmetric, collect, collect_dense,
