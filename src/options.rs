@@ -15,8 +15,10 @@ pub enum DualForm {
     /// Never form A, nor anything c x c: each product A x is one solve with K's
     /// factor. A problem created with it factors K in the best plain ordering
     /// (no contact DOFs last); the contacts' d x d diagonal blocks of A (for rho
-    /// and Newton's preconditioner) are computed once from the factor by sparse
-    /// forward solves. `Newton` (its steps by preconditioned CG / GMRES),
+    /// and Newton's preconditioner) are computed once from the factor by
+    /// selected inversion or sparse forward solves, and the sparse lumped
+    /// G = B K B^T once from K. `Newton` (its steps by CG / GMRES preconditioned
+    /// with G),
     /// `Mprgp` and `Auto` run matrix-free; the others read entries of A.
     MatrixFree,
 }

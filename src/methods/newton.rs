@@ -33,9 +33,13 @@
 //! iterations the solve gives up (stalled) instead of burning the iteration limit
 //! on a problem without a solution.
 //!
-//! Warm-up: every solve starts with up to PRESWEEPS projected Gauss-Seidel sweeps
-//! (cheap against a Newton step), so that the first active set Newton sees is
-//! near the answer.
+//! Warm-up: every solve on a dense A starts with up to PRESWEEPS projected
+//! Gauss-Seidel sweeps (cheap against a Newton step), so that the first active
+//! set Newton sees is near the answer. A matrix-free dual has no entries to
+//! sweep: a cold solve starts instead at the projection of alpha G b, G = B K B^T
+//! the lumped estimate of A^-1 (alpha minimising the dual energy along G b),
+//! when that lowers |F|; its reduced systems are solved by CG / GMRES
+//! preconditioned with G too (`krylov_step`).
 //!
 //! Warm start: the first step of a warm-started solve sorts the components by the
 //! multipliers (see WARM_C), not by the natural map, so that a history step starts
@@ -263,10 +267,17 @@ fn newton_step(
     if k == 0 {
         return true;
     }
-    dual.apply(step, ae0);
     if dual.is_matrix_free() {
+        // The fixed components' part of the right-hand side, to the accuracy
+        // the reduced solve asks for.
+        if krylov.rough() {
+            dual.apply_rough(step, ae0);
+        } else {
+            dual.apply(step, ae0);
+        }
         return krylov_step(problem, &red, step, ae0, krylov);
     }
+    dual.apply(step, ae0);
     // M = T^T A V + diag, column by column: column l is the sum over the entries of
     // dir_l of coef times T^T A[:, j], gathered from one column of A.
     let _mat_claim = dual.ledger.claim_f64(k * k);
@@ -325,6 +336,12 @@ pub(super) struct Krylov {
 }
 
 impl Krylov {
+    /// Whether this reduced solve may use products in single precision (see
+    /// ROUGH_ETA).
+    fn rough(&self) -> bool {
+        !self.exact && self.eta >= ROUGH_ETA
+    }
+
     fn new(c: usize) -> Krylov {
         Krylov {
             eta: 0.1,
@@ -402,10 +419,10 @@ fn krylov_step(
     let symmetric = red
         .iter()
         .all(|u| u.n_test == u.n_dir && u.test[..u.n_test] == u.dir[..u.n_dir]);
-    let (v, av) = (&mut krylov.v, &mut krylov.av);
     // A loose inner solve tolerates products in single precision (see
     // ROUGH_ETA); a tight one needs them exact.
-    let rough = !krylov.exact && krylov.eta >= ROUGH_ETA;
+    let rough = krylov.rough();
+    let (v, av) = (&mut krylov.v, &mut krylov.av);
     let mut op = |x: &[f64], y: &mut [f64]| {
         v.iter_mut().for_each(|e| *e = 0.0);
         for (u, &xl) in red.iter().zip(x) {
@@ -590,6 +607,9 @@ pub(super) struct Newton {
     /// Whether a warm start's first step sorts by the multipliers (WARM_C); off
     /// only in the tests that measure what that sorting buys.
     warm_sort: bool,
+    /// Whether a cold start on a matrix-free dual begins at the lumped estimate
+    /// (`Newton::lumped_start`); off only in the test that measures what it buys.
+    lumped_start_on: bool,
     step: Vec<f64>,
     f: Vec<f64>,
     ae0: Vec<f64>,
@@ -618,6 +638,7 @@ impl Newton {
             warm: false,
             presweeps: PRESWEEPS,
             warm_sort: true,
+            lumped_start_on: true,
             step: vec![0.0; c],
             f: vec![0.0; c],
             ae0: vec![0.0; c],
@@ -664,6 +685,14 @@ impl OuterStep for Newton {
         if swept > 0 {
             // w was updated column by column: recompute it against drift.
             problem.gradient(lam, w);
+        }
+        // No sweeps on a matrix-free dual: a cold start begins at the lumped
+        // estimate instead, when it is better than zero.
+        if let Some(g) = problem.dual.lumped()
+            && !self.warm
+            && self.lumped_start_on
+        {
+            self.lumped_start(problem, g, lam, w);
         }
         self.res = residual_norm(problem, lam, w);
         self.res0 = self.res;
@@ -720,19 +749,23 @@ impl OuterStep for Newton {
             if !solved {
                 continue;
             }
-            // Backtracking: the full step, then halves of it.
+            // Backtracking: the full step, then halves of it, their gradients
+            // w + t A d from one product (A is linear; rounding-level drift, so
+            // the driver confirms a convergence on an exact gradient).
+            let ad = &mut self.ae0;
+            problem.dual.apply(step, ad);
             let mut t = 1.0;
             for _ in 0..BACKTRACKS {
                 for j in 0..c {
                     trial[j] = lam[j] + t * step[j];
+                    wt[j] = w[j] + t * ad[j];
                 }
-                problem.gradient(trial, wt);
                 let r = residual_norm(problem, trial, wt);
                 if r <= (1.0 - ARMIJO * t) * self.res {
                     lam.copy_from_slice(trial);
                     w.copy_from_slice(wt);
                     self.res = r;
-                    return Flow::Go(Gradient::Exact);
+                    return Flow::Go(Gradient::Updated);
                 }
                 t *= 0.5;
             }
@@ -749,6 +782,44 @@ impl OuterStep for Newton {
 }
 
 impl Newton {
+    /// A cold start on a matrix-free dual: lam = P(alpha G b), the projection
+    /// onto the feasible set of the minimiser of the dual energy along G b
+    /// (G = B K B^T ~ A^-1: the lumped estimate of the unconstrained
+    /// multipliers), kept when it lowers |F| below its value at lam = 0. Two
+    /// products with A.
+    fn lumped_start(
+        &mut self,
+        problem: &DualProblem<'_>,
+        g: &crate::sparse::Csc,
+        lam: &mut [f64],
+        w: &mut [f64],
+    ) {
+        let dual = problem.dual;
+        let (m, d, c) = (dual.m, dual.d, dual.c);
+        let (y, ay) = (&mut self.trial, &mut self.wt);
+        g.mul_vec(problem.b, y);
+        dual.apply_rough(y, ay);
+        let yay: f64 = y.iter().zip(ay.iter()).map(|(a, b)| a * b).sum();
+        let by: f64 = y.iter().zip(problem.b).map(|(a, b)| a * b).sum();
+        if !(yay > 0.0 && by > 0.0 && yay.is_finite()) {
+            return;
+        }
+        let alpha = by / yay;
+        y.iter_mut().for_each(|v| *v *= alpha);
+        for i in 0..m {
+            y[i] = y[i].max(0.0);
+            let r = problem.law.bound(i, y[i]);
+            let jt = m + (d - 1) * i;
+            crate::friction::project_disk(&mut y[jt..jt + d - 1], r);
+        }
+        problem.gradient(y, ay);
+        let r = residual_norm(problem, y, ay);
+        if r < residual_norm(problem, lam, w) {
+            lam[..c].copy_from_slice(&y[..c]);
+            w[..c].copy_from_slice(&ay[..c]);
+        }
+    }
+
     /// The fallback on a matrix-free dual (no Gauss-Seidel without entries of A):
     /// FALLBACK_MPRGP iterations of MPRGP / MPGP (one product with A each) on the
     /// Tresca problem of the current bound, from lam: a first-order descent step
@@ -946,8 +1017,9 @@ mod tests {
 
     /// Matrix-free Newton on a grid's bottom row (d = 2: normal on the row's
     /// DOFs, tangent on the row above), Tresca, with the lumped preconditioner
-    /// G = B K B^T and with Jacobi: both converge to the same multipliers (1e-10
-    /// relative, and dense Newton's), the lumped one with fewer products.
+    /// G = B K B^T (from zero and from the lumped start) and with Jacobi: all
+    /// converge to dense Newton's multipliers (1e-10 relative), the lumped
+    /// preconditioner with fewer products than Jacobi.
     #[test]
     fn the_lumped_preconditioner_saves_products() {
         use crate::dual::tests::grid;
@@ -972,7 +1044,7 @@ mod tests {
             .chain((0..m).map(|i| 0.3 * (i as f64 * 0.2).sin()))
             .collect();
         let p = vec![0.04; m];
-        let solve = |dual: &Dual| {
+        let solve = |dual: &Dual, start: bool| {
             let problem = DualProblem {
                 dual,
                 b: &b,
@@ -981,6 +1053,7 @@ mod tests {
                 deadline: None,
             };
             let mut newton = Newton::new(&problem, 1e-12);
+            newton.lumped_start_on = start;
             let opts = Options {
                 method: Method::Newton,
                 ..Options::default()
@@ -988,19 +1061,28 @@ mod tests {
             let mut lam = vec![0.0; 2 * m];
             let out = super::super::driver::drive(&problem, &mut lam, &opts, 1e-12, &mut newton);
             assert_eq!(out.end, super::super::End::Converged, "{out:?}");
-            (lam, out.inner)
+            (lam, out.inner, out.outer)
         };
         let jacobi = Dual::build_with(&factor, &nm, &tm, 2, Condensation::MatrixFree).unwrap();
         let mut lumped = Dual::build_with(&factor, &nm, &tm, 2, Condensation::MatrixFree).unwrap();
         lumped.set_lumped(&k);
         assert!(jacobi.lumped().is_none() && lumped.lumped().is_some());
         let dense = Dual::build_with(&factor, &nm, &tm, 2, Condensation::Solves).unwrap();
-        let (l_dense, _) = solve(&dense);
-        let (l_jacobi, its_jacobi) = solve(&jacobi);
-        let (l_lumped, its_lumped) = solve(&lumped);
+        let (l_dense, _, _) = solve(&dense, true);
+        let (l_jacobi, its_jacobi, _) = solve(&jacobi, true);
+        let (l_lumped, its_lumped, steps_cold) = solve(&lumped, false);
+        let (l_start, its_start, steps_start) = solve(&lumped, true);
+        println!(
+            "steps: from zero {steps_cold}, from the lumped start {steps_start}; products {its_start}"
+        );
+        assert!(its_start > 0 && steps_start > 0);
         let scale = norm(&l_dense);
         assert!(l_dense.contains(&0.0) && l_dense[..m].iter().any(|&v| v > 0.0));
-        for (what, l) in [("jacobi", &l_jacobi), ("lumped", &l_lumped)] {
+        for (what, l) in [
+            ("jacobi", &l_jacobi),
+            ("lumped", &l_lumped),
+            ("start", &l_start),
+        ] {
             let diff = l
                 .iter()
                 .zip(&l_dense)
