@@ -165,13 +165,15 @@ impl Factor {
         ordering: Ordering,
         threads: Arc<Threads>,
     ) -> Result<Arc<Factor>> {
-        let mut f = Self::analyse(k, last, ordering, threads, Ledger::new())?;
+        let mut f = Self::analyse(k, last, ordering, false, threads, Ledger::new())?;
         f.refactor(k)?;
         Ok(Arc::new(f))
     }
 
     /// The analysis of [`Factor::with_last`] alone (ordering and symbolic
-    /// factorisation, no numeric work): the factor's size is known
+    /// factorisation, no numeric work), where `nd_first` makes `Auto` start
+    /// with METIS (3D problems; AMD as well where METIS's fronts are small)
+    /// rather than AMD: the factor's size is known
     /// ([`Factor::nnz_and_flops`], [`Factor::factor_scratch_bytes`]) and
     /// [`Factor::refactor`] computes its values. Allocations of the numeric
     /// factor and its workspace are counted on `ledger`.
@@ -181,6 +183,7 @@ impl Factor {
         k: &Csc,
         last: &[usize],
         ordering: Ordering,
+        nd_first: bool,
         threads: Arc<Threads>,
         ledger: Arc<Ledger>,
     ) -> Result<Factor> {
@@ -201,6 +204,7 @@ impl Factor {
         };
         let first = match ordering {
             Ordering::Metis => Ordering::Metis,
+            Ordering::Auto if nd_first => Ordering::Metis,
             _ => Ordering::Amd,
         };
         let (fwd, inv) = match order(first) {
@@ -209,18 +213,32 @@ impl Factor {
         };
         let mut symbolic = analyse(k, &fwd, &inv)?;
         let (mut ordering_used, mut fwd) = (first, fwd);
-        // AUTO: METIS too where AMD's factor has large fronts (flops per entry of
-        // L, about the mean front size, above METIS_FLOPS_PER_ENTRY: 3D meshes),
-        // the cheaper kept; elsewhere (2D) METIS costs more to compute than it
-        // can save. A failed METIS leaves AMD.
+        // AUTO: the other ordering too where the first one's factor says it may
+        // pay: METIS after AMD where AMD's factor has large fronts (flops per
+        // entry of L, about the mean front size, above METIS_FLOPS_PER_ENTRY: 3D
+        // meshes), AMD after METIS (`nd_first`) where METIS's fronts are small;
+        // the cheaper kept. Elsewhere the second analysis costs more than it can
+        // save. A failed METIS leaves AMD.
         let (nnz, flops) = symbolic_size(&symbolic);
+        let large = flops > METIS_FLOPS_PER_ENTRY * nnz as f64;
+        let second = match first {
+            Ordering::Amd => Ordering::Metis,
+            _ => Ordering::Amd,
+        };
         if ordering == Ordering::Auto
-            && flops > METIS_FLOPS_PER_ENTRY * nnz as f64
-            && let Some((fwd_m, inv_m)) = order(Ordering::Metis)
+            && large == (first == Ordering::Amd)
+            && let Some((fwd_2, inv_2)) = order(second)
         {
-            let symbolic_m = analyse(k, &fwd_m, &inv_m)?;
-            if symbolic_size(&symbolic_m).1 < flops {
-                (symbolic, ordering_used, fwd) = (symbolic_m, Ordering::Metis, fwd_m);
+            let symbolic_2 = analyse(k, &fwd_2, &inv_2)?;
+            let (f1, f2) = (flops, symbolic_size(&symbolic_2).1);
+            // Ties to AMD, as before METIS came first.
+            let take = if second == Ordering::Metis {
+                f2 < f1
+            } else {
+                f2 <= f1
+            };
+            if take {
+                (symbolic, ordering_used, fwd) = (symbolic_2, second, fwd_2);
             }
         }
         let analyse_seconds = start.elapsed().as_secs_f64();

@@ -338,7 +338,14 @@ impl ContactProblem {
             // Contact DOFs last, so that the factor's trailing block condenses K
             // onto them.
             let last = contact_dofs(&stack_rows(n, t));
-            let factor = Factor::analyse(k, &last, opts.ordering, threads.clone(), Ledger::new())?;
+            let factor = Factor::analyse(
+                k,
+                &last,
+                opts.ordering,
+                d == 3,
+                threads.clone(),
+                Ledger::new(),
+            )?;
             let sizes = Self::sizes_of(k, n, t, d, &factor);
             let dense = Condensation::of(true, DualForm::Dense, sizes.c);
             // Asked for, the dense route is kept whatever it needs (`analysed`
@@ -349,7 +356,7 @@ impl ContactProblem {
             }
         }
         // The matrix-free dual works with the best plain factor of K.
-        let factor = Factor::analyse(k, &[], opts.ordering, threads, Ledger::new())?;
+        let factor = Factor::analyse(k, &[], opts.ordering, d == 3, threads, Ledger::new())?;
         let sizes = Self::sizes_of(k, n, t, d, &factor);
         let form = DualForm::MatrixFree;
         Ok((factor, Plan { sizes, form }, limit))
@@ -372,6 +379,7 @@ impl ContactProblem {
                     k,
                     &[],
                     opts.ordering,
+                    d == 3,
                     factor.threads().clone(),
                     Ledger::new(),
                 )?;

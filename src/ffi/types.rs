@@ -110,9 +110,10 @@ pub enum DsDualForm {
 #[repr(C)]
 #[derive(Copy, Clone, Debug, PartialEq, Eq)]
 pub enum DsOrdering {
-    /// AMD, and METIS as well where AMD's factor has large fronts (more than 500
-    /// flops per entry of L: 3D meshes), the one with fewer flops kept. The
-    /// default.
+    /// In 2D: AMD, and METIS as well where AMD's factor has large fronts (more
+    /// than 500 flops per entry of L); in 3D: METIS, and AMD as well where
+    /// METIS's factor has small fronts (at most 500 flops per entry of L). The one
+    /// with fewer flops kept. The default.
     Auto = 0,
     /// Approximate minimum degree.
     Amd = 1,
