@@ -429,6 +429,39 @@ struct Operator {
     /// preconditions Newton's reduced systems, once K is handed over
     /// ([`Dual::set_lumped`]), with its bytes on the ledger.
     lumped: Option<(Csc, Claim)>,
+    /// Solves restricted to the supernodes on the contact DOFs' paths to the
+    /// root, where those hold few of L's entries, with their scratch (the
+    /// n-vector in the factor's order and a product buffer, in double and in
+    /// single precision) and its bytes on the ledger.
+    restricted: Option<Restricted>,
+}
+
+/// See [`Operator::restricted`].
+struct Restricted {
+    paths: crate::restricted_solve::Paths,
+    work: std::cell::RefCell<(Vec<f64>, Vec<f64>)>,
+    work_single: std::cell::RefCell<(Vec<f32>, Vec<f32>)>,
+    _claim: Claim,
+}
+
+impl Restricted {
+    /// The restricted solves of B's DOFs in `factor`, when they pay.
+    fn of(factor: &Factor, b: &Csc) -> Option<Restricted> {
+        if factor.is_dense() {
+            return None;
+        }
+        let paths = crate::restricted_solve::Paths::of(factor, &contact_dofs(b));
+        if !paths.worth_it() {
+            return None;
+        }
+        let (n, k) = (factor.n(), paths.scratch_len());
+        Some(Restricted {
+            _claim: factor.ledger().claim((n + k) * (F64 + 4)),
+            work: std::cell::RefCell::new((vec![0.0; n], vec![0.0; k])),
+            work_single: std::cell::RefCell::new((vec![0.0; n], vec![0.0; k])),
+            paths,
+        })
+    }
 }
 
 impl Operator {
@@ -453,6 +486,7 @@ impl Operator {
             )),
             _single_claim: factor.ledger().claim(single.len() * 4),
             lumped: None,
+            restricted: Restricted::of(factor, b),
             single,
             work_single: std::cell::RefCell::new((
                 vec![0.0; factor.n()],
@@ -474,10 +508,17 @@ impl Operator {
                 }
             }
         }
-        let n = z.len();
-        let zm = MatMut::from_column_major_slice_mut(&mut z[..], n, 1);
-        self.factor
-            .solve_single(&self.single, zm, MemStack::new(mem));
+        if let Some(r) = &self.restricted {
+            let mut work = r.work_single.borrow_mut();
+            let (perm, buf) = &mut *work;
+            r.paths
+                .solve_single(&self.factor, &self.single, z, perm, buf);
+        } else {
+            let n = z.len();
+            let zm = MatMut::from_column_major_slice_mut(&mut z[..], n, 1);
+            self.factor
+                .solve_single(&self.single, zm, MemStack::new(mem));
+        }
         for (r, yr) in y.iter_mut().enumerate() {
             let mut s = 0.0;
             for k in self.bt.col_ptr[r]..self.bt.col_ptr[r + 1] {
@@ -504,9 +545,16 @@ impl Operator {
                 }
             }
         }
-        let n = z.len();
-        let zm = MatMut::from_column_major_slice_mut(&mut z[..], n, 1);
-        self.factor.solve_in_place(zm, MemStack::new(mem));
+        if let Some(r) = &self.restricted {
+            let mut work = r.work.borrow_mut();
+            let (perm, buf) = &mut *work;
+            r.paths
+                .solve(&self.factor, self.factor.values(), z, perm, buf);
+        } else {
+            let n = z.len();
+            let zm = MatMut::from_column_major_slice_mut(&mut z[..], n, 1);
+            self.factor.solve_in_place(zm, MemStack::new(mem));
+        }
         for (r, yr) in y.iter_mut().enumerate() {
             let mut s = 0.0;
             for k in self.bt.col_ptr[r]..self.bt.col_ptr[r + 1] {
@@ -716,6 +764,9 @@ pub(crate) mod tests {
         assert_eq!(dense.condensation, Condensation::TrailingBlock);
         assert_eq!(free.condensation, Condensation::MatrixFree);
         assert!(free.is_matrix_free() && free.a.is_empty());
+        // The contact DOFs are the factor's last: their paths are the trailing
+        // supernodes, and the products take the restricted solves.
+        assert!(free.free.as_ref().is_some_and(|o| o.restricted.is_some()));
         let c = dense.c;
         let scale = dense.a.iter().fold(0.0f64, |s, v| s.max(v.abs()));
         for j in 0..c {
@@ -743,6 +794,11 @@ pub(crate) mod tests {
             let xs = x.iter().fold(0.0f64, |a, v| a.max(v.abs()));
             for (a, b) in y0.iter().zip(&y1) {
                 assert!((a - b).abs() <= 1e-13 * scale * xs * c as f64, "{a} vs {b}");
+            }
+            // In single precision (the rough products): to about 1e-7.
+            free.apply_rough(&x, &mut y1);
+            for (a, b) in y0.iter().zip(&y1) {
+                assert!((a - b).abs() <= 1e-5 * scale * xs * c as f64, "{a} vs {b}");
             }
         }
         // A leading block (the normal unknowns alone), with a dense x.

@@ -636,6 +636,11 @@ impl Factor {
         }
     }
 
+    /// L's values (supernodal layout of [`Factor::supernodal_symbolic`]).
+    pub(crate) fn values(&self) -> &[f64] {
+        &self.l_values
+    }
+
     /// L's values rounded to single precision (for [`Factor::solve_single`]).
     pub(crate) fn single_values(&self) -> Vec<f32> {
         self.l_values.iter().map(|&v| v as f32).collect()

@@ -21,6 +21,7 @@ mod options;
 mod ordering;
 mod problem;
 mod report;
+mod restricted_solve;
 mod selected_inverse;
 mod sparse;
 mod supernode_tree;

@@ -140,11 +140,12 @@ impl Sizes {
             // The contacts' diagonal blocks (d c doubles at most) and, while
             // they are formed, what their selected inversion or forward solves
             // work in on all threads (`blocks_work`); then one product's n-vector and solve workspace,
-            // L's values in single precision (the rough products) and the
-            // lumped preconditioner G = B K B^T.
+            // L's values in single precision (the rough products), the
+            // lumped preconditioner G = B K B^T, and the restricted solves'
+            // n-vectors in double and single precision (where they are taken).
             Condensation::MatrixFree => {
                 let held = 3 * self.c * F64
-                    + self.n * F64
+                    + self.n * (2 * F64 + 4)
                     + self.solve_scratch
                     + self.factor / 2
                     + self.lumped;
