@@ -74,6 +74,321 @@ impl Scratch {
     }
 }
 
+/// The contact face in the terms of a sparse factor: B^T, the factor's
+/// supernodal tree and position of each DOF, and m contacts of d rows.
+struct Face<'a> {
+    factor: &'a Factor,
+    tree: Tree,
+    new_of: Vec<usize>,
+    bt: Csc,
+    m: usize,
+    d: usize,
+}
+
+impl<'a> Face<'a> {
+    fn new(factor: &'a Factor, b: &Csc, m: usize, d: usize) -> Face<'a> {
+        Face {
+            factor,
+            tree: Tree::of(factor),
+            new_of: factor.new_of_old(),
+            bt: b.transpose(),
+            m,
+            d,
+        }
+    }
+
+    /// Contact i's rows of B.
+    fn rows(&self, i: usize) -> impl Iterator<Item = usize> + use<> {
+        rows_of(i, self.m, self.d)
+    }
+
+    /// The DOFs (original numbering) of row r of B.
+    fn dofs(&self, r: usize) -> &[usize] {
+        &self.bt.row_idx[self.bt.col_ptr[r]..self.bt.col_ptr[r + 1]]
+    }
+
+    /// The supernode holding a DOF (original numbering).
+    fn supernode(&self, dof: usize) -> usize {
+        self.tree.of_col[self.new_of[dof]]
+    }
+
+    /// The plan of `route`.
+    fn plan(&self, route: Route) -> Plan {
+        let (factor, tree, bt) = (self.factor, &self.tree, &self.bt);
+        let (m, d) = (self.m, self.d);
+        let order = self.ordered();
+        if route == Route::Forward {
+            return Plan {
+                selection: None,
+                forward: order,
+            };
+        }
+        let dd = d * d;
+        let mut terms = Vec::new();
+        let (mut on, mut off) = (Vec::new(), Vec::new());
+        let mut entries = Vec::new();
+        let mut mine = Vec::new();
+        'contacts: for &(s0, i) in &order {
+            entries.clear();
+            for (a, r) in rows_of(i, m, d).enumerate() {
+                for p in bt.col_ptr[r]..bt.col_ptr[r + 1] {
+                    entries.push((a, self.new_of[bt.row_idx[p]], bt.values[p]));
+                }
+            }
+            mine.clear();
+            for &(a, j, x) in &entries {
+                for &(e, k, y) in entries.iter().filter(|&&(e, _, _)| e >= a) {
+                    match place(factor, tree, j, k) {
+                        Place::At { s, row, col } => mine.push(Term {
+                            slot: i * dd + a * d + e,
+                            s,
+                            row,
+                            col,
+                            coef: x * y,
+                        }),
+                        Place::Zero => {}
+                        Place::Outside => {
+                            off.push((s0, i));
+                            continue 'contacts;
+                        }
+                    }
+                }
+            }
+            terms.extend_from_slice(&mine);
+            on.push((s0, i));
+        }
+        let selection = Selection::new(factor, tree, terms);
+        let taken = route == Route::Selected || selection.flops() < self.forward_flops(&on);
+        if taken {
+            Plan {
+                selection: Some(selection),
+                forward: off,
+            }
+        } else {
+            Plan {
+                selection: None,
+                forward: order,
+            }
+        }
+    }
+
+    /// Flops of the forward solves of `contacts` ((first supernode, contact)
+    /// pairs): per row of B, w^2 + 2 w r for each supernode (width w, r rows below)
+    /// on the paths from its DOFs to the root.
+    fn forward_flops(&self, contacts: &[(usize, usize)]) -> f64 {
+        let tree = &self.tree;
+        let sym = self.factor.supernodal_symbolic();
+        let cost: Vec<f64> = (0..tree.len())
+            .map(|s| {
+                let (w, r) = (
+                    tree.width[s] as f64,
+                    sym.supernode(s).pattern().len() as f64,
+                );
+                w * w + 2.0 * w * r
+            })
+            .collect();
+        let mut mark = vec![usize::MAX; tree.len()];
+        let mut total = 0.0;
+        for &(_, i) in contacts {
+            for r in self.rows(i) {
+                for &dof in self.dofs(r) {
+                    let mut s = self.supernode(dof);
+                    while s != usize::MAX && mark[s] != r {
+                        mark[s] = r;
+                        total += cost[s];
+                        s = tree.parent[s];
+                    }
+                }
+            }
+        }
+        total
+    }
+
+    /// The blocks of the contacts `order` ((first supernode, contact) pairs sorted
+    /// by supernode) by grouped sparse forward solves, written into `blocks`.
+    fn forward_blocks(&self, order: &[(usize, usize)], blocks: &mut [f64]) {
+        let (factor, d) = (self.factor, self.d);
+        let ns = self.tree.len();
+        let groups: Vec<&[(usize, usize)]> = order.chunks(GROUP).collect();
+        let solve_group = |group: &[(usize, usize)], ws: &mut Scratch| self.group_blocks(group, ws);
+        let (nnz, flops) = factor.nnz_and_flops();
+        let parallel = groups.len() > 1 && flops > 1e7 && nnz > 0;
+        let results: Vec<Vec<f64>> = factor.threads().run(parallel, |par| match par {
+            Par::Seq => {
+                let mut ws = Scratch::new(ns);
+                groups.iter().map(|g| solve_group(g, &mut ws)).collect()
+            }
+            _ => groups
+                .par_iter()
+                .map_init(|| Scratch::new(ns), |ws, g| solve_group(g, ws))
+                .collect(),
+        });
+        let dd = d * d;
+        for (group, res) in groups.iter().zip(&results) {
+            for (slot, &(_, i)) in group.iter().enumerate() {
+                blocks[i * dd..(i + 1) * dd].copy_from_slice(&res[slot * dd..(slot + 1) * dd]);
+            }
+        }
+    }
+
+    /// The contacts with entries in B (`bt` = B^T), as (first supernode, contact)
+    /// pairs sorted by their first (deepest) supernode: the order they are solved in.
+    fn ordered(&self) -> Vec<(usize, usize)> {
+        let first = |i: usize| {
+            self.rows(i)
+                .flat_map(|r| self.dofs(r))
+                .map(|&dof| self.supernode(dof))
+                .min()
+        };
+        let mut order: Vec<(usize, usize)> = (0..self.m)
+            .filter_map(|i| first(i).map(|s| (s, i)))
+            .collect();
+        order.sort_unstable();
+        order
+    }
+
+    /// The bytes one thread works in while the contacts `order` are solved
+    /// forward.
+    fn forward_work_bytes(&self, order: &[(usize, usize)]) -> usize {
+        let (tree, d) = (&self.tree, self.d);
+        let ns = tree.len();
+        let sym = self.factor.supernodal_symbolic();
+        let mut mark = vec![usize::MAX; ns];
+        let (mut block, mut buf) = (0, 0);
+        for (g, group) in order.chunks(GROUP).enumerate() {
+            let (mut rows, mut below) = (0, 0);
+            for &(_, i) in group {
+                for r in self.rows(i) {
+                    for &dof in self.dofs(r) {
+                        let mut s = self.supernode(dof);
+                        while s != usize::MAX && mark[s] != g {
+                            mark[s] = g;
+                            rows += tree.width[s];
+                            below = below.max(sym.supernode(s).pattern().len());
+                            s = tree.parent[s];
+                        }
+                    }
+                }
+            }
+            let k = group.len() * d;
+            block = block.max(rows * k);
+            buf = buf.max(below * k);
+        }
+        (block + buf) * std::mem::size_of::<f64>() + 4 * ns * std::mem::size_of::<usize>()
+    }
+
+    /// The blocks of one group of contacts ((first supernode, contact) pairs), in
+    /// the group's order.
+    fn group_blocks(&self, group: &[(usize, usize)], ws: &mut Scratch) -> Vec<f64> {
+        let (factor, tree, bt, d) = (self.factor, &self.tree, &self.bt, self.d);
+        let stamp = group[0].1;
+        let cols = || {
+            group
+                .iter()
+                .flat_map(move |&(_, i)| self.rows(i))
+                .enumerate()
+        };
+        // The union of the paths to the root, in elimination order, and per
+        // supernode the range of columns that reach it (columns come in increasing
+        // order: a visited supernode only extends its range, up to the root, until
+        // one already extended by this column).
+        ws.list.clear();
+        for (t, r) in cols() {
+            for &dof in self.dofs(r) {
+                let mut s = self.supernode(dof);
+                while s != usize::MAX {
+                    if ws.mark[s] != stamp {
+                        ws.mark[s] = stamp;
+                        ws.list.push(s);
+                        (ws.lo[s], ws.hi[s]) = (t, t);
+                    } else if ws.hi[s] == t {
+                        break;
+                    } else {
+                        ws.hi[s] = t;
+                    }
+                    s = tree.parent[s];
+                }
+            }
+        }
+        ws.list.sort_unstable();
+        let llt = factor.supernodal();
+        let mut rows = 0;
+        for &s in &ws.list {
+            ws.offset[s] = rows;
+            rows += llt.supernode(s).val().ncols();
+        }
+        let local = |col: usize| {
+            let s = tree.of_col[col];
+            ws.offset[s] + col - tree.begin[s]
+        };
+        let k = group.len() * d;
+        let mut y = Mat::<f64>::zeros(rows, k);
+        for (t, r) in cols() {
+            for p in bt.col_ptr[r]..bt.col_ptr[r + 1] {
+                y[(local(self.new_of[bt.row_idx[p]]), t)] += bt.values[p];
+            }
+        }
+        for &s in &ws.list {
+            let node = llt.supernode(s);
+            let val = node.val();
+            let w = val.ncols();
+            let pattern = node.pattern();
+            let off = ws.offset[s];
+            let (t0, kk) = (ws.lo[s], ws.hi[s] - ws.lo[s] + 1);
+            solve_lower_triangular_in_place(
+                val.submatrix(0, 0, w, w),
+                y.as_mut().submatrix_mut(off, t0, w, kk),
+                Par::Seq,
+            );
+            let below = pattern.len();
+            if below == 0 {
+                continue;
+            }
+            if ws.buf.len() < below * kk {
+                ws.buf.resize(below * kk, 0.0);
+            }
+            let mut tmp = MatMut::from_column_major_slice_mut(&mut ws.buf[..below * kk], below, kk);
+            matmul(
+                tmp.as_mut(),
+                Accum::Replace,
+                val.submatrix(w, 0, below, w),
+                y.as_ref().submatrix(off, t0, w, kk),
+                1.0,
+                Par::Seq,
+            );
+            ws.dest.clear();
+            ws.dest.extend(pattern.iter().map(|&row| {
+                let s2 = tree.of_col[row];
+                ws.offset[s2] + row - tree.begin[s2]
+            }));
+            for t in 0..kk {
+                let ycol = y
+                    .col_mut(t0 + t)
+                    .try_as_col_major_mut()
+                    .expect("contiguous")
+                    .as_slice_mut();
+                let tcol = &ws.buf[t * below..(t + 1) * below];
+                for (&at, &v) in ws.dest.iter().zip(tcol) {
+                    ycol[at] -= v;
+                }
+            }
+        }
+        let dd = d * d;
+        let mut out = vec![0.0; group.len() * dd];
+        for slot in 0..group.len() {
+            for a in 0..d {
+                for b in 0..d {
+                    let col =
+                        |t: usize| y.col(t).try_as_col_major().expect("contiguous").as_slice();
+                    let (ca, cb) = (col(slot * d + a), col(slot * d + b));
+                    out[slot * dd + a * d + b] = ca.iter().zip(cb).map(|(x, z)| x * z).sum();
+                }
+            }
+        }
+        out
+    }
+}
+
 /// The d x d diagonal blocks of A = B K^-1 B^T for the m contacts of B (c x n,
 /// c = d m, rows ordered as in [`crate::dual`]): block i at
 /// `[i d^2 .. (i+1) d^2]`, row-major, its rows and columns contact i's rows of B
@@ -105,14 +420,12 @@ pub(crate) fn contact_blocks_by(
     if factor.is_dense() {
         return dense_blocks(factor, b, m, d);
     }
-    let bt = b.transpose();
-    let tree = Tree::of(factor);
-    let new_of = factor.new_of_old();
-    let plan = Plan::new(factor, &tree, &new_of, &bt, m, d, route);
+    let face = Face::new(factor, b, m, d);
+    let plan = face.plan(route);
     let dd = d * d;
     let mut blocks = match &plan.selection {
         Some(sel) => {
-            let mut upper = sel.sums(factor, &tree, m * dd);
+            let mut upper = sel.sums(factor, &face.tree, m * dd);
             for i in 0..m {
                 for a in 0..d {
                     for e in 0..a {
@@ -124,16 +437,7 @@ pub(crate) fn contact_blocks_by(
         }
         None => vec![0.0; m * dd],
     };
-    forward_blocks(
-        factor,
-        &tree,
-        &new_of,
-        &bt,
-        m,
-        d,
-        &plan.forward,
-        &mut blocks,
-    );
+    face.forward_blocks(&plan.forward, &mut blocks);
     blocks
 }
 
@@ -146,152 +450,6 @@ struct Plan {
     /// The contacts solved forward, as (first supernode, contact) pairs sorted
     /// by their first (deepest) supernode: the order they are solved in.
     forward: Vec<(usize, usize)>,
-}
-
-impl Plan {
-    #[allow(clippy::too_many_arguments)]
-    fn new(
-        factor: &Factor,
-        tree: &Tree,
-        new_of: &[usize],
-        bt: &Csc,
-        m: usize,
-        d: usize,
-        route: Route,
-    ) -> Plan {
-        let order = ordered(tree, new_of, bt, m, d);
-        if route == Route::Forward {
-            return Plan {
-                selection: None,
-                forward: order,
-            };
-        }
-        let dd = d * d;
-        let mut terms = Vec::new();
-        let (mut on, mut off) = (Vec::new(), Vec::new());
-        let mut entries = Vec::new();
-        let mut mine = Vec::new();
-        'contacts: for &(s0, i) in &order {
-            entries.clear();
-            for (a, r) in rows_of(i, m, d).enumerate() {
-                for p in bt.col_ptr[r]..bt.col_ptr[r + 1] {
-                    entries.push((a, new_of[bt.row_idx[p]], bt.values[p]));
-                }
-            }
-            mine.clear();
-            for &(a, j, x) in &entries {
-                for &(e, k, y) in entries.iter().filter(|&&(e, _, _)| e >= a) {
-                    match place(factor, tree, j, k) {
-                        Place::At { s, row, col } => mine.push(Term {
-                            slot: i * dd + a * d + e,
-                            s,
-                            row,
-                            col,
-                            coef: x * y,
-                        }),
-                        Place::Zero => {}
-                        Place::Outside => {
-                            off.push((s0, i));
-                            continue 'contacts;
-                        }
-                    }
-                }
-            }
-            terms.extend_from_slice(&mine);
-            on.push((s0, i));
-        }
-        let selection = Selection::new(factor, tree, terms);
-        let taken = route == Route::Selected
-            || selection.flops() < forward_flops(factor, tree, new_of, bt, m, d, &on);
-        if taken {
-            Plan {
-                selection: Some(selection),
-                forward: off,
-            }
-        } else {
-            Plan {
-                selection: None,
-                forward: order,
-            }
-        }
-    }
-}
-
-/// Flops of the forward solves of `contacts` ((first supernode, contact)
-/// pairs): per row of B, w^2 + 2 w r for each supernode (width w, r rows below)
-/// on the paths from its DOFs to the root.
-fn forward_flops(
-    factor: &Factor,
-    tree: &Tree,
-    new_of: &[usize],
-    bt: &Csc,
-    m: usize,
-    d: usize,
-    contacts: &[(usize, usize)],
-) -> f64 {
-    let sym = factor.supernodal_symbolic();
-    let cost: Vec<f64> = (0..tree.len())
-        .map(|s| {
-            let (w, r) = (
-                tree.width[s] as f64,
-                sym.supernode(s).pattern().len() as f64,
-            );
-            w * w + 2.0 * w * r
-        })
-        .collect();
-    let mut mark = vec![usize::MAX; tree.len()];
-    let mut total = 0.0;
-    for &(_, i) in contacts {
-        for r in rows_of(i, m, d) {
-            for &dof in &bt.row_idx[bt.col_ptr[r]..bt.col_ptr[r + 1]] {
-                let mut s = tree.of_col[new_of[dof]];
-                while s != usize::MAX && mark[s] != r {
-                    mark[s] = r;
-                    total += cost[s];
-                    s = tree.parent[s];
-                }
-            }
-        }
-    }
-    total
-}
-
-/// The blocks of the contacts `order` ((first supernode, contact) pairs sorted
-/// by supernode) by grouped sparse forward solves, written into `blocks`.
-#[allow(clippy::too_many_arguments)]
-fn forward_blocks(
-    factor: &Factor,
-    tree: &Tree,
-    new_of: &[usize],
-    bt: &Csc,
-    m: usize,
-    d: usize,
-    order: &[(usize, usize)],
-    blocks: &mut [f64],
-) {
-    let ns = tree.len();
-    let groups: Vec<&[(usize, usize)]> = order.chunks(GROUP).collect();
-    let solve_group = |group: &[(usize, usize)], ws: &mut Scratch| {
-        group_blocks(factor, tree, new_of, bt, m, d, group, ws)
-    };
-    let (nnz, flops) = factor.nnz_and_flops();
-    let parallel = groups.len() > 1 && flops > 1e7 && nnz > 0;
-    let results: Vec<Vec<f64>> = factor.threads().run(parallel, |par| match par {
-        Par::Seq => {
-            let mut ws = Scratch::new(ns);
-            groups.iter().map(|g| solve_group(g, &mut ws)).collect()
-        }
-        _ => groups
-            .par_iter()
-            .map_init(|| Scratch::new(ns), |ws, g| solve_group(g, ws))
-            .collect(),
-    });
-    let dd = d * d;
-    for (group, res) in groups.iter().zip(&results) {
-        for (slot, &(_, i)) in group.iter().enumerate() {
-            blocks[i * dd..(i + 1) * dd].copy_from_slice(&res[slot * dd..(slot + 1) * dd]);
-        }
-    }
 }
 
 /// [`contact_blocks`] of a dense factor (K had every entry stored): W_i = L^-1 P
@@ -321,20 +479,6 @@ fn dense_blocks(factor: &Factor, b: &Csc, m: usize, d: usize) -> Vec<f64> {
     blocks
 }
 
-/// The contacts with entries in B (`bt` = B^T), as (first supernode, contact)
-/// pairs sorted by their first (deepest) supernode: the order they are solved in.
-fn ordered(tree: &Tree, new_of: &[usize], bt: &Csc, m: usize, d: usize) -> Vec<(usize, usize)> {
-    let first = |i: usize| {
-        rows_of(i, m, d)
-            .flat_map(|r| &bt.row_idx[bt.col_ptr[r]..bt.col_ptr[r + 1]])
-            .map(|&dof| tree.of_col[new_of[dof]])
-            .min()
-    };
-    let mut order: Vec<(usize, usize)> = (0..m).filter_map(|i| first(i).map(|s| (s, i))).collect();
-    order.sort_unstable();
-    order
-}
-
 /// The bytes [`contact_blocks`] works in, from the symbolic factor alone (known
 /// before the numeric factorisation): the selected inversion's terms and blocks
 /// (`Selection::work_bytes`) when it is taken, or per thread, for the forward
@@ -346,173 +490,15 @@ pub(crate) fn work_bytes(factor: &Factor, b: &Csc, m: usize, d: usize) -> usize 
     if factor.is_dense() {
         return (d + 1) * factor.n() * std::mem::size_of::<f64>();
     }
-    let bt = b.transpose();
-    let tree = Tree::of(factor);
-    let new_of = factor.new_of_old();
-    let plan = Plan::new(factor, &tree, &new_of, &bt, m, d, Route::Cheaper);
+    let face = Face::new(factor, b, m, d);
+    let plan = face.plan(Route::Cheaper);
     let threads = factor.threads().count();
     let selected = plan
         .selection
         .as_ref()
-        .map_or(0, |sel| sel.work_bytes(factor, &tree, threads));
-    let forward = threads * forward_work_bytes(factor, &tree, &new_of, &bt, m, d, &plan.forward);
+        .map_or(0, |sel| sel.work_bytes(factor, &face.tree, threads));
+    let forward = threads * face.forward_work_bytes(&plan.forward);
     selected.max(forward)
-}
-
-/// The bytes one thread works in while the contacts `order` are solved
-/// forward.
-fn forward_work_bytes(
-    factor: &Factor,
-    tree: &Tree,
-    new_of: &[usize],
-    bt: &Csc,
-    m: usize,
-    d: usize,
-    order: &[(usize, usize)],
-) -> usize {
-    let ns = tree.len();
-    let sym = factor.supernodal_symbolic();
-    let mut mark = vec![usize::MAX; ns];
-    let (mut block, mut buf) = (0, 0);
-    for (g, group) in order.chunks(GROUP).enumerate() {
-        let (mut rows, mut below) = (0, 0);
-        for &(_, i) in group {
-            for r in rows_of(i, m, d) {
-                for &dof in &bt.row_idx[bt.col_ptr[r]..bt.col_ptr[r + 1]] {
-                    let mut s = tree.of_col[new_of[dof]];
-                    while s != usize::MAX && mark[s] != g {
-                        mark[s] = g;
-                        rows += tree.width[s];
-                        below = below.max(sym.supernode(s).pattern().len());
-                        s = tree.parent[s];
-                    }
-                }
-            }
-        }
-        let k = group.len() * d;
-        block = block.max(rows * k);
-        buf = buf.max(below * k);
-    }
-    (block + buf) * std::mem::size_of::<f64>() + 4 * ns * std::mem::size_of::<usize>()
-}
-
-/// The blocks of one group of contacts ((first supernode, contact) pairs), in
-/// the group's order.
-#[allow(clippy::too_many_arguments)]
-fn group_blocks(
-    factor: &Factor,
-    tree: &Tree,
-    new_of: &[usize],
-    bt: &Csc,
-    m: usize,
-    d: usize,
-    group: &[(usize, usize)],
-    ws: &mut Scratch,
-) -> Vec<f64> {
-    let stamp = group[0].1;
-    let cols = || {
-        group
-            .iter()
-            .flat_map(move |&(_, i)| rows_of(i, m, d))
-            .enumerate()
-    };
-    // The union of the paths to the root, in elimination order, and per
-    // supernode the range of columns that reach it (columns come in increasing
-    // order: a visited supernode only extends its range, up to the root, until
-    // one already extended by this column).
-    ws.list.clear();
-    for (t, r) in cols() {
-        for &dof in &bt.row_idx[bt.col_ptr[r]..bt.col_ptr[r + 1]] {
-            let mut s = tree.of_col[new_of[dof]];
-            while s != usize::MAX {
-                if ws.mark[s] != stamp {
-                    ws.mark[s] = stamp;
-                    ws.list.push(s);
-                    (ws.lo[s], ws.hi[s]) = (t, t);
-                } else if ws.hi[s] == t {
-                    break;
-                } else {
-                    ws.hi[s] = t;
-                }
-                s = tree.parent[s];
-            }
-        }
-    }
-    ws.list.sort_unstable();
-    let llt = factor.supernodal();
-    let mut rows = 0;
-    for &s in &ws.list {
-        ws.offset[s] = rows;
-        rows += llt.supernode(s).val().ncols();
-    }
-    let local = |col: usize| {
-        let s = tree.of_col[col];
-        ws.offset[s] + col - tree.begin[s]
-    };
-    let k = group.len() * d;
-    let mut y = Mat::<f64>::zeros(rows, k);
-    for (t, r) in cols() {
-        for p in bt.col_ptr[r]..bt.col_ptr[r + 1] {
-            y[(local(new_of[bt.row_idx[p]]), t)] += bt.values[p];
-        }
-    }
-    for &s in &ws.list {
-        let node = llt.supernode(s);
-        let val = node.val();
-        let w = val.ncols();
-        let pattern = node.pattern();
-        let off = ws.offset[s];
-        let (t0, kk) = (ws.lo[s], ws.hi[s] - ws.lo[s] + 1);
-        solve_lower_triangular_in_place(
-            val.submatrix(0, 0, w, w),
-            y.as_mut().submatrix_mut(off, t0, w, kk),
-            Par::Seq,
-        );
-        let below = pattern.len();
-        if below == 0 {
-            continue;
-        }
-        if ws.buf.len() < below * kk {
-            ws.buf.resize(below * kk, 0.0);
-        }
-        let mut tmp = MatMut::from_column_major_slice_mut(&mut ws.buf[..below * kk], below, kk);
-        matmul(
-            tmp.as_mut(),
-            Accum::Replace,
-            val.submatrix(w, 0, below, w),
-            y.as_ref().submatrix(off, t0, w, kk),
-            1.0,
-            Par::Seq,
-        );
-        ws.dest.clear();
-        ws.dest.extend(pattern.iter().map(|&row| {
-            let s2 = tree.of_col[row];
-            ws.offset[s2] + row - tree.begin[s2]
-        }));
-        for t in 0..kk {
-            let ycol = y
-                .col_mut(t0 + t)
-                .try_as_col_major_mut()
-                .expect("contiguous")
-                .as_slice_mut();
-            let tcol = &ws.buf[t * below..(t + 1) * below];
-            for (&at, &v) in ws.dest.iter().zip(tcol) {
-                ycol[at] -= v;
-            }
-        }
-    }
-    let dd = d * d;
-    let mut out = vec![0.0; group.len() * dd];
-    for slot in 0..group.len() {
-        for a in 0..d {
-            for b in 0..d {
-                let col = |t: usize| y.col(t).try_as_col_major().expect("contiguous").as_slice();
-                let (ca, cb) = (col(slot * d + a), col(slot * d + b));
-                out[slot * dd + a * d + b] = ca.iter().zip(cb).map(|(x, z)| x * z).sum();
-            }
-        }
-    }
-    out
 }
 
 #[cfg(test)]
@@ -562,10 +548,9 @@ mod tests {
 
     /// How many contacts `route` takes by selected inversion.
     fn selected(f: &Factor, b: &Csc, m: usize, d: usize, route: Route) -> usize {
-        let tree = Tree::of(f);
-        let bt = b.transpose();
-        let plan = Plan::new(f, &tree, &f.new_of_old(), &bt, m, d, route);
-        let with_entries = ordered(&tree, &f.new_of_old(), &bt, m, d).len();
+        let face = Face::new(f, b, m, d);
+        let plan = face.plan(route);
+        let with_entries = face.ordered().len();
         if plan.selection.is_some() {
             with_entries - plan.forward.len()
         } else {
