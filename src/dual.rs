@@ -152,11 +152,29 @@ impl Dual {
     ///
     /// Errors: `BadSize` if the shapes of N and T do not match d and K,
     /// `OutOfMemory` if A does not fit.
+    #[cfg(any(test, feature = "internals"))]
     pub fn build(factor: &Arc<Factor>, n: &Csc, t: &Csc, d: usize, form: DualForm) -> Result<Dual> {
         check_shapes(factor.n(), d, n, t)?;
+        Self::build_with(
+            factor,
+            n,
+            t,
+            d,
+            Self::condensation_for(factor, n, t, d, form),
+        )
+    }
+
+    /// How [`Dual::build`] forms the dual of (N, T) on `factor` in `form`
+    /// (shapes checked by the caller).
+    pub(crate) fn condensation_for(
+        factor: &Factor,
+        n: &Csc,
+        t: &Csc,
+        d: usize,
+        form: DualForm,
+    ) -> Condensation {
         let trailing = Self::trailing_available(factor, n, t);
-        let how = Condensation::of(trailing, form, d * n.nrows);
-        Self::build_with(factor, n, t, d, how)
+        Condensation::of(trailing, form, d * n.nrows)
     }
 
     /// True when every DOF that N or T touches is among the DOFs `factor` orders

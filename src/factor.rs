@@ -636,6 +636,12 @@ impl Factor {
         }
     }
 
+    /// The fill-reducing ordering: the DOF at each position of the factor
+    /// (new -> old; [`Factor::new_of_old`] is its inverse).
+    pub(crate) fn old_of_new(&self) -> &[usize] {
+        &self.fwd
+    }
+
     /// L's values (supernodal layout of [`Factor::supernodal_symbolic`]).
     pub(crate) fn values(&self) -> &[f64] {
         &self.l_values

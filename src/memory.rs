@@ -108,8 +108,6 @@ pub(crate) struct Sizes {
     pub factor_scratch: usize,
     /// Bytes of one solve's workspace with [`crate::dual::BLOCK`] right-hand sides.
     pub solve_scratch: usize,
-    /// The problem's threads.
-    pub threads: usize,
     /// Bytes the threads work in together while the matrix-free dual's contact
     /// blocks are formed (`contact_blocks::work_bytes`).
     pub blocks_work: usize,
@@ -139,10 +137,11 @@ impl Sizes {
             ),
             // The contacts' diagonal blocks (d c doubles at most) and, while
             // they are formed, what their selected inversion or forward solves
-            // work in on all threads (`blocks_work`); then one product's n-vector and solve workspace,
-            // L's values in single precision (the rough products), the
-            // lumped preconditioner G = B K B^T, and the restricted solves'
-            // n-vectors in double and single precision (where they are taken).
+            // work in on all threads (`blocks_work`); then one product's
+            // n-vector and solve workspace, L's values in single precision (the
+            // rough products), the lumped preconditioner G = B K B^T, and the
+            // restricted solves' n-vectors in double and single precision
+            // (where they are taken).
             Condensation::MatrixFree => {
                 let held = 3 * self.c * F64
                     + self.n * (2 * F64 + 4)

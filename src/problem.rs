@@ -107,6 +107,22 @@ fn internal_form(
     Ok((k, n, t))
 }
 
+/// The dual of (N, T) on `factor` formed in the way `how`, holding the lumped
+/// preconditioner G = B K B^T when it is matrix-free: every dual a problem
+/// holds is formed here.
+fn form_dual(
+    factor: &Arc<Factor>,
+    k: &Csc,
+    n: &Csc,
+    t: &Csc,
+    d: usize,
+    how: Condensation,
+) -> Result<Dual> {
+    let mut dual = Dual::build_with(factor, n, t, d, how)?;
+    dual.set_lumped(k);
+    Ok(dual)
+}
+
 fn norm(x: &[f64]) -> f64 {
     x.iter().map(|v| v * v).sum::<f64>().sqrt()
 }
@@ -155,8 +171,8 @@ impl ContactProblem {
         let inputs = factor.ledger().claim(plan.sizes.inputs);
         factor.refactor(&k)?;
         let factor = Arc::new(factor);
-        let mut dual = Dual::build(&factor, &n, &t, d, plan.form)?;
-        dual.set_lumped(&k);
+        let how = Dual::condensation_for(&factor, &n, &t, d, plan.form);
+        let dual = form_dual(&factor, &k, &n, &t, d, how)?;
         let ndof = k.nrows;
         let c = dual.c;
         Ok(ContactProblem {
@@ -287,7 +303,6 @@ impl ContactProblem {
             factor: factor.values_bytes(),
             factor_scratch: factor.factor_scratch_bytes(),
             solve_scratch: factor.solve_scratch(BLOCK).size_bytes(),
-            threads: factor.threads().count(),
             blocks_work: crate::contact_blocks::work_bytes(factor, &b, n.nrows, d),
             lumped: crate::sparse::congruence_bytes(k, &b, &b.transpose()),
         }
@@ -436,8 +451,8 @@ impl ContactProblem {
         let mut fresh = self.factor.unfactored_copy();
         fresh.refactor(&k)?;
         let fresh = Arc::new(fresh);
-        self.dual = Dual::build(&fresh, &self.n, &self.t, self.d, self.current_form())?;
-        self.dual.set_lumped(&k);
+        let how = Dual::condensation_for(&fresh, &self.n, &self.t, self.d, self.current_form());
+        self.dual = form_dual(&fresh, &k, &self.n, &self.t, self.d, how)?;
         self.factor = fresh;
         self.k = k;
         Ok(())
@@ -472,8 +487,7 @@ impl ContactProblem {
             "replacing N and T (the new dual is formed beside the old one)",
             "the problem's max_memory (set at creation) must allow for it",
         )?;
-        let mut dual = Dual::build_with(&self.factor, &n, &t, self.d, how)?;
-        dual.set_lumped(&self.k);
+        let dual = form_dual(&self.factor, &self.k, &n, &t, self.d, how)?;
         if dual.c != self.dual.c {
             self.lam_hist = vec![0.0; dual.c];
         }
@@ -563,8 +577,7 @@ impl ContactProblem {
         )?;
         self.factor.ledger().reset_peak();
         if next != now {
-            self.dual = Dual::build_with(&self.factor, &self.n, &self.t, self.d, next)?;
-            self.dual.set_lumped(&self.k);
+            self.dual = form_dual(&self.factor, &self.k, &self.n, &self.t, self.d, next)?;
         }
         Ok(need)
     }

@@ -42,19 +42,9 @@ impl Paths {
         let tree = Tree::of(factor);
         let new_of = factor.new_of_old();
         let sym = factor.supernodal_symbolic();
-        let mut needed = vec![false; tree.len()];
-        for &dof in dofs {
-            let mut s = tree.of_col[new_of[dof]];
-            while s != usize::MAX && !needed[s] {
-                needed[s] = true;
-                s = tree.parent[s];
-            }
-        }
+        let needed = tree.on_paths(dofs.iter().map(|&dof| tree.of_col[new_of[dof]]));
         let on: Vec<usize> = (0..tree.len()).filter(|&s| needed[s]).collect();
-        let mut old_of = vec![0usize; new_of.len()];
-        for (old, &new) in new_of.iter().enumerate() {
-            old_of[new] = old;
-        }
+        let old_of = factor.old_of_new();
         let (mut entries, mut all, mut below) = (0usize, 0usize, 0usize);
         for (s, &on_path) in needed.iter().enumerate() {
             let (w, r) = (tree.width[s], sym.supernode(s).pattern().len());

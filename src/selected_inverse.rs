@@ -110,14 +110,7 @@ impl Selection {
         for s in 0..ns {
             first[s + 1] += first[s];
         }
-        let mut needed = vec![false; ns];
-        for t in &terms {
-            let mut s = t.s;
-            while s != usize::MAX && !needed[s] {
-                needed[s] = true;
-                s = tree.parent[s];
-            }
-        }
+        let needed = tree.on_paths(terms.iter().map(|t| t.s));
         let sym = factor.supernodal_symbolic();
         let mut children = vec![Vec::new(); ns];
         let mut roots = Vec::new();

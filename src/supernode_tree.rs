@@ -52,6 +52,20 @@ impl Tree {
         }
     }
 
+    /// Per supernode, whether it lies on the path from one of `starts`
+    /// (supernodes) to its root.
+    pub(crate) fn on_paths(&self, starts: impl IntoIterator<Item = usize>) -> Vec<bool> {
+        let mut on = vec![false; self.len()];
+        for start in starts {
+            let mut s = start;
+            while s != usize::MAX && !on[s] {
+                on[s] = true;
+                s = self.parent[s];
+            }
+        }
+        on
+    }
+
     /// Number of supernodes.
     pub(crate) fn len(&self) -> usize {
         self.parent.len()
