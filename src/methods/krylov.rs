@@ -75,12 +75,18 @@ pub(super) fn gmres(
     let mut r = vec![0.0; k];
     let mut t = vec![0.0; k];
     let mut its = 0;
+    let mut first = true;
     loop {
-        // r = rhs - M z
-        op(z, &mut r);
-        its += 1;
-        for j in 0..k {
-            r[j] = rhs[j] - r[j];
+        // r = rhs - M z (rhs itself in the first cycle, from z = 0).
+        if first {
+            r.copy_from_slice(rhs);
+            first = false;
+        } else {
+            op(z, &mut r);
+            its += 1;
+            for j in 0..k {
+                r[j] = rhs[j] - r[j];
+            }
         }
         let beta = norm(&r);
         if !beta.is_finite() {
