@@ -35,7 +35,8 @@
 //!
 //! Warm-up: every solve on a dense A starts with up to PRESWEEPS projected
 //! Gauss-Seidel sweeps (cheap against a Newton step), so that the first active
-//! set Newton sees is near the answer. A matrix-free dual has no entries to
+//! set Newton sees is near the answer; they, and the fallback's, read A in
+//! single precision (`pgs::Rough`). A matrix-free dual has no entries to
 //! sweep: a cold solve starts instead at the projection of alpha G b, G = B K B^T
 //! the lumped estimate of A^-1 (alpha minimising the dual energy along G b),
 //! when that lowers |F|; its reduced systems are solved by CG / GMRES
@@ -669,13 +670,15 @@ fn residual_norm(problem: &DualProblem<'_>, lam: &[f64], w: &[f64]) -> f64 {
 pub(super) const NEWTON: MethodSpec = MethodSpec {
     name: "newton",
     needs_entries: false,
-    // Dense: the reduced matrix and the copy its solver factors. Matrix-free: the
+    // Dense: the reduced matrix, the copy its solver factors and A in single
+    // precision for the sweeps. Matrix-free: the
     // Krylov vectors (GMRES's basis and a few more, length c at most).
     workspace: |_m, c, matrix_free| {
         if matrix_free {
             (super::krylov::RESTART + 10) * c * F64
         } else {
-            2 * c * c * F64
+            // And the single-precision copy of A for the sweeps.
+            2 * c * c * F64 + c * c * std::mem::size_of::<f32>()
         }
     },
     build: |problem, _opts, target| (Box::new(Newton::new(problem, target)), problem.dual.c),
@@ -702,6 +705,9 @@ pub(super) struct Newton {
     wt: Vec<f64>,
     /// The reduced solves' Krylov state on a matrix-free dual.
     krylov: Krylov,
+    /// A's columns in single precision for the warm-up and fallback sweeps on
+    /// an assembled dual (made at their first use).
+    rough_a: Option<pgs::Rough>,
     /// The matrix-free fallback's MPRGP (made at its first use), the bounds it
     /// works with and its estimate of |A|.
     fallback: Option<Mprgp>,
@@ -730,6 +736,7 @@ impl Newton {
             trial: vec![0.0; c],
             wt: vec![0.0; c],
             krylov: Krylov::new(c),
+            rough_a: None,
             fallback: None,
             radii: Vec::new(),
             norm: None,
@@ -764,11 +771,16 @@ impl OuterStep for Newton {
         };
         while swept < presweeps && problem.error(lam, w, p, v) > self.target {
             let n = PRESWEEP_CHUNK.min(presweeps - swept);
-            *inner += pgs::sweeps(problem, lam, w, n);
+            let rough = self
+                .rough_a
+                .get_or_insert_with(|| pgs::Rough::new(problem.dual));
+            *inner += pgs::rough_sweeps(problem, rough, lam, w, n);
             swept += n;
         }
         if swept > 0 {
-            // w was updated column by column: recompute it against drift.
+            // w was updated column by column in single precision (the error
+            // tests between chunks read it so: they only decide when to stop
+            // sweeping): recompute it.
             problem.gradient(lam, w);
         }
         // No sweeps on a matrix-free dual: a cold start begins at the lumped
@@ -859,7 +871,10 @@ impl OuterStep for Newton {
             return self.mprgp_fallback(problem, lam, w, inner);
         }
         // Fallback: a first-order step.
-        *inner += pgs::sweeps(problem, lam, w, FALLBACK_SWEEPS);
+        let rough = self
+            .rough_a
+            .get_or_insert_with(|| pgs::Rough::new(problem.dual));
+        *inner += pgs::rough_sweeps(problem, rough, lam, w, FALLBACK_SWEEPS);
         problem.gradient(lam, w);
         self.res = residual_norm(problem, lam, w);
         Flow::Go(Gradient::Exact)
@@ -1135,6 +1150,52 @@ mod tests {
                 }
             }
         }
+    }
+
+    /// Newton's warm-up sweeps read A in single precision: from the same
+    /// start they follow the exact sweeps to rounding, their w drifts from
+    /// A lam - b by rounding only, and the copy is on the ledger while it lives.
+    #[test]
+    fn rough_sweeps_follow_the_exact_ones() {
+        let (pb, g) = strip(41);
+        let p = vec![2e-3; 41];
+        let b = rhs(&pb, &g, 4e-3, 3e-3);
+        let problem = DualProblem {
+            dual: pb.dual(),
+            b: &b,
+            law: Friction::Tresca(&p),
+            monitor: None,
+            deadline: None,
+        };
+        let c = problem.dual.c;
+        let (mut lam_exact, mut w_exact) = (vec![0.0; c], vec![0.0; c]);
+        problem.gradient(&lam_exact, &mut w_exact);
+        let (mut lam, mut w) = (lam_exact.clone(), w_exact.clone());
+        let mut pgs = pgs::Pgs::new(&problem);
+        let mut inner = 0;
+        for k in 0..30 {
+            pgs.step(&problem, &mut lam_exact, &mut w_exact, &mut inner, k);
+        }
+        let ledger = problem.dual.ledger.clone();
+        let live = ledger.live();
+        let mut rough = pgs::Rough::new(problem.dual);
+        assert_eq!(ledger.live(), live + c * c * 4);
+        assert_eq!(
+            pgs::rough_sweeps(&problem, &mut rough, &mut lam, &mut w, 30),
+            30
+        );
+        drop(rough);
+        assert_eq!(ledger.live(), live);
+        let scale = norm(&lam_exact);
+        assert!(scale > 0.0);
+        let dl: Vec<f64> = lam.iter().zip(&lam_exact).map(|(a, b)| a - b).collect();
+        assert!(norm(&dl) <= 1e-5 * scale, "{}", norm(&dl) / scale);
+        let mut w_true = vec![0.0; c];
+        problem.gradient(&lam, &mut w_true);
+        let dw: Vec<f64> = w.iter().zip(&w_true).map(|(a, b)| a - b).collect();
+        let a_max = problem.dual.a.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+        assert!(norm(&dw) <= 1e-6 * a_max * norm(&lam) * (c as f64).sqrt());
+        assert!(norm(&dw) > 0.0, "single precision leaves some drift");
     }
 
     fn mat(rows: &[&[f64]]) -> Mat<f64> {

@@ -7,7 +7,6 @@
 
 use super::driver::{Flow, Gradient, OuterStep};
 use super::projection::{project_disk, solve_disk_qp};
-use super::subproblem::axpy;
 use super::{DualProblem, MethodSpec};
 
 /// `pgs`: one sweep per outer iteration, on frictionless increments as well (a
@@ -141,8 +140,32 @@ impl Aitken {
     }
 }
 
-/// One PGS sweep over all contacts, keeping w = A lam - b current.
+/// One PGS sweep over all contacts, keeping w = A lam - b current (exact
+/// columns of A).
 fn sweep(problem: &DualProblem<'_>, lam: &mut [f64], w: &mut [f64]) {
+    sweep_with(problem, lam, w, &mut Exact(problem.dual));
+}
+
+/// Where a sweep's updates of w take A's columns from.
+trait Columns {
+    /// w += delta A[:, j].
+    fn axpy(&mut self, w: &mut [f64], delta: f64, j: usize);
+}
+
+/// A's own columns.
+struct Exact<'a>(&'a crate::dual::Dual);
+
+impl Columns for Exact<'_> {
+    fn axpy(&mut self, w: &mut [f64], delta: f64, j: usize) {
+        for (wi, ci) in w.iter_mut().zip(self.0.col(j)) {
+            *wi += delta * ci;
+        }
+    }
+}
+
+/// One PGS sweep over all contacts, w kept with the columns of `cols`. The
+/// local problems read A's diagonal blocks in double precision either way.
+fn sweep_with(problem: &DualProblem<'_>, lam: &mut [f64], w: &mut [f64], cols: &mut dyn Columns) {
     let dual = problem.dual;
     let (m, d, c) = (dual.m, dual.d, dual.c);
     for i in 0..m {
@@ -152,7 +175,7 @@ fn sweep(problem: &DualProblem<'_>, lam: &mut [f64], w: &mut [f64]) {
             let delta = y - lam[i];
             if delta != 0.0 {
                 lam[i] = y;
-                axpy(w, delta, dual.col(i));
+                cols.axpy(w, delta, i);
             }
         }
         let r = problem.law.bound(i, lam[i]);
@@ -165,11 +188,11 @@ fn sweep(problem: &DualProblem<'_>, lam: &mut [f64], w: &mut [f64]) {
                 let delta = y[0] - lam[t];
                 if delta != 0.0 {
                     lam[t] = y[0];
-                    axpy(w, delta, dual.col(t));
+                    cols.axpy(w, delta, t);
                 }
             } else if lam[t].abs() > r {
                 let y = lam[t].clamp(-r, r);
-                axpy(w, y - lam[t], dual.col(t));
+                cols.axpy(w, y - lam[t], t);
                 lam[t] = y;
             }
         } else {
@@ -187,22 +210,76 @@ fn sweep(problem: &DualProblem<'_>, lam: &mut [f64], w: &mut [f64]) {
                 let delta = y[s] - lam[t + s];
                 if delta != 0.0 {
                     lam[t + s] = y[s];
-                    axpy(w, delta, dual.col(t + s));
+                    cols.axpy(w, delta, t + s);
                 }
             }
         }
     }
 }
 
-/// `count` PGS sweeps from lam (w = A lam - b on entry and exit); returns `count`.
-pub(super) fn sweeps(
+/// A's columns rounded to single precision, each at its first use, for
+/// sweeps that only need to bring an iterate near the answer (Newton's
+/// warm-up and fallback): half the memory traffic of a sweep, which reads a
+/// column of A per changed unknown. w drifts by rounding at about
+/// 1e-7 |A| |lam|; the caller recomputes it exactly after the sweeps. The
+/// whole c x c copy is claimed on the problem's ledger (the pages of columns
+/// never used are never touched).
+pub(super) struct Rough {
+    a: Vec<f32>,
+    ready: Vec<bool>,
+    _claim: crate::memory::Claim,
+}
+
+impl Rough {
+    /// An empty copy of an assembled dual's A.
+    pub fn new(dual: &crate::dual::Dual) -> Rough {
+        let claim = dual.ledger.claim(dual.a.len() * std::mem::size_of::<f32>());
+        Rough {
+            a: vec![0.0; dual.a.len()],
+            ready: vec![false; dual.c],
+            _claim: claim,
+        }
+    }
+}
+
+/// The columns of a [`Rough`] copy, converted from `dual`'s at first use.
+struct RoughColumns<'r> {
+    rough: &'r mut Rough,
+    dual: &'r crate::dual::Dual,
+}
+
+impl Columns for RoughColumns<'_> {
+    fn axpy(&mut self, w: &mut [f64], delta: f64, j: usize) {
+        let c = self.dual.c;
+        let col = &mut self.rough.a[j * c..(j + 1) * c];
+        if !self.rough.ready[j] {
+            for (x, &v) in col.iter_mut().zip(self.dual.col(j)) {
+                *x = v as f32;
+            }
+            self.rough.ready[j] = true;
+        }
+        for (wi, &ci) in w.iter_mut().zip(col.iter()) {
+            *wi += delta * f64::from(ci);
+        }
+    }
+}
+
+/// `count` PGS sweeps from lam with the columns of `rough`; w = A lam - b on
+/// entry, up to rounding on exit (recompute it before relying on it). Returns
+/// `count`.
+pub(super) fn rough_sweeps(
     problem: &DualProblem<'_>,
+    rough: &mut Rough,
     lam: &mut [f64],
     w: &mut [f64],
     count: usize,
 ) -> usize {
+    let mut cols = RoughColumns {
+        rough,
+        dual: problem.dual,
+    };
     for _ in 0..count {
-        sweep(problem, lam, w);
+        sweep_with(problem, lam, w, &mut cols);
     }
     count
 }
