@@ -452,6 +452,47 @@ struct Operator {
     /// n-vector in the factor's order and a product buffer, in double and in
     /// single precision) and its bytes on the ledger.
     restricted: Option<Restricted>,
+    /// Otherwise, with more than one thread, solves whose independent
+    /// subtrees run in parallel (`tree_solve.rs`), with their scratch in
+    /// double and single precision and its bytes on the ledger.
+    tree: Option<TreeSolves>,
+}
+
+/// See [`Operator::tree`].
+struct TreeSolves {
+    split: crate::tree_solve::TreeSolve,
+    work: std::cell::RefCell<crate::tree_solve::TreeScratch<f64>>,
+    work_single: std::cell::RefCell<crate::tree_solve::TreeScratch<f32>>,
+    _claim: Claim,
+}
+
+impl TreeSolves {
+    /// The tree solves of `factor`, where its threads and tree allow them.
+    fn of(factor: &Factor) -> Option<TreeSolves> {
+        let split = crate::tree_solve::TreeSolve::of(factor)?;
+        let n = factor.n();
+        Some(TreeSolves {
+            _claim: factor.ledger().claim(split.scratch_len(n) * (F64 + 4)),
+            work: std::cell::RefCell::new(split.scratch(n)),
+            work_single: std::cell::RefCell::new(split.scratch(n)),
+            split,
+        })
+    }
+}
+
+/// Bytes the products of a matrix-free dual of B (`b`) on `factor` claim for
+/// their own solves: the restricted solves' or the tree solves' scratch,
+/// whichever [`Operator`] takes (none for the factor's plain solve).
+pub(crate) fn own_solves_bytes(factor: &Factor, b: &Csc) -> usize {
+    if factor.is_dense() {
+        return 0;
+    }
+    let n = factor.n();
+    let paths = crate::restricted_solve::Paths::of(factor, &contact_dofs(b));
+    if paths.worth_it() {
+        return (n + paths.scratch_len()) * (F64 + 4);
+    }
+    crate::tree_solve::TreeSolve::of(factor).map_or(0, |t| t.scratch_len(n) * (F64 + 4))
 }
 
 /// See [`Operator::restricted`].
@@ -493,6 +534,11 @@ impl Operator {
             }
         }
         let single = factor.single_values();
+        let restricted = Restricted::of(factor, b);
+        let tree = match restricted {
+            Some(_) => None,
+            None => TreeSolves::of(factor),
+        };
         Operator {
             factor: factor.clone(),
             bt: b.transpose(),
@@ -504,7 +550,8 @@ impl Operator {
             )),
             _single_claim: factor.ledger().claim(single.len() * 4),
             lumped: None,
-            restricted: Restricted::of(factor, b),
+            restricted,
+            tree,
             single,
             work_single: std::cell::RefCell::new((
                 vec![0.0; factor.n()],
@@ -531,6 +578,11 @@ impl Operator {
             let (perm, buf) = &mut *work;
             r.paths
                 .solve_single(&self.factor, &self.single, z, perm, buf);
+        } else if let Some(t) = &self.tree {
+            let mut scratch = t.work_single.borrow_mut();
+            let threads = self.factor.threads();
+            t.split
+                .solve_single(&self.factor, &self.single, z, &mut scratch, threads);
         } else {
             let n = z.len();
             let zm = MatMut::from_column_major_slice_mut(&mut z[..], n, 1);
@@ -568,6 +620,11 @@ impl Operator {
             let (perm, buf) = &mut *work;
             r.paths
                 .solve(&self.factor, self.factor.values(), z, perm, buf);
+        } else if let Some(t) = &self.tree {
+            let mut scratch = t.work.borrow_mut();
+            let threads = self.factor.threads();
+            t.split
+                .solve(&self.factor, self.factor.values(), z, &mut scratch, threads);
         } else {
             let n = z.len();
             let zm = MatMut::from_column_major_slice_mut(&mut z[..], n, 1);
@@ -749,6 +806,67 @@ pub(crate) mod tests {
         // And A is positive definite here: its diagonal is positive.
         for j in 0..a0.c {
             assert!(a0.a[j + j * a0.c] > 0.0);
+        }
+    }
+
+    /// With two threads and contacts spread over the whole body (their paths
+    /// cover L: no restricted solves), the products take the tree solves and
+    /// agree with those of one thread (the factor's plain solve).
+    #[test]
+    fn matrix_free_products_on_two_threads_take_the_tree_solves() {
+        let (nx, ny) = (160, 160);
+        let k = grid(nx, ny);
+        // One contact every 7th DOF, d = 2: a normal and a tangent row each.
+        let dofs: Vec<usize> = (0..nx * ny).step_by(7).collect();
+        let m = dofs.len();
+        let nt: Vec<_> = dofs
+            .iter()
+            .enumerate()
+            .map(|(i, &j)| (i, j, -1.0))
+            .collect();
+        let tt: Vec<_> = dofs
+            .iter()
+            .enumerate()
+            .map(|(i, &j)| (i, (j + 1) % (nx * ny), 1.0))
+            .collect();
+        let n = Csc::from_triplets(m, nx * ny, &nt);
+        let t = Csc::from_triplets(m, nx * ny, &tt);
+        let free_on = |threads: usize| {
+            let f = Factor::with_last(
+                &k,
+                &[],
+                crate::Ordering::Metis,
+                std::sync::Arc::new(crate::threads::Threads::new(threads)),
+            )
+            .unwrap();
+            let dual = Dual::build(&f, &n, &t, 2, DualForm::MatrixFree).unwrap();
+            let b = stack_rows(&n, &t);
+            let own = own_solves_bytes(&f, &b);
+            (dual, own)
+        };
+        let (one, own_one) = free_on(1);
+        let (two, own_two) = free_on(2);
+        let op = |d: &Dual| {
+            d.free
+                .as_ref()
+                .map(|o| (o.restricted.is_some(), o.tree.is_some()))
+        };
+        assert_eq!(op(&one), Some((false, false)));
+        assert_eq!(op(&two), Some((false, true)));
+        assert_eq!(own_one, 0);
+        assert!(own_two >= nx * ny * (F64 + 4), "{own_two}");
+        let c = one.c;
+        let x: Vec<f64> = (0..c).map(|i| (i as f64 * 0.31).cos()).collect();
+        let (mut y1, mut y2) = (vec![0.0; c], vec![0.0; c]);
+        one.apply(&x, &mut y1);
+        two.apply(&x, &mut y2);
+        let scale = y1.iter().fold(0.0f64, |a, v| a.max(v.abs()));
+        for (a, b) in y1.iter().zip(&y2) {
+            assert!((a - b).abs() <= 1e-13 * scale, "{a} vs {b}");
+        }
+        two.apply_rough(&x, &mut y2);
+        for (a, b) in y1.iter().zip(&y2) {
+            assert!((a - b).abs() <= 1e-5 * scale, "{a} vs {b}");
         }
     }
 

@@ -26,6 +26,7 @@ mod selected_inverse;
 mod sparse;
 mod supernode_tree;
 mod threads;
+mod tree_solve;
 
 pub use error::{Error, ErrorKind, Result};
 pub use friction::Friction;

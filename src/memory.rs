@@ -113,6 +113,9 @@ pub(crate) struct Sizes {
     pub blocks_work: usize,
     /// Bytes of G = B K B^T, the lumped preconditioner a matrix-free dual holds.
     pub lumped: usize,
+    /// Bytes of the scratch of a matrix-free dual's own solves (restricted or
+    /// by the tree: `dual::own_solves_bytes`).
+    pub own_solves: usize,
 }
 
 /// Predicted bytes, what the counted allocations will reach.
@@ -138,13 +141,14 @@ impl Sizes {
             // The contacts' diagonal blocks (d c doubles at most) and, while
             // they are formed, what their selected inversion or forward solves
             // work in on all threads (`blocks_work`); then one product's
-            // n-vector and solve workspace, L's values in single precision (the
-            // rough products), the lumped preconditioner G = B K B^T, and the
-            // restricted solves' n-vectors in double and single precision
-            // (where they are taken).
+            // n-vector and solve workspace in double and single precision, L's
+            // values in single precision (the rough products), the lumped
+            // preconditioner G = B K B^T, and the scratch of the restricted or
+            // tree solves (where they are taken).
             Condensation::MatrixFree => {
                 let held = 3 * self.c * F64
-                    + self.n * (2 * F64 + 4)
+                    + self.n * (F64 + 4)
+                    + self.own_solves
                     + self.solve_scratch
                     + self.factor / 2
                     + self.lumped;

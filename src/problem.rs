@@ -305,6 +305,7 @@ impl ContactProblem {
             solve_scratch: factor.solve_scratch(BLOCK).size_bytes(),
             blocks_work: crate::contact_blocks::work_bytes(factor, &b, n.nrows, d),
             lumped: crate::sparse::congruence_bytes(k, &b, &b.transpose()),
+            own_solves: crate::dual::own_solves_bytes(factor, &b),
         }
     }
 
@@ -470,6 +471,7 @@ impl ContactProblem {
             c: self.d * n.nrows,
             blocks_work: crate::contact_blocks::work_bytes(&self.factor, &b, n.nrows, self.d),
             lumped: crate::sparse::congruence_bytes(&self.k, &b, &b.transpose()),
+            own_solves: crate::dual::own_solves_bytes(&self.factor, &b),
             ..self.sizes
         };
         let how = Condensation::of(

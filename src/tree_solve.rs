@@ -1,0 +1,473 @@
+//! Solves with K's factor on several threads for one right-hand side, by the
+//! elimination tree: the subtrees below a top set of supernodes are
+//! independent, so their forward and back substitutions run in parallel, and
+//! only the top (the separators near the root) runs on one thread. A solve
+//! with one right-hand side is memory-bound and its dense kernels are
+//! matrix-vector products, which threads inside a kernel do not speed up; the
+//! tree does. Used by the matrix-free dual's products (`dual.rs`), where one
+//! solve per Krylov iteration is the whole cost of an iteration.
+//!
+//! Forward (L y = P x): each thread takes whole subtrees; an update from a
+//! subtree's supernode to a row of its own subtree goes into that subtree's
+//! columns, which no other thread touches, an update to a top row into the
+//! thread's own accumulator of the top rows, added in afterwards. The
+//! top follows on the calling thread. Back (L^T z = y): the top first, then
+//! the subtrees in parallel, reading the top's values from a copy.
+
+use crate::factor::Factor;
+use crate::supernode_tree::Tree;
+use crate::threads::{PARALLEL_MIN_ENTRIES, Threads};
+use faer::linalg::matmul::matmul;
+use faer::linalg::triangular_solve::{
+    solve_lower_triangular_in_place, solve_upper_triangular_in_place,
+};
+use faer::sparse::linalg::cholesky::supernodal::SupernodalLltRef;
+use faer::{Accum, MatMut, MatRef, Par};
+use rayon::prelude::*;
+
+/// Factors with fewer entries than this are solved on one thread: below it
+/// handing the subtrees to the pool costs more than it saves.
+const MIN_ENTRIES: usize = 1 << 18;
+
+/// Subtrees per thread the split aims at (the bins are balanced greedily).
+const TASKS_PER_THREAD: usize = 2;
+
+/// Marks a column outside the top in [`TreeSolve::top_at`].
+const NONE: usize = usize::MAX;
+
+/// The right-hand side shared by the threads of a solve, each writing only
+/// the columns of its own subtrees (see the module docs).
+#[derive(Copy, Clone)]
+struct Shared<T>(*mut T);
+
+// SAFETY: the threads of a solve write disjoint entries (their subtrees'
+// columns) and read only those, so sharing the pointer is a data-race-free
+// split of one &mut [T].
+unsafe impl<T: Send> Send for Shared<T> {}
+// SAFETY: as for Send.
+unsafe impl<T: Send> Sync for Shared<T> {}
+
+impl<T> Shared<T> {
+    /// Entries at..at + len.
+    ///
+    /// # Safety
+    /// Within the vector, and touched by no other thread while the slice lives.
+    #[allow(clippy::mut_from_ref)]
+    unsafe fn cols(&self, at: usize, len: usize) -> &mut [T] {
+        // SAFETY: the caller's contract.
+        unsafe { std::slice::from_raw_parts_mut(self.0.add(at), len) }
+    }
+}
+
+/// The split of a factor's elimination tree for a number of threads.
+pub(crate) struct TreeSolve {
+    /// Per thread, its subtrees' supernodes, children first.
+    bins: Vec<Vec<usize>>,
+    /// The top supernodes, children first.
+    top: Vec<usize>,
+    /// The top's columns, ascending, and per column of the factor its index
+    /// among them (NONE outside the top).
+    top_cols: Vec<usize>,
+    top_at: Vec<usize>,
+    /// The longest pattern below a supernode (one update's scratch).
+    below: usize,
+}
+
+/// Scratch of [`TreeSolve`]'s solves in one precision: the right-hand side in
+/// the factor's ordering, per thread an accumulator of the top rows and an
+/// update's scratch, and the top's values for the back substitution.
+pub(crate) struct TreeScratch<T> {
+    work: Vec<T>,
+    per_bin: Vec<(Vec<T>, Vec<T>)>,
+    top_vals: Vec<T>,
+    buf: Vec<T>,
+}
+
+impl TreeSolve {
+    /// The split of `factor`'s tree for its threads; None where one thread
+    /// would do as well: one thread, a dense or small factor, or a tree that
+    /// does not split into at least two subtrees.
+    pub(crate) fn of(factor: &Factor) -> Option<TreeSolve> {
+        let threads = factor.threads().count();
+        if threads < 2 || factor.is_dense() {
+            return None;
+        }
+        let sym = factor.supernodal_symbolic();
+        let tree = Tree::of(factor);
+        let ns = tree.len();
+        let mut children = vec![Vec::new(); ns];
+        let mut roots = Vec::new();
+        let pattern_len = |s: usize| sym.supernode(s).pattern().len();
+        let below = (0..ns).map(pattern_len).max().unwrap_or(0);
+        let mut weight: Vec<usize> = (0..ns)
+            .map(|s| (tree.width[s] + pattern_len(s)) * tree.width[s])
+            .collect();
+        // Children before parents: the subtrees' entries in one pass.
+        for s in 0..ns {
+            match tree.parent[s] {
+                NONE => roots.push(s),
+                p => {
+                    children[p].push(s);
+                    weight[p] += weight[s];
+                }
+            }
+        }
+        let total: usize = roots.iter().map(|&r| weight[r]).sum();
+        if total < MIN_ENTRIES {
+            return None;
+        }
+        // The top: the heaviest subtree is split while it holds more than its
+        // share (as the selected inversion's split).
+        let limit = total / (TASKS_PER_THREAD * threads);
+        let mut top = Vec::new();
+        let mut tasks = roots;
+        while let Some((at, &s)) = tasks.iter().enumerate().max_by_key(|(_, s)| weight[**s]) {
+            if weight[s] <= limit || children[s].is_empty() {
+                break;
+            }
+            tasks.swap_remove(at);
+            top.push(s);
+            tasks.extend(&children[s]);
+        }
+        if tasks.len() < 2 {
+            return None;
+        }
+        top.sort_unstable();
+        let mut top_cols = Vec::new();
+        for &s in &top {
+            top_cols.extend(tree.begin[s]..tree.begin[s] + tree.width[s]);
+        }
+        let mut top_at = vec![NONE; factor.n()];
+        for (i, &col) in top_cols.iter().enumerate() {
+            top_at[col] = i;
+        }
+        // Heaviest first into the lightest bin.
+        tasks.sort_unstable_by_key(|&s| std::cmp::Reverse(weight[s]));
+        let mut bins: Vec<Vec<usize>> = (0..threads).map(|_| Vec::new()).collect();
+        let mut load = vec![0usize; threads];
+        for root in tasks {
+            let b = (0..threads).min_by_key(|&b| load[b]).expect("threads >= 2");
+            load[b] += weight[root];
+            let mut stack = vec![root];
+            while let Some(s) = stack.pop() {
+                bins[b].push(s);
+                stack.extend(&children[s]);
+            }
+        }
+        for bin in &mut bins {
+            bin.sort_unstable();
+        }
+        bins.retain(|b| !b.is_empty());
+        Some(TreeSolve {
+            bins,
+            top,
+            top_cols,
+            top_at,
+            below,
+        })
+    }
+
+    /// Scratch for the solves in precision T on a factor of order n.
+    pub(crate) fn scratch<T: Copy + Default>(&self, n: usize) -> TreeScratch<T> {
+        let top = self.top_cols.len();
+        TreeScratch {
+            work: vec![T::default(); n],
+            per_bin: self
+                .bins
+                .iter()
+                .map(|_| (vec![T::default(); top], vec![T::default(); self.below]))
+                .collect(),
+            top_vals: vec![T::default(); top],
+            buf: vec![T::default(); self.below],
+        }
+    }
+
+    /// Bytes of [`TreeSolve::scratch`] per byte of its precision.
+    pub(crate) fn scratch_len(&self, n: usize) -> usize {
+        n + (self.bins.len() + 1) * (self.top_cols.len() + self.below)
+    }
+
+    /// Threads the solves use (one bin of subtrees each).
+    #[cfg(test)]
+    fn threads(&self) -> usize {
+        self.bins.len()
+    }
+}
+
+/// One supernode's forward step on the right-hand side at `x` (the factor's
+/// ordering): x_s := L_ss^-1 x_s, then `scatter(row, v)` for each row of its
+/// pattern with v = (L_Rs x_s)_row, to be subtracted there.
+macro_rules! forward_node {
+    ($llt:expr, $begin:expr, $s:expr, $x:expr, $buf:expr, $scatter:expr, $par:expr) => {{
+        let node = $llt.supernode($s);
+        let val = node.val();
+        let (w, pattern) = (val.ncols(), node.pattern());
+        let r = pattern.len();
+        let par = if (w + r) * w >= PARALLEL_MIN_ENTRIES {
+            $par
+        } else {
+            Par::Seq
+        };
+        let xs = $x($begin[$s], w);
+        solve_lower_triangular_in_place(
+            val.submatrix(0, 0, w, w),
+            MatMut::from_column_major_slice_mut(xs, w, 1),
+            par,
+        );
+        if r > 0 {
+            matmul(
+                MatMut::from_column_major_slice_mut(&mut $buf[..r], r, 1),
+                Accum::Replace,
+                val.submatrix(w, 0, r, w),
+                MatRef::from_column_major_slice(xs, w, 1),
+                1.0,
+                par,
+            );
+            for (&row, &v) in pattern.iter().zip(&$buf[..r]) {
+                $scatter(row, v);
+            }
+        }
+    }};
+}
+
+/// One supernode's back step: x_s := L_ss^-T (x_s - L_Rs^T x_R), x_R read by
+/// `gather(row)`.
+macro_rules! back_node {
+    ($llt:expr, $begin:expr, $s:expr, $x:expr, $buf:expr, $gather:expr, $par:expr) => {{
+        let node = $llt.supernode($s);
+        let val = node.val();
+        let (w, pattern) = (val.ncols(), node.pattern());
+        let r = pattern.len();
+        let par = if (w + r) * w >= PARALLEL_MIN_ENTRIES {
+            $par
+        } else {
+            Par::Seq
+        };
+        for (v, &row) in $buf[..r].iter_mut().zip(pattern) {
+            *v = $gather(row);
+        }
+        let xs = $x($begin[$s], w);
+        if r > 0 {
+            matmul(
+                MatMut::from_column_major_slice_mut(&mut *xs, w, 1),
+                Accum::Add,
+                val.submatrix(w, 0, r, w).transpose(),
+                MatRef::from_column_major_slice(&$buf[..r], r, 1),
+                -1.0,
+                par,
+            );
+        }
+        solve_upper_triangular_in_place(
+            val.submatrix(0, 0, w, w).transpose(),
+            MatMut::from_column_major_slice_mut(xs, w, 1),
+            par,
+        );
+    }};
+}
+
+macro_rules! tree_solve {
+    ($name:ident, $t:ty) => {
+        impl TreeSolve {
+            /// x := K^-1 x (x: n, original numbering), with L's values `values`
+            /// in this precision, on `threads`.
+            pub(crate) fn $name(
+                &self,
+                factor: &Factor,
+                values: &[$t],
+                x: &mut [$t],
+                scratch: &mut TreeScratch<$t>,
+                threads: &Threads,
+            ) {
+                let sym = factor.supernodal_symbolic();
+                let llt = SupernodalLltRef::<usize, $t>::new(sym, values);
+                let begin = sym.supernode_begin();
+                let old_of = factor.old_of_new();
+                let TreeScratch {
+                    work,
+                    per_bin,
+                    top_vals,
+                    buf,
+                } = scratch;
+                for (new, &old) in old_of.iter().enumerate() {
+                    work[new] = x[old];
+                }
+                let top_at = &self.top_at;
+                threads.run(true, |par| {
+                    let shared = Shared(work.as_mut_ptr());
+                    // SAFETY (both closures): a bin's threads touch only the
+                    // columns of its own subtrees' supernodes: the x_s of a
+                    // supernode it holds, and rows of its pattern outside the
+                    // top, which are those of its ancestors in the same subtree
+                    // (see `Shared`); `work` is not used otherwise meanwhile.
+                    let cols = |at: usize, len: usize| unsafe { shared.cols(at, len) };
+                    let entry = |at: usize| unsafe { &mut shared.cols(at, 1)[0] };
+                    // Forward, the subtrees: each bin's accumulator of the top rows.
+                    let forward = |(bin, scratch): (&Vec<usize>, &mut (Vec<$t>, Vec<$t>))| {
+                        let (acc, buf) = (&mut scratch.0, &mut scratch.1);
+                        acc.iter_mut().for_each(|v| *v = 0.0);
+                        for &s in bin {
+                            forward_node!(
+                                llt,
+                                begin,
+                                s,
+                                cols,
+                                buf,
+                                |row: usize, v: $t| match top_at[row] {
+                                    NONE => *entry(row) -= v,
+                                    i => acc[i] -= v,
+                                },
+                                Par::Seq
+                            );
+                        }
+                    };
+                    let jobs: Vec<_> = self.bins.iter().zip(per_bin.iter_mut()).collect();
+                    match par {
+                        Par::Seq => jobs.into_iter().for_each(forward),
+                        _ => jobs.into_par_iter().for_each(forward),
+                    }
+                    for (acc, _) in per_bin.iter() {
+                        for (&col, &v) in self.top_cols.iter().zip(acc) {
+                            *entry(col) += v;
+                        }
+                    }
+                    // The top, forward then back, on this thread.
+                    for &s in &self.top {
+                        forward_node!(
+                            llt,
+                            begin,
+                            s,
+                            cols,
+                            buf,
+                            |row: usize, v: $t| *entry(row) -= v,
+                            par
+                        );
+                    }
+                    for &s in self.top.iter().rev() {
+                        back_node!(llt, begin, s, cols, buf, |row: usize| *entry(row), par);
+                    }
+                    for (v, &col) in top_vals.iter_mut().zip(&self.top_cols) {
+                        *v = *entry(col);
+                    }
+                    // Back, the subtrees, reading the top from its copy.
+                    let top_vals = &*top_vals;
+                    let back = |(bin, scratch): (&Vec<usize>, &mut (Vec<$t>, Vec<$t>))| {
+                        let buf = &mut scratch.1;
+                        for &s in bin.iter().rev() {
+                            back_node!(
+                                llt,
+                                begin,
+                                s,
+                                cols,
+                                buf,
+                                |row: usize| match top_at[row] {
+                                    NONE => *entry(row),
+                                    i => top_vals[i],
+                                },
+                                Par::Seq
+                            );
+                        }
+                    };
+                    let jobs: Vec<_> = self.bins.iter().zip(per_bin.iter_mut()).collect();
+                    match par {
+                        Par::Seq => jobs.into_iter().for_each(back),
+                        _ => jobs.into_par_iter().for_each(back),
+                    }
+                });
+                for (new, &old) in old_of.iter().enumerate() {
+                    x[old] = work[new];
+                }
+            }
+        }
+    };
+}
+
+tree_solve!(solve, f64);
+tree_solve!(solve_single, f32);
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::options::Ordering;
+    use std::sync::Arc;
+
+    /// A 3D grid Laplacian plus a shift, n = nx ny nz.
+    fn grid3(nx: usize, ny: usize, nz: usize) -> crate::sparse::Csc {
+        let id = |i: usize, j: usize, k: usize| i + nx * (j + ny * k);
+        let mut t = Vec::new();
+        for k in 0..nz {
+            for j in 0..ny {
+                for i in 0..nx {
+                    let a = id(i, j, k);
+                    t.push((a, a, 6.1 + 0.01 * (a % 5) as f64));
+                    for (di, dj, dk) in [(1, 0, 0), (0, 1, 0), (0, 0, 1)] {
+                        let (i2, j2, k2) = (i + di, j + dj, k + dk);
+                        if i2 < nx && j2 < ny && k2 < nz {
+                            let b = id(i2, j2, k2);
+                            t.push((a, b, -1.0));
+                            t.push((b, a, -1.0));
+                        }
+                    }
+                }
+            }
+        }
+        let n = nx * ny * nz;
+        crate::sparse::Csc::from_triplets(n, n, &t)
+    }
+
+    /// The tree solve equals faer's solve (double to 1e-13, single to 1e-5),
+    /// with 2 and 3 threads, AMD and METIS, and on two components; one thread
+    /// gives no split.
+    #[test]
+    fn tree_solve_equals_the_plain_solve() {
+        let one = grid3(24, 20, 10);
+        // Two disconnected copies: two roots.
+        let n1 = one.nrows;
+        let mut t = Vec::new();
+        for j in 0..n1 {
+            for k in one.col_ptr[j]..one.col_ptr[j + 1] {
+                t.push((one.row_idx[k], j, one.values[k]));
+                t.push((one.row_idx[k] + n1, j + n1, one.values[k]));
+            }
+        }
+        let two = crate::sparse::Csc::from_triplets(2 * n1, 2 * n1, &t);
+        for k in [&one, &two] {
+            let n = k.nrows;
+            for ordering in [Ordering::Amd, Ordering::Metis] {
+                let single =
+                    Factor::with_last(k, &[], ordering, Arc::new(Threads::new(1))).unwrap();
+                assert!(TreeSolve::of(&single).is_none());
+                for threads in [2, 3] {
+                    let f = Factor::with_last(k, &[], ordering, Arc::new(Threads::new(threads)))
+                        .unwrap();
+                    let ts = TreeSolve::of(&f).expect("a split");
+                    assert_eq!(ts.threads(), threads);
+                    assert!(!ts.top.is_empty() || k.nrows == 2 * n1);
+                    let x: Vec<f64> = (0..n).map(|i| (i as f64 * 0.37).sin() + 0.1).collect();
+                    let mut full = x.clone();
+                    f.solve_vec(&mut full);
+                    let scale = full.iter().fold(0.0f64, |a, v| a.max(v.abs()));
+                    let mut got = x.clone();
+                    let mut scratch = ts.scratch::<f64>(n);
+                    ts.solve(&f, f.values(), &mut got, &mut scratch, f.threads());
+                    for i in 0..n {
+                        assert!(
+                            (got[i] - full[i]).abs() <= 1e-13 * scale,
+                            "{ordering:?} {i}"
+                        );
+                    }
+                    // Again with the same scratch (the accumulators are reset).
+                    let mut again = x.clone();
+                    ts.solve(&f, f.values(), &mut again, &mut scratch, f.threads());
+                    assert_eq!(again, got);
+                    let values = f.single_values();
+                    let mut xs: Vec<f32> = x.iter().map(|&v| v as f32).collect();
+                    let mut ss = ts.scratch::<f32>(n);
+                    ts.solve_single(&f, &values, &mut xs, &mut ss, f.threads());
+                    for i in 0..n {
+                        assert!((f64::from(xs[i]) - full[i]).abs() <= 1e-5 * scale, "{i}");
+                    }
+                }
+            }
+        }
+    }
+}
