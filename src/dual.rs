@@ -447,80 +447,102 @@ struct Operator {
     /// preconditions Newton's reduced systems, once K is handed over
     /// ([`Dual::set_lumped`]), with its bytes on the ledger.
     lumped: Option<(Csc, Claim)>,
-    /// Solves restricted to the supernodes on the contact DOFs' paths to the
-    /// root, where those hold few of L's entries, with their scratch (the
-    /// n-vector in the factor's order and a product buffer, in double and in
-    /// single precision) and its bytes on the ledger.
-    restricted: Option<Restricted>,
-    /// Otherwise, with more than one thread, solves whose independent
-    /// subtrees run in parallel (`tree_solve.rs`), with their scratch in
-    /// double and single precision and its bytes on the ledger.
-    tree: Option<TreeSolves>,
+    /// The products' own solves, where they pay: restricted to the contact
+    /// DOFs' paths and/or by the tree on several threads (see [`OwnSolves`]).
+    own: OwnSolves,
 }
 
-/// See [`Operator::tree`].
-struct TreeSolves {
-    split: crate::tree_solve::TreeSolve,
-    work: std::cell::RefCell<crate::tree_solve::TreeScratch<f64>>,
-    work_single: std::cell::RefCell<crate::tree_solve::TreeScratch<f32>>,
-    _claim: Claim,
+/// The solves a matrix-free dual's products take instead of the factor's
+/// plain solve, with their scratch in double and single precision and its
+/// bytes on the ledger.
+enum OwnSolves {
+    /// The plain solve (one thread, with the contact DOFs' paths holding most
+    /// of L).
+    Plain,
+    /// Restricted to the supernodes on the contact DOFs' paths to the root,
+    /// where those hold few of L's entries, on one thread
+    /// (`restricted_solve.rs`): the n-vector in the factor's order and a
+    /// product buffer.
+    Restricted {
+        paths: crate::restricted_solve::Paths,
+        work: std::cell::RefCell<(Vec<f64>, Vec<f64>)>,
+        work_single: std::cell::RefCell<(Vec<f32>, Vec<f32>)>,
+        _claim: Claim,
+    },
+    /// With more than one thread, by the elimination tree, independent
+    /// subtrees in parallel (`tree_solve.rs`), over the same paths where they
+    /// hold few of L's entries, else over the whole factor.
+    Tree {
+        split: crate::tree_solve::TreeSolve,
+        work: std::cell::RefCell<crate::tree_solve::TreeScratch<f64>>,
+        work_single: std::cell::RefCell<crate::tree_solve::TreeScratch<f32>>,
+        _claim: Claim,
+    },
 }
 
-impl TreeSolves {
-    /// The tree solves of `factor`, where its threads and tree allow them.
-    fn of(factor: &Factor) -> Option<TreeSolves> {
-        let split = crate::tree_solve::TreeSolve::of(factor)?;
+/// What [`OwnSolves`] will hold for B's DOFs on `factor`, before its scratch.
+enum OwnPlan {
+    Plain,
+    Restricted(crate::restricted_solve::Paths),
+    Tree(crate::tree_solve::TreeSolve),
+}
+
+impl OwnPlan {
+    fn of(factor: &Factor, b: &Csc) -> OwnPlan {
+        if factor.is_dense() {
+            return OwnPlan::Plain;
+        }
+        let dofs = contact_dofs(b);
+        let paths = crate::restricted_solve::Paths::of(factor, &dofs);
+        let restrict = paths.worth_it();
+        match crate::tree_solve::TreeSolve::of(factor, restrict.then_some(&dofs[..])) {
+            Some(split) => OwnPlan::Tree(split),
+            None if restrict => OwnPlan::Restricted(paths),
+            None => OwnPlan::Plain,
+        }
+    }
+
+    /// Bytes [`OwnSolves`] claims for this plan on a factor of order n.
+    fn bytes(&self, n: usize) -> usize {
+        match self {
+            OwnPlan::Plain => 0,
+            OwnPlan::Restricted(paths) => (n + paths.scratch_len()) * (F64 + 4),
+            OwnPlan::Tree(split) => split.scratch_len(n) * (F64 + 4) + split.bytes(),
+        }
+    }
+}
+
+impl OwnSolves {
+    /// The solves of B's DOFs on `factor` (see [`OwnPlan::of`]).
+    fn of(factor: &Factor, b: &Csc) -> OwnSolves {
         let n = factor.n();
-        Some(TreeSolves {
-            _claim: factor.ledger().claim(split.scratch_len(n) * (F64 + 4)),
-            work: std::cell::RefCell::new(split.scratch(n)),
-            work_single: std::cell::RefCell::new(split.scratch(n)),
-            split,
-        })
+        let plan = OwnPlan::of(factor, b);
+        let claim = factor.ledger().claim(plan.bytes(n));
+        match plan {
+            OwnPlan::Plain => OwnSolves::Plain,
+            OwnPlan::Restricted(paths) => {
+                let k = paths.scratch_len();
+                OwnSolves::Restricted {
+                    work: std::cell::RefCell::new((vec![0.0; n], vec![0.0; k])),
+                    work_single: std::cell::RefCell::new((vec![0.0; n], vec![0.0; k])),
+                    paths,
+                    _claim: claim,
+                }
+            }
+            OwnPlan::Tree(split) => OwnSolves::Tree {
+                work: std::cell::RefCell::new(split.scratch(n)),
+                work_single: std::cell::RefCell::new(split.scratch(n)),
+                split,
+                _claim: claim,
+            },
+        }
     }
 }
 
 /// Bytes the products of a matrix-free dual of B (`b`) on `factor` claim for
-/// their own solves: the restricted solves' or the tree solves' scratch,
-/// whichever [`Operator`] takes (none for the factor's plain solve).
+/// their own solves ([`OwnSolves`]).
 pub(crate) fn own_solves_bytes(factor: &Factor, b: &Csc) -> usize {
-    if factor.is_dense() {
-        return 0;
-    }
-    let n = factor.n();
-    let paths = crate::restricted_solve::Paths::of(factor, &contact_dofs(b));
-    if paths.worth_it() {
-        return (n + paths.scratch_len()) * (F64 + 4);
-    }
-    crate::tree_solve::TreeSolve::of(factor).map_or(0, |t| t.scratch_len(n) * (F64 + 4))
-}
-
-/// See [`Operator::restricted`].
-struct Restricted {
-    paths: crate::restricted_solve::Paths,
-    work: std::cell::RefCell<(Vec<f64>, Vec<f64>)>,
-    work_single: std::cell::RefCell<(Vec<f32>, Vec<f32>)>,
-    _claim: Claim,
-}
-
-impl Restricted {
-    /// The restricted solves of B's DOFs in `factor`, when they pay.
-    fn of(factor: &Factor, b: &Csc) -> Option<Restricted> {
-        if factor.is_dense() {
-            return None;
-        }
-        let paths = crate::restricted_solve::Paths::of(factor, &contact_dofs(b));
-        if !paths.worth_it() {
-            return None;
-        }
-        let (n, k) = (factor.n(), paths.scratch_len());
-        Some(Restricted {
-            _claim: factor.ledger().claim((n + k) * (F64 + 4)),
-            work: std::cell::RefCell::new((vec![0.0; n], vec![0.0; k])),
-            work_single: std::cell::RefCell::new((vec![0.0; n], vec![0.0; k])),
-            paths,
-        })
-    }
+    OwnPlan::of(factor, b).bytes(factor.n())
 }
 
 impl Operator {
@@ -534,11 +556,7 @@ impl Operator {
             }
         }
         let single = factor.single_values();
-        let restricted = Restricted::of(factor, b);
-        let tree = match restricted {
-            Some(_) => None,
-            None => TreeSolves::of(factor),
-        };
+        let own = OwnSolves::of(factor, b);
         Operator {
             factor: factor.clone(),
             bt: b.transpose(),
@@ -550,8 +568,7 @@ impl Operator {
             )),
             _single_claim: factor.ledger().claim(single.len() * 4),
             lumped: None,
-            restricted,
-            tree,
+            own,
             single,
             work_single: std::cell::RefCell::new((
                 vec![0.0; factor.n()],
@@ -573,21 +590,27 @@ impl Operator {
                 }
             }
         }
-        if let Some(r) = &self.restricted {
-            let mut work = r.work_single.borrow_mut();
-            let (perm, buf) = &mut *work;
-            r.paths
-                .solve_single(&self.factor, &self.single, z, perm, buf);
-        } else if let Some(t) = &self.tree {
-            let mut scratch = t.work_single.borrow_mut();
-            let threads = self.factor.threads();
-            t.split
-                .solve_single(&self.factor, &self.single, z, &mut scratch, threads);
-        } else {
-            let n = z.len();
-            let zm = MatMut::from_column_major_slice_mut(&mut z[..], n, 1);
-            self.factor
-                .solve_single(&self.single, zm, MemStack::new(mem));
+        match &self.own {
+            OwnSolves::Restricted {
+                paths, work_single, ..
+            } => {
+                let mut work = work_single.borrow_mut();
+                let (perm, buf) = &mut *work;
+                paths.solve_single(&self.factor, &self.single, z, perm, buf);
+            }
+            OwnSolves::Tree {
+                split, work_single, ..
+            } => {
+                let threads = self.factor.threads();
+                let mut scratch = work_single.borrow_mut();
+                split.solve_single(&self.factor, &self.single, z, &mut scratch, threads);
+            }
+            OwnSolves::Plain => {
+                let n = z.len();
+                let zm = MatMut::from_column_major_slice_mut(&mut z[..], n, 1);
+                self.factor
+                    .solve_single(&self.single, zm, MemStack::new(mem));
+            }
         }
         for (r, yr) in y.iter_mut().enumerate() {
             let mut s = 0.0;
@@ -615,20 +638,22 @@ impl Operator {
                 }
             }
         }
-        if let Some(r) = &self.restricted {
-            let mut work = r.work.borrow_mut();
-            let (perm, buf) = &mut *work;
-            r.paths
-                .solve(&self.factor, self.factor.values(), z, perm, buf);
-        } else if let Some(t) = &self.tree {
-            let mut scratch = t.work.borrow_mut();
-            let threads = self.factor.threads();
-            t.split
-                .solve(&self.factor, self.factor.values(), z, &mut scratch, threads);
-        } else {
-            let n = z.len();
-            let zm = MatMut::from_column_major_slice_mut(&mut z[..], n, 1);
-            self.factor.solve_in_place(zm, MemStack::new(mem));
+        match &self.own {
+            OwnSolves::Restricted { paths, work, .. } => {
+                let mut work = work.borrow_mut();
+                let (perm, buf) = &mut *work;
+                paths.solve(&self.factor, self.factor.values(), z, perm, buf);
+            }
+            OwnSolves::Tree { split, work, .. } => {
+                let threads = self.factor.threads();
+                let mut scratch = work.borrow_mut();
+                split.solve(&self.factor, self.factor.values(), z, &mut scratch, threads);
+            }
+            OwnSolves::Plain => {
+                let n = z.len();
+                let zm = MatMut::from_column_major_slice_mut(&mut z[..], n, 1);
+                self.factor.solve_in_place(zm, MemStack::new(mem));
+            }
         }
         for (r, yr) in y.iter_mut().enumerate() {
             let mut s = 0.0;
@@ -809,64 +834,75 @@ pub(crate) mod tests {
         }
     }
 
-    /// With two threads and contacts spread over the whole body (their paths
-    /// cover L: no restricted solves), the products take the tree solves and
-    /// agree with those of one thread (the factor's plain solve).
+    /// With two threads the products take the tree solves and agree with
+    /// those of one thread: over the whole factor for contacts spread over
+    /// the body (their paths cover L; one thread takes the plain solve), and
+    /// restricted to the paths of a strip's bottom row (one thread takes the
+    /// restricted solves).
     #[test]
     fn matrix_free_products_on_two_threads_take_the_tree_solves() {
-        let (nx, ny) = (160, 160);
-        let k = grid(nx, ny);
-        // One contact every 7th DOF, d = 2: a normal and a tangent row each.
-        let dofs: Vec<usize> = (0..nx * ny).step_by(7).collect();
-        let m = dofs.len();
-        let nt: Vec<_> = dofs
-            .iter()
-            .enumerate()
-            .map(|(i, &j)| (i, j, -1.0))
-            .collect();
-        let tt: Vec<_> = dofs
-            .iter()
-            .enumerate()
-            .map(|(i, &j)| (i, (j + 1) % (nx * ny), 1.0))
-            .collect();
-        let n = Csc::from_triplets(m, nx * ny, &nt);
-        let t = Csc::from_triplets(m, nx * ny, &tt);
-        let free_on = |threads: usize| {
-            let f = Factor::with_last(
-                &k,
-                &[],
-                crate::Ordering::Metis,
-                std::sync::Arc::new(crate::threads::Threads::new(threads)),
-            )
-            .unwrap();
-            let dual = Dual::build(&f, &n, &t, 2, DualForm::MatrixFree).unwrap();
-            let b = stack_rows(&n, &t);
-            let own = own_solves_bytes(&f, &b);
-            (dual, own)
-        };
-        let (one, own_one) = free_on(1);
-        let (two, own_two) = free_on(2);
-        let op = |d: &Dual| {
-            d.free
-                .as_ref()
-                .map(|o| (o.restricted.is_some(), o.tree.is_some()))
-        };
-        assert_eq!(op(&one), Some((false, false)));
-        assert_eq!(op(&two), Some((false, true)));
-        assert_eq!(own_one, 0);
-        assert!(own_two >= nx * ny * (F64 + 4), "{own_two}");
-        let c = one.c;
-        let x: Vec<f64> = (0..c).map(|i| (i as f64 * 0.31).cos()).collect();
-        let (mut y1, mut y2) = (vec![0.0; c], vec![0.0; c]);
-        one.apply(&x, &mut y1);
-        two.apply(&x, &mut y2);
-        let scale = y1.iter().fold(0.0f64, |a, v| a.max(v.abs()));
-        for (a, b) in y1.iter().zip(&y2) {
-            assert!((a - b).abs() <= 1e-13 * scale, "{a} vs {b}");
-        }
-        two.apply_rough(&x, &mut y2);
-        for (a, b) in y1.iter().zip(&y2) {
-            assert!((a - b).abs() <= 1e-5 * scale, "{a} vs {b}");
+        for (nx, ny, step, restricted) in [(160, 160, 7, false), (2000, 20, 1, true)] {
+            let k = grid(nx, ny);
+            // d = 2: a normal and a tangent row per contact, on every step-th
+            // DOF of the body or along the bottom row.
+            let dofs: Vec<usize> = if restricted {
+                (0..nx).collect()
+            } else {
+                (0..nx * ny).step_by(step).collect()
+            };
+            let m = dofs.len();
+            let nt: Vec<_> = dofs
+                .iter()
+                .enumerate()
+                .map(|(i, &j)| (i, j, -1.0))
+                .collect();
+            let tt: Vec<_> = dofs
+                .iter()
+                .enumerate()
+                .map(|(i, &j)| (i, (j + 1) % (nx * ny), 1.0))
+                .collect();
+            let n = Csc::from_triplets(m, nx * ny, &nt);
+            let t = Csc::from_triplets(m, nx * ny, &tt);
+            let free_on = |threads: usize| {
+                let f = Factor::with_last(
+                    &k,
+                    &[],
+                    crate::Ordering::Metis,
+                    std::sync::Arc::new(crate::threads::Threads::new(threads)),
+                )
+                .unwrap();
+                let dual = Dual::build(&f, &n, &t, 2, DualForm::MatrixFree).unwrap();
+                let own = own_solves_bytes(&f, &stack_rows(&n, &t));
+                (dual, own)
+            };
+            let (one, own_one) = free_on(1);
+            let (two, own_two) = free_on(2);
+            fn own(d: &Dual) -> &OwnSolves {
+                &d.free.as_ref().expect("matrix-free").own
+            }
+            match own(&one) {
+                OwnSolves::Plain => assert!(!restricted && own_one == 0),
+                OwnSolves::Restricted { .. } => assert!(restricted && own_one > 0),
+                OwnSolves::Tree { .. } => panic!("one thread"),
+            }
+            match own(&two) {
+                OwnSolves::Tree { split, .. } => assert_eq!(split.restricted(), restricted),
+                _ => panic!("two threads take the tree"),
+            }
+            assert!(own_two >= nx * ny * (F64 + 4), "{own_two}");
+            let c = one.c;
+            let x: Vec<f64> = (0..c).map(|i| (i as f64 * 0.31).cos()).collect();
+            let (mut y1, mut y2) = (vec![0.0; c], vec![0.0; c]);
+            one.apply(&x, &mut y1);
+            two.apply(&x, &mut y2);
+            let scale = y1.iter().fold(0.0f64, |a, v| a.max(v.abs()));
+            for (a, b) in y1.iter().zip(&y2) {
+                assert!((a - b).abs() <= 1e-13 * scale, "{a} vs {b}");
+            }
+            two.apply_rough(&x, &mut y2);
+            for (a, b) in y1.iter().zip(&y2) {
+                assert!((a - b).abs() <= 1e-5 * scale, "{a} vs {b}");
+            }
         }
     }
 
@@ -902,7 +938,11 @@ pub(crate) mod tests {
         assert!(free.is_matrix_free() && free.a.is_empty());
         // The contact DOFs are the factor's last: their paths are the trailing
         // supernodes, and the products take the restricted solves.
-        assert!(free.free.as_ref().is_some_and(|o| o.restricted.is_some()));
+        assert!(
+            free.free
+                .as_ref()
+                .is_some_and(|o| matches!(o.own, OwnSolves::Restricted { .. }))
+        );
         let c = dense.c;
         let scale = dense.a.iter().fold(0.0f64, |s, v| s.max(v.abs()));
         for j in 0..c {

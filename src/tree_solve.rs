@@ -71,6 +71,10 @@ pub(crate) struct TreeSolve {
     top_at: Vec<usize>,
     /// The longest pattern below a supernode (one update's scratch).
     below: usize,
+    /// The columns the solves read and write (the factor's order): those of
+    /// the supernodes on the paths of the DOFs they were restricted to, or
+    /// None for all.
+    cols: Option<Vec<usize>>,
 }
 
 /// Scratch of [`TreeSolve`]'s solves in one precision: the right-hand side in
@@ -84,10 +88,14 @@ pub(crate) struct TreeScratch<T> {
 }
 
 impl TreeSolve {
-    /// The split of `factor`'s tree for its threads; None where one thread
-    /// would do as well: one thread, a dense or small factor, or a tree that
-    /// does not split into at least two subtrees.
-    pub(crate) fn of(factor: &Factor) -> Option<TreeSolve> {
+    /// The split of `factor`'s tree for its threads, over the supernodes on
+    /// the paths from `dofs` (original numbering) to the roots, or over all
+    /// of them (`dofs` = None); None where one thread would do as well: one
+    /// thread, a dense or small factor, or a tree that does not split into at
+    /// least two subtrees. Restricted to paths, a solve gives K^-1 x at the
+    /// paths' DOFs for an x that vanishes outside them, as
+    /// `restricted_solve.rs` does on one thread.
+    pub(crate) fn of(factor: &Factor, dofs: Option<&[usize]>) -> Option<TreeSolve> {
         let threads = factor.threads().count();
         if threads < 2 || factor.is_dense() {
             return None;
@@ -95,15 +103,24 @@ impl TreeSolve {
         let sym = factor.supernodal_symbolic();
         let tree = Tree::of(factor);
         let ns = tree.len();
+        let needed = match dofs {
+            Some(dofs) => {
+                let new_of = factor.new_of_old();
+                tree.on_paths(dofs.iter().map(|&dof| tree.of_col[new_of[dof]]))
+            }
+            None => vec![true; ns],
+        };
         let mut children = vec![Vec::new(); ns];
         let mut roots = Vec::new();
         let pattern_len = |s: usize| sym.supernode(s).pattern().len();
-        let below = (0..ns).map(pattern_len).max().unwrap_or(0);
+        let on = || (0..ns).filter(|&s| needed[s]);
+        let below = on().map(pattern_len).max().unwrap_or(0);
         let mut weight: Vec<usize> = (0..ns)
             .map(|s| (tree.width[s] + pattern_len(s)) * tree.width[s])
             .collect();
-        // Children before parents: the subtrees' entries in one pass.
-        for s in 0..ns {
+        // Children before parents: the subtrees' entries in one pass (the
+        // paths are closed upwards: a needed supernode's parent is needed).
+        for s in on() {
             match tree.parent[s] {
                 NONE => roots.push(s),
                 p => {
@@ -112,6 +129,10 @@ impl TreeSolve {
                 }
             }
         }
+        let cols = dofs.map(|_| {
+            on().flat_map(|s| tree.begin[s]..tree.begin[s] + tree.width[s])
+                .collect()
+        });
         let total: usize = roots.iter().map(|&r| weight[r]).sum();
         if total < MIN_ENTRIES {
             return None;
@@ -164,6 +185,7 @@ impl TreeSolve {
             top_cols,
             top_at,
             below,
+            cols,
         })
     }
 
@@ -182,9 +204,26 @@ impl TreeSolve {
         }
     }
 
-    /// Bytes of [`TreeSolve::scratch`] per byte of its precision.
+    /// Entries of [`TreeSolve::scratch`] (in its precision).
     pub(crate) fn scratch_len(&self, n: usize) -> usize {
         n + (self.bins.len() + 1) * (self.top_cols.len() + self.below)
+    }
+
+    /// Bytes of the split itself besides its scratch (the top's index per
+    /// column and the restricted columns).
+    pub(crate) fn bytes(&self) -> usize {
+        let cols = self.cols.as_ref().map_or(0, Vec::len);
+        (self.top_at.len()
+            + cols
+            + self.top_cols.len()
+            + self.bins.iter().map(Vec::len).sum::<usize>())
+            * std::mem::size_of::<usize>()
+    }
+
+    /// Whether the solves are restricted to paths (see [`TreeSolve::of`]).
+    #[cfg(test)]
+    pub(crate) fn restricted(&self) -> bool {
+        self.cols.is_some()
     }
 
     /// Threads the solves use (one bin of subtrees each).
@@ -269,7 +308,9 @@ macro_rules! tree_solve {
     ($name:ident, $t:ty) => {
         impl TreeSolve {
             /// x := K^-1 x (x: n, original numbering), with L's values `values`
-            /// in this precision, on `threads`.
+            /// in this precision, on `threads`; restricted to paths (see
+            /// [`TreeSolve::of`]), only at their DOFs, x's other entries left as
+            /// they were.
             pub(crate) fn $name(
                 &self,
                 factor: &Factor,
@@ -288,8 +329,12 @@ macro_rules! tree_solve {
                     top_vals,
                     buf,
                 } = scratch;
-                for (new, &old) in old_of.iter().enumerate() {
-                    work[new] = x[old];
+                match &self.cols {
+                    Some(cols) => cols.iter().for_each(|&new| work[new] = x[old_of[new]]),
+                    None => old_of
+                        .iter()
+                        .enumerate()
+                        .for_each(|(new, &old)| work[new] = x[old]),
                 }
                 let top_at = &self.top_at;
                 threads.run(true, |par| {
@@ -373,8 +418,12 @@ macro_rules! tree_solve {
                         _ => jobs.into_par_iter().for_each(back),
                     }
                 });
-                for (new, &old) in old_of.iter().enumerate() {
-                    x[old] = work[new];
+                match &self.cols {
+                    Some(cols) => cols.iter().for_each(|&new| x[old_of[new]] = work[new]),
+                    None => old_of
+                        .iter()
+                        .enumerate()
+                        .for_each(|(new, &old)| x[old] = work[new]),
                 }
             }
         }
@@ -414,6 +463,53 @@ mod tests {
         crate::sparse::Csc::from_triplets(n, n, &t)
     }
 
+    /// Restricted to the paths of a strip's bottom row: the tree solve equals
+    /// the full solve at the row's DOFs (double to 1e-13, single to 1e-5) and
+    /// touches no other entry of x.
+    #[test]
+    fn restricted_tree_solve_equals_the_full_one_at_the_dofs() {
+        let (nx, ny) = (2000, 20);
+        let k = crate::dual::tests::grid(nx, ny);
+        let n = nx * ny;
+        let dofs: Vec<usize> = (0..nx).collect();
+        for ordering in [Ordering::Amd, Ordering::Metis] {
+            let f = Factor::with_last(&k, &[], ordering, Arc::new(Threads::new(2))).unwrap();
+            let ts = TreeSolve::of(&f, Some(&dofs)).expect("a split");
+            assert!(ts.restricted() && ts.threads() == 2);
+            assert!(
+                ts.cols.as_ref().unwrap().len() < n / 2,
+                "paths hold few columns"
+            );
+            let mut x = vec![0.0; n];
+            for (i, &d) in dofs.iter().enumerate() {
+                x[d] = (i as f64 * 0.7).sin() + 0.2;
+            }
+            let mut full = x.clone();
+            f.solve_vec(&mut full);
+            let scale = full.iter().fold(0.0f64, |a, v| a.max(v.abs()));
+            // Entries off the paths keep a marker.
+            let mut got = x.clone();
+            got[n - 1] = 7.0;
+            let mut scratch = ts.scratch::<f64>(n);
+            ts.solve(&f, f.values(), &mut got, &mut scratch, f.threads());
+            for &d in &dofs {
+                assert!(
+                    (got[d] - full[d]).abs() <= 1e-13 * scale,
+                    "{ordering:?} {d}"
+                );
+            }
+            let on_paths = ts.cols.as_ref().unwrap().contains(&f.new_of_old()[n - 1]);
+            assert!(on_paths || got[n - 1] == 7.0);
+            let values = f.single_values();
+            let mut xs: Vec<f32> = x.iter().map(|&v| v as f32).collect();
+            let mut ss = ts.scratch::<f32>(n);
+            ts.solve_single(&f, &values, &mut xs, &mut ss, f.threads());
+            for &d in &dofs {
+                assert!((f64::from(xs[d]) - full[d]).abs() <= 1e-5 * scale, "{d}");
+            }
+        }
+    }
+
     /// The tree solve equals faer's solve (double to 1e-13, single to 1e-5),
     /// with 2 and 3 threads, AMD and METIS, and on two components; one thread
     /// gives no split.
@@ -435,11 +531,11 @@ mod tests {
             for ordering in [Ordering::Amd, Ordering::Metis] {
                 let single =
                     Factor::with_last(k, &[], ordering, Arc::new(Threads::new(1))).unwrap();
-                assert!(TreeSolve::of(&single).is_none());
+                assert!(TreeSolve::of(&single, None).is_none());
                 for threads in [2, 3] {
                     let f = Factor::with_last(k, &[], ordering, Arc::new(Threads::new(threads)))
                         .unwrap();
-                    let ts = TreeSolve::of(&f).expect("a split");
+                    let ts = TreeSolve::of(&f, None).expect("a split");
                     assert_eq!(ts.threads(), threads);
                     assert!(!ts.top.is_empty() || k.nrows == 2 * n1);
                     let x: Vec<f64> = (0..n).map(|i| (i as f64 * 0.37).sin() + 0.1).collect();
