@@ -14,7 +14,9 @@
 //! generalised Jacobian of the disk projection (Hueber, Stadler, Wohlmuth). For
 //! Coulomb the bound mu lambda_N is differentiated too: the slipping tangential
 //! force follows the normal one. The reduced system on the free unknowns is solved
-//! by a dense LU (a free row's equation is (A d)_j = -w_j, w = A lambda - b).
+//! densely (a free row's equation is (A d)_j = -w_j, w = A lambda - b): by
+//! Cholesky where it is symmetric, in single precision with refinement in
+//! double from order MIXED_MIN on, else by LU (`solve_reduced`).
 //!
 //! A numerically singular reduced system (A singular: redundant or dependent
 //! contact rows) is solved in the least-squares sense with the minimum norm
@@ -587,6 +589,13 @@ fn refine(
     Some(its)
 }
 
+/// Reduced systems of at least this order, when symmetric, are first solved by
+/// Cholesky in single precision with refinement (`dense::llt_solve_mixed`) to
+/// the relative residual MIXED_RTOL, the backward error of a Cholesky solve in
+/// double; below it the factorisation is cheap anyway.
+const MIXED_MIN: usize = 256;
+const MIXED_RTOL: f64 = 1e-15;
+
 /// Solves the reduced system M z = rhs: by Cholesky when M is `symmetric` (half the
 /// flops of LU), else or when that fails by a partially pivoted LU, unless M is numerically
 /// singular (the solution is not finite or much larger than M and rhs warrant),
@@ -616,6 +625,18 @@ fn solve_reduced(
     // Each dense solver works on a copy of M (the SVD on two k x k factors too).
     let k2 = mat.nrows() * mat.ncols();
     let copy_claim = ledger.claim_f64(k2);
+    if symmetric
+        && mat.nrows() >= MIXED_MIN
+        && let Some(z) = threads.run(big, |par| {
+            let r: Vec<f64> = r.col(0).iter().copied().collect();
+            dense::llt_solve_mixed(m, &r, MIXED_RTOL, par)
+        })
+    {
+        let z = Mat::from_fn(z.len(), 1, |i, _| z[i]);
+        if acceptable(&z) {
+            return Some(z);
+        }
+    }
     if symmetric
         && let Some(z) = threads.run(big, |par| dense::llt_solve(m, r, par))
         && acceptable(&z)
