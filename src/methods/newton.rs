@@ -38,7 +38,7 @@
 //! Warm-up: every solve on a dense A starts with up to PRESWEEPS projected
 //! Gauss-Seidel sweeps (cheap against a Newton step), so that the first active
 //! set Newton sees is near the answer; they, and the fallback's, read A in
-//! single precision (`pgs::Rough`). A matrix-free dual has no entries to
+//! single precision on a large dual (`pgs::Rough`, `pgs::ROUGH_MIN_C`). A matrix-free dual has no entries to
 //! sweep: a cold solve starts instead at the projection of alpha G b, G = B K B^T
 //! the lumped estimate of A^-1 (alpha minimising the dual energy along G b),
 //! when that lowers |F|; its reduced systems are solved by CG / GMRES
@@ -698,8 +698,13 @@ pub(super) const NEWTON: MethodSpec = MethodSpec {
         if matrix_free {
             (super::krylov::RESTART + 10) * c * F64
         } else {
-            // And the single-precision copy of A for the sweeps.
-            2 * c * c * F64 + c * c * std::mem::size_of::<f32>()
+            // And the single-precision copy of A for the sweeps (large A).
+            let rough = if c >= pgs::ROUGH_MIN_C {
+                c * c * std::mem::size_of::<f32>()
+            } else {
+                0
+            };
+            2 * c * c * F64 + rough
         }
     },
     build: |problem, _opts, target| (Box::new(Newton::new(problem, target)), problem.dual.c),
@@ -727,7 +732,7 @@ pub(super) struct Newton {
     /// The reduced solves' Krylov state on a matrix-free dual.
     krylov: Krylov,
     /// A's columns in single precision for the warm-up and fallback sweeps on
-    /// an assembled dual (made at their first use).
+    /// a large assembled dual (made at their first use; see pgs::ROUGH_MIN_C).
     rough_a: Option<pgs::Rough>,
     /// The matrix-free fallback's MPRGP (made at its first use), the bounds it
     /// works with and its estimate of |A|.
@@ -792,10 +797,7 @@ impl OuterStep for Newton {
         };
         while swept < presweeps && problem.error(lam, w, p, v) > self.target {
             let n = PRESWEEP_CHUNK.min(presweeps - swept);
-            let rough = self
-                .rough_a
-                .get_or_insert_with(|| pgs::Rough::new(problem.dual));
-            *inner += pgs::rough_sweeps(problem, rough, lam, w, n);
+            *inner += pgs::sweeps_for_newton(problem, &mut self.rough_a, lam, w, n);
             swept += n;
         }
         if swept > 0 {
@@ -892,10 +894,7 @@ impl OuterStep for Newton {
             return self.mprgp_fallback(problem, lam, w, inner);
         }
         // Fallback: a first-order step.
-        let rough = self
-            .rough_a
-            .get_or_insert_with(|| pgs::Rough::new(problem.dual));
-        *inner += pgs::rough_sweeps(problem, rough, lam, w, FALLBACK_SWEEPS);
+        *inner += pgs::sweeps_for_newton(problem, &mut self.rough_a, lam, w, FALLBACK_SWEEPS);
         problem.gradient(lam, w);
         self.res = residual_norm(problem, lam, w);
         Flow::Go(Gradient::Exact)
