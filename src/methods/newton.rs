@@ -38,8 +38,8 @@
 //! Warm-up: every solve on a dense A starts with up to PRESWEEPS projected
 //! Gauss-Seidel sweeps (cheap against a Newton step), so that the first active
 //! set Newton sees is near the answer; they, and the fallback's, read A in
-//! single precision on a large dual (`pgs::Rough`, `pgs::ROUGH_MIN_C`). A matrix-free dual has no entries to
-//! sweep: a cold solve starts instead at the projection of alpha G b, G = B K B^T
+//! single precision on a large dual (`pgs::Rough`, `pgs::ROUGH_MIN_C`). A
+//! matrix-free dual has no entries to sweep: a cold solve starts instead at the projection of alpha G b, G = B K B^T
 //! the lumped estimate of A^-1 (alpha minimising the dual energy along G b),
 //! when that lowers |F|; its reduced systems are solved by CG / GMRES
 //! preconditioned with G too (`krylov_step`).
@@ -691,14 +691,13 @@ fn residual_norm(problem: &DualProblem<'_>, lam: &[f64], w: &[f64]) -> f64 {
 pub(super) const NEWTON: MethodSpec = MethodSpec {
     name: "newton",
     needs_entries: false,
-    // Dense: the reduced matrix, the copy its solver factors and A in single
-    // precision for the sweeps. Matrix-free: the
-    // Krylov vectors (GMRES's basis and a few more, length c at most).
+    // Dense: the reduced matrix, the copy its solver factors and, on a large
+    // dual, A in single precision for the sweeps. Matrix-free: the Krylov
+    // vectors (GMRES's basis and a few more, length c at most).
     workspace: |_m, c, matrix_free| {
         if matrix_free {
             (super::krylov::RESTART + 10) * c * F64
         } else {
-            // And the single-precision copy of A for the sweeps (large A).
             let rough = if c >= pgs::ROUGH_MIN_C {
                 c * c * std::mem::size_of::<f32>()
             } else {
@@ -801,9 +800,9 @@ impl OuterStep for Newton {
             swept += n;
         }
         if swept > 0 {
-            // w was updated column by column in single precision (the error
-            // tests between chunks read it so: they only decide when to stop
-            // sweeping): recompute it.
+            // w was updated column by column (in single precision on a large
+            // dual; the error tests between chunks read it so: they only decide
+            // when to stop sweeping): recompute it.
             problem.gradient(lam, w);
         }
         // No sweeps on a matrix-free dual: a cold start begins at the lumped
