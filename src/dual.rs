@@ -456,8 +456,9 @@ struct Operator {
 /// plain solve, with their scratch in double and single precision and its
 /// bytes on the ledger.
 enum OwnSolves {
-    /// The plain solve (one thread, with the contact DOFs' paths holding most
-    /// of L).
+    /// The factor's plain solve: a dense factor, or no split that pays (one
+    /// thread where the contact DOFs' paths hold most of L, or a small
+    /// factor).
     Plain,
     /// Restricted to the supernodes on the contact DOFs' paths to the root,
     /// where those hold few of L's entries, on one thread
@@ -488,6 +489,10 @@ enum OwnPlan {
 }
 
 impl OwnPlan {
+    /// The tree solves where the factor's threads and tree allow them,
+    /// restricted to the contact DOFs' paths where those hold few of L's
+    /// entries; else the restricted solves on one thread where they pay;
+    /// else the plain solve.
     fn of(factor: &Factor, b: &Csc) -> OwnPlan {
         if factor.is_dense() {
             return OwnPlan::Plain;

@@ -421,7 +421,7 @@ fn gather<'z>(
 }
 
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     use super::*;
     use crate::options::Ordering;
     use crate::sparse::Csc;
@@ -429,7 +429,7 @@ mod tests {
     use std::sync::Arc;
 
     /// A 3D grid Laplacian (7-point, shifted), nx ny nz nodes.
-    fn grid3(nx: usize, ny: usize, nz: usize) -> Csc {
+    pub(crate) fn grid3(nx: usize, ny: usize, nz: usize) -> Csc {
         let id = |i: usize, j: usize, k: usize| i + nx * (j + ny * k);
         let mut t = Vec::new();
         for k in 0..nz {

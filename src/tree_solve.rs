@@ -233,6 +233,16 @@ impl TreeSolve {
     }
 }
 
+/// The parallelism of one supernode's kernels (w columns, r rows below):
+/// `par` where the block is large enough to pay for it.
+fn kernel_par(w: usize, r: usize, par: Par) -> Par {
+    if (w + r) * w >= PARALLEL_MIN_ENTRIES {
+        par
+    } else {
+        Par::Seq
+    }
+}
+
 /// One supernode's forward step on the right-hand side at `x` (the factor's
 /// ordering): x_s := L_ss^-1 x_s, then `scatter(row, v)` for each row of its
 /// pattern with v = (L_Rs x_s)_row, to be subtracted there.
@@ -242,11 +252,7 @@ macro_rules! forward_node {
         let val = node.val();
         let (w, pattern) = (val.ncols(), node.pattern());
         let r = pattern.len();
-        let par = if (w + r) * w >= PARALLEL_MIN_ENTRIES {
-            $par
-        } else {
-            Par::Seq
-        };
+        let par = kernel_par(w, r, $par);
         let xs = $x($begin[$s], w);
         solve_lower_triangular_in_place(
             val.submatrix(0, 0, w, w),
@@ -277,11 +283,7 @@ macro_rules! back_node {
         let val = node.val();
         let (w, pattern) = (val.ncols(), node.pattern());
         let r = pattern.len();
-        let par = if (w + r) * w >= PARALLEL_MIN_ENTRIES {
-            $par
-        } else {
-            Par::Seq
-        };
+        let par = kernel_par(w, r, $par);
         for (v, &row) in $buf[..r].iter_mut().zip(pattern) {
             *v = $gather(row);
         }
@@ -365,10 +367,11 @@ macro_rules! tree_solve {
                             );
                         }
                     };
-                    let jobs: Vec<_> = self.bins.iter().zip(per_bin.iter_mut()).collect();
                     match par {
-                        Par::Seq => jobs.into_iter().for_each(forward),
-                        _ => jobs.into_par_iter().for_each(forward),
+                        Par::Seq => self.bins.iter().zip(per_bin.iter_mut()).for_each(forward),
+                        _ => (self.bins.par_iter(), per_bin.par_iter_mut())
+                            .into_par_iter()
+                            .for_each(forward),
                     }
                     for (acc, _) in per_bin.iter() {
                         for (&col, &v) in self.top_cols.iter().zip(acc) {
@@ -412,10 +415,11 @@ macro_rules! tree_solve {
                             );
                         }
                     };
-                    let jobs: Vec<_> = self.bins.iter().zip(per_bin.iter_mut()).collect();
                     match par {
-                        Par::Seq => jobs.into_iter().for_each(back),
-                        _ => jobs.into_par_iter().for_each(back),
+                        Par::Seq => self.bins.iter().zip(per_bin.iter_mut()).for_each(back),
+                        _ => (self.bins.par_iter(), per_bin.par_iter_mut())
+                            .into_par_iter()
+                            .for_each(back),
                     }
                 });
                 match &self.cols {
@@ -437,31 +441,8 @@ tree_solve!(solve_single, f32);
 mod tests {
     use super::*;
     use crate::options::Ordering;
+    use crate::selected_inverse::tests::grid3;
     use std::sync::Arc;
-
-    /// A 3D grid Laplacian plus a shift, n = nx ny nz.
-    fn grid3(nx: usize, ny: usize, nz: usize) -> crate::sparse::Csc {
-        let id = |i: usize, j: usize, k: usize| i + nx * (j + ny * k);
-        let mut t = Vec::new();
-        for k in 0..nz {
-            for j in 0..ny {
-                for i in 0..nx {
-                    let a = id(i, j, k);
-                    t.push((a, a, 6.1 + 0.01 * (a % 5) as f64));
-                    for (di, dj, dk) in [(1, 0, 0), (0, 1, 0), (0, 0, 1)] {
-                        let (i2, j2, k2) = (i + di, j + dj, k + dk);
-                        if i2 < nx && j2 < ny && k2 < nz {
-                            let b = id(i2, j2, k2);
-                            t.push((a, b, -1.0));
-                            t.push((b, a, -1.0));
-                        }
-                    }
-                }
-            }
-        }
-        let n = nx * ny * nz;
-        crate::sparse::Csc::from_triplets(n, n, &t)
-    }
 
     /// Restricted to the paths of a strip's bottom row: the tree solve equals
     /// the full solve at the row's DOFs (double to 1e-13, single to 1e-5) and
