@@ -447,107 +447,42 @@ struct Operator {
     /// preconditions Newton's reduced systems, once K is handed over
     /// ([`Dual::set_lumped`]), with its bytes on the ledger.
     lumped: Option<(Csc, Claim)>,
-    /// The products' own solves, where they pay: restricted to the contact
-    /// DOFs' paths and/or by the tree on several threads (see [`OwnSolves`]).
-    own: OwnSolves,
+    /// The products' own solves, where they pay (see [`OwnSolves`]); None:
+    /// the factor's plain solve.
+    own: Option<OwnSolves>,
 }
 
 /// The solves a matrix-free dual's products take instead of the factor's
-/// plain solve, with their scratch in double and single precision and its
-/// bytes on the ledger.
-enum OwnSolves {
-    /// The factor's plain solve: a dense factor, or no split that pays (one
-    /// thread where the contact DOFs' paths hold most of L, or a small
-    /// factor).
-    Plain,
-    /// Restricted to the supernodes on the contact DOFs' paths to the root,
-    /// where those hold few of L's entries, on one thread
-    /// (`restricted_solve.rs`): the n-vector in the factor's order and a
-    /// product buffer.
-    Restricted {
-        paths: crate::restricted_solve::Paths,
-        work: std::cell::RefCell<(Vec<f64>, Vec<f64>)>,
-        work_single: std::cell::RefCell<(Vec<f32>, Vec<f32>)>,
-        _claim: Claim,
-    },
-    /// With more than one thread, by the elimination tree, independent
-    /// subtrees in parallel (`tree_solve.rs`), over the same paths where they
-    /// hold few of L's entries, else over the whole factor.
-    Tree {
-        split: crate::tree_solve::TreeSolve,
-        work: std::cell::RefCell<crate::tree_solve::TreeScratch<f64>>,
-        work_single: std::cell::RefCell<crate::tree_solve::TreeScratch<f32>>,
-        _claim: Claim,
-    },
-}
-
-/// What [`OwnSolves`] will hold for B's DOFs on `factor`, before its scratch.
-enum OwnPlan {
-    Plain,
-    Restricted(crate::restricted_solve::Paths),
-    Tree(crate::tree_solve::TreeSolve),
-}
-
-impl OwnPlan {
-    /// The tree solves where the factor's threads and tree allow them,
-    /// restricted to the contact DOFs' paths where those hold few of L's
-    /// entries; else the restricted solves on one thread where they pay;
-    /// else the plain solve.
-    fn of(factor: &Factor, b: &Csc) -> OwnPlan {
-        if factor.is_dense() {
-            return OwnPlan::Plain;
-        }
-        let dofs = contact_dofs(b);
-        let paths = crate::restricted_solve::Paths::of(factor, &dofs);
-        let restrict = paths.worth_it();
-        match crate::tree_solve::TreeSolve::of(factor, restrict.then_some(&dofs[..])) {
-            Some(split) => OwnPlan::Tree(split),
-            None if restrict => OwnPlan::Restricted(paths),
-            None => OwnPlan::Plain,
-        }
-    }
-
-    /// Bytes [`OwnSolves`] claims for this plan on a factor of order n.
-    fn bytes(&self, n: usize) -> usize {
-        match self {
-            OwnPlan::Plain => 0,
-            OwnPlan::Restricted(paths) => (n + paths.scratch_len()) * (F64 + 4),
-            OwnPlan::Tree(split) => split.scratch_len(n) * (F64 + 4) + split.bytes(),
-        }
-    }
+/// plain solve, where they pay (`tree_solve.rs`: restricted to the contact
+/// DOFs' paths where those hold few of L's entries, split between threads
+/// where there are several), with their scratch in double and single
+/// precision and its bytes on the ledger.
+struct OwnSolves {
+    split: crate::tree_solve::TreeSolve,
+    work: std::cell::RefCell<crate::tree_solve::TreeScratch<f64>>,
+    work_single: std::cell::RefCell<crate::tree_solve::TreeScratch<f32>>,
+    _claim: Claim,
 }
 
 impl OwnSolves {
-    /// The solves of B's DOFs on `factor` (see [`OwnPlan::of`]).
-    fn of(factor: &Factor, b: &Csc) -> OwnSolves {
+    /// The solves of B's DOFs on `factor`; None for the plain solve.
+    fn of(factor: &Factor, b: &Csc) -> Option<OwnSolves> {
+        let split = crate::tree_solve::TreeSolve::of(factor, &contact_dofs(b))?;
         let n = factor.n();
-        let plan = OwnPlan::of(factor, b);
-        let claim = factor.ledger().claim(plan.bytes(n));
-        match plan {
-            OwnPlan::Plain => OwnSolves::Plain,
-            OwnPlan::Restricted(paths) => {
-                let k = paths.scratch_len();
-                OwnSolves::Restricted {
-                    work: std::cell::RefCell::new((vec![0.0; n], vec![0.0; k])),
-                    work_single: std::cell::RefCell::new((vec![0.0; n], vec![0.0; k])),
-                    paths,
-                    _claim: claim,
-                }
-            }
-            OwnPlan::Tree(split) => OwnSolves::Tree {
-                work: std::cell::RefCell::new(split.scratch(n)),
-                work_single: std::cell::RefCell::new(split.scratch(n)),
-                split,
-                _claim: claim,
-            },
-        }
+        Some(OwnSolves {
+            _claim: factor.ledger().claim(split.bytes_with_scratch(n)),
+            work: std::cell::RefCell::new(split.scratch(n)),
+            work_single: std::cell::RefCell::new(split.scratch(n)),
+            split,
+        })
     }
 }
 
 /// Bytes the products of a matrix-free dual of B (`b`) on `factor` claim for
 /// their own solves ([`OwnSolves`]).
 pub(crate) fn own_solves_bytes(factor: &Factor, b: &Csc) -> usize {
-    OwnPlan::of(factor, b).bytes(factor.n())
+    crate::tree_solve::TreeSolve::of(factor, &contact_dofs(b))
+        .map_or(0, |split| split.bytes_with_scratch(factor.n()))
 }
 
 impl Operator {
@@ -596,21 +531,13 @@ impl Operator {
             }
         }
         match &self.own {
-            OwnSolves::Restricted {
-                paths, work_single, ..
-            } => {
-                let mut work = work_single.borrow_mut();
-                let (perm, buf) = &mut *work;
-                paths.solve_single(&self.factor, &self.single, z, perm, buf);
-            }
-            OwnSolves::Tree {
-                split, work_single, ..
-            } => {
+            Some(own) => {
+                let mut scratch = own.work_single.borrow_mut();
                 let threads = self.factor.threads();
-                let mut scratch = work_single.borrow_mut();
-                split.solve_single(&self.factor, &self.single, z, &mut scratch, threads);
+                own.split
+                    .solve_single(&self.factor, &self.single, z, &mut scratch, threads);
             }
-            OwnSolves::Plain => {
+            None => {
                 let n = z.len();
                 let zm = MatMut::from_column_major_slice_mut(&mut z[..], n, 1);
                 self.factor
@@ -644,17 +571,13 @@ impl Operator {
             }
         }
         match &self.own {
-            OwnSolves::Restricted { paths, work, .. } => {
-                let mut work = work.borrow_mut();
-                let (perm, buf) = &mut *work;
-                paths.solve(&self.factor, self.factor.values(), z, perm, buf);
-            }
-            OwnSolves::Tree { split, work, .. } => {
+            Some(own) => {
+                let mut scratch = own.work.borrow_mut();
                 let threads = self.factor.threads();
-                let mut scratch = work.borrow_mut();
-                split.solve(&self.factor, self.factor.values(), z, &mut scratch, threads);
+                own.split
+                    .solve(&self.factor, self.factor.values(), z, &mut scratch, threads);
             }
-            OwnSolves::Plain => {
+            None => {
                 let n = z.len();
                 let zm = MatMut::from_column_major_slice_mut(&mut z[..], n, 1);
                 self.factor.solve_in_place(zm, MemStack::new(mem));
@@ -882,18 +805,19 @@ pub(crate) mod tests {
             };
             let (one, own_one) = free_on(1);
             let (two, own_two) = free_on(2);
-            fn own(d: &Dual) -> &OwnSolves {
-                &d.free.as_ref().expect("matrix-free").own
+            fn own(d: &Dual) -> Option<&OwnSolves> {
+                d.free.as_ref().expect("matrix-free").own.as_ref()
             }
             match own(&one) {
-                OwnSolves::Plain => assert!(!restricted && own_one == 0),
-                OwnSolves::Restricted { .. } => assert!(restricted && own_one > 0),
-                OwnSolves::Tree { .. } => panic!("one thread"),
+                None => assert!(!restricted && own_one == 0),
+                Some(o) => {
+                    assert!(restricted && own_one > 0);
+                    assert!(o.split.restricted() && o.split.threads() == 1);
+                }
             }
-            match own(&two) {
-                OwnSolves::Tree { split, .. } => assert_eq!(split.restricted(), restricted),
-                _ => panic!("two threads take the tree"),
-            }
+            let split = &own(&two).expect("two threads take the tree").split;
+            assert_eq!(split.restricted(), restricted);
+            assert_eq!(split.threads(), 2);
             assert!(own_two >= nx * ny * (F64 + 4), "{own_two}");
             let c = one.c;
             let x: Vec<f64> = (0..c).map(|i| (i as f64 * 0.31).cos()).collect();
@@ -946,7 +870,8 @@ pub(crate) mod tests {
         assert!(
             free.free
                 .as_ref()
-                .is_some_and(|o| matches!(o.own, OwnSolves::Restricted { .. }))
+                .and_then(|o| o.own.as_ref())
+                .is_some_and(|o| o.split.restricted())
         );
         let c = dense.c;
         let scale = dense.a.iter().fold(0.0f64, |s, v| s.max(v.abs()));

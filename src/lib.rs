@@ -21,7 +21,6 @@ mod options;
 mod ordering;
 mod problem;
 mod report;
-mod restricted_solve;
 mod selected_inverse;
 mod sparse;
 mod supernode_tree;

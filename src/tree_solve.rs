@@ -1,18 +1,26 @@
-//! Solves with K's factor on several threads for one right-hand side, by the
-//! elimination tree: the subtrees below a top set of supernodes are
-//! independent, so their forward and back substitutions run in parallel, and
-//! only the top (the separators near the root) runs on one thread. A solve
-//! with one right-hand side is memory-bound and its dense kernels are
-//! matrix-vector products, which threads inside a kernel do not speed up; the
-//! tree does. Used by the matrix-free dual's products (`dual.rs`), where one
-//! solve per Krylov iteration is the whole cost of an iteration.
+//! Solves with K's factor for one right-hand side by the elimination tree:
+//! the products of the matrix-free dual (B^T x in, B z out).
 //!
+//! Restricted to paths. With L L^T = P K P^T, the forward solve of a
+//! right-hand side that vanishes outside a set of DOFs is zero outside the
+//! supernodes on the elimination-tree paths from those DOFs to the root, and
+//! the back solve needs only the same supernodes to give the values at those
+//! DOFs; both passes then touch those supernodes alone. On a 2D strip whose
+//! bottom row is the contact face they hold a third of L's entries; on a thin
+//! 3D slab nearly all of them (then every supernode is taken: see
+//! MAX_FRACTION).
+//!
+//! On several threads. A solve with one right-hand side is memory-bound and
+//! its dense kernels are matrix-vector products, which threads inside a kernel
+//! do not speed up; the tree does: the subtrees below a top set of supernodes
+//! are independent, so their forward and back substitutions run in parallel,
+//! and only the top (the separators near the root) runs on one thread.
 //! Forward (L y = P x): each thread takes whole subtrees; an update from a
 //! subtree's supernode to a row of its own subtree goes into that subtree's
 //! columns, which no other thread touches, an update to a top row into the
-//! thread's own accumulator of the top rows, added in afterwards. The
-//! top follows on the calling thread. Back (L^T z = y): the top first, then
-//! the subtrees in parallel, reading the top's values from a copy.
+//! thread's own accumulator of the top rows, added in afterwards. The top
+//! follows on the calling thread. Back (L^T z = y): the top first, then the
+//! subtrees in parallel, reading the top's values from a copy.
 
 use crate::factor::Factor;
 use crate::supernode_tree::Tree;
@@ -25,8 +33,12 @@ use faer::sparse::linalg::cholesky::supernodal::SupernodalLltRef;
 use faer::{Accum, MatMut, MatRef, Par};
 use rayon::prelude::*;
 
-/// Factors with fewer entries than this are solved on one thread: below it
-/// handing the subtrees to the pool costs more than it saves.
+/// Solves are restricted to the paths where those hold at most this fraction
+/// of L's entries.
+const MAX_FRACTION: f64 = 0.8;
+
+/// Factors (or paths) with fewer entries than this are solved on one thread:
+/// below it handing the subtrees to the pool costs more than it saves.
 const MIN_ENTRIES: usize = 1 << 18;
 
 /// Subtrees per thread the split aims at (the bins are balanced greedily).
@@ -66,7 +78,7 @@ pub(crate) struct TreeSolve {
     /// The top supernodes, children first.
     top: Vec<usize>,
     /// The top's columns, ascending, and per column of the factor its index
-    /// among them (NONE outside the top).
+    /// among them (NONE outside the top; empty without a top).
     top_cols: Vec<usize>,
     top_at: Vec<usize>,
     /// The longest pattern below a supernode (one update's scratch).
@@ -88,36 +100,36 @@ pub(crate) struct TreeScratch<T> {
 }
 
 impl TreeSolve {
-    /// The split of `factor`'s tree for its threads, over the supernodes on
-    /// the paths from `dofs` (original numbering) to the roots, or over all
-    /// of them (`dofs` = None); None where one thread would do as well: one
-    /// thread, a dense or small factor, or a tree that does not split into at
-    /// least two subtrees. Restricted to paths, a solve gives K^-1 x at the
-    /// paths' DOFs for an x that vanishes outside them, as
-    /// `restricted_solve.rs` does on one thread.
-    pub(crate) fn of(factor: &Factor, dofs: Option<&[usize]>) -> Option<TreeSolve> {
-        let threads = factor.threads().count();
-        if threads < 2 || factor.is_dense() {
+    /// The solves of `factor` for right-hand sides that vanish outside `dofs`
+    /// (original numbering), of which the values at `dofs` are wanted:
+    /// restricted to the supernodes on their paths to the roots where those
+    /// hold at most MAX_FRACTION of L's entries, else over all of them; split
+    /// between the factor's threads where the supernodes taken are many enough
+    /// and split into at least two subtrees, else in one bin on the calling
+    /// thread. None where that would be the factor's plain solve (a dense
+    /// factor; all supernodes on one thread).
+    pub(crate) fn of(factor: &Factor, dofs: &[usize]) -> Option<TreeSolve> {
+        if factor.is_dense() {
             return None;
         }
+        let threads = factor.threads().count();
         let sym = factor.supernodal_symbolic();
         let tree = Tree::of(factor);
         let ns = tree.len();
-        let needed = match dofs {
-            Some(dofs) => {
-                let new_of = factor.new_of_old();
-                tree.on_paths(dofs.iter().map(|&dof| tree.of_col[new_of[dof]]))
-            }
-            None => vec![true; ns],
-        };
-        let mut children = vec![Vec::new(); ns];
-        let mut roots = Vec::new();
         let pattern_len = |s: usize| sym.supernode(s).pattern().len();
-        let on = || (0..ns).filter(|&s| needed[s]);
-        let below = on().map(pattern_len).max().unwrap_or(0);
         let mut weight: Vec<usize> = (0..ns)
             .map(|s| (tree.width[s] + pattern_len(s)) * tree.width[s])
             .collect();
+        let new_of = factor.new_of_old();
+        let on_paths = tree.on_paths(dofs.iter().map(|&dof| tree.of_col[new_of[dof]]));
+        let all: usize = weight.iter().sum();
+        let on: usize = (0..ns).filter(|&s| on_paths[s]).map(|s| weight[s]).sum();
+        let restricted = all > 0 && on as f64 <= MAX_FRACTION * all as f64;
+        let needed = if restricted { on_paths } else { vec![true; ns] };
+        let mut children = vec![Vec::new(); ns];
+        let mut roots = Vec::new();
+        let on = || (0..ns).filter(|&s| needed[s]);
+        let below = on().map(pattern_len).max().unwrap_or(0);
         // Children before parents: the subtrees' entries in one pass (the
         // paths are closed upwards: a needed supernode's parent is needed).
         for s in on() {
@@ -129,29 +141,40 @@ impl TreeSolve {
                 }
             }
         }
-        let cols = dofs.map(|_| {
+        let cols = restricted.then(|| {
             on().flat_map(|s| tree.begin[s]..tree.begin[s] + tree.width[s])
                 .collect()
         });
         let total: usize = roots.iter().map(|&r| weight[r]).sum();
-        if total < MIN_ENTRIES {
-            return None;
-        }
         // The top: the heaviest subtree is split while it holds more than its
         // share (as the selected inversion's split).
-        let limit = total / (TASKS_PER_THREAD * threads);
         let mut top = Vec::new();
         let mut tasks = roots;
-        while let Some((at, &s)) = tasks.iter().enumerate().max_by_key(|(_, s)| weight[**s]) {
-            if weight[s] <= limit || children[s].is_empty() {
-                break;
+        let split = threads >= 2 && total >= MIN_ENTRIES;
+        if split {
+            let limit = total / (TASKS_PER_THREAD * threads);
+            while let Some((at, &s)) = tasks.iter().enumerate().max_by_key(|(_, s)| weight[**s]) {
+                if weight[s] <= limit || children[s].is_empty() {
+                    break;
+                }
+                tasks.swap_remove(at);
+                top.push(s);
+                tasks.extend(&children[s]);
             }
-            tasks.swap_remove(at);
-            top.push(s);
-            tasks.extend(&children[s]);
         }
-        if tasks.len() < 2 {
-            return None;
+        if !split || tasks.len() < 2 {
+            // No split: every supernode taken, in one bin.
+            if !restricted {
+                return None;
+            }
+            return Some(TreeSolve {
+                bins: vec![on().collect()],
+                top: Vec::new(),
+                top_cols: Vec::new(),
+                top_at: Vec::new(),
+                below,
+                cols,
+            });
         }
         top.sort_unstable();
         let mut top_cols = Vec::new();
@@ -209,9 +232,16 @@ impl TreeSolve {
         n + (self.bins.len() + 1) * (self.top_cols.len() + self.below)
     }
 
+    /// Bytes of the split and of its scratch in double and single precision
+    /// (what a holder of both claims), on a factor of order n.
+    pub(crate) fn bytes_with_scratch(&self, n: usize) -> usize {
+        self.scratch_len(n) * (std::mem::size_of::<f64>() + std::mem::size_of::<f32>())
+            + self.bytes()
+    }
+
     /// Bytes of the split itself besides its scratch (the top's index per
     /// column and the restricted columns).
-    pub(crate) fn bytes(&self) -> usize {
+    fn bytes(&self) -> usize {
         let cols = self.cols.as_ref().map_or(0, Vec::len);
         (self.top_at.len()
             + cols
@@ -226,10 +256,35 @@ impl TreeSolve {
         self.cols.is_some()
     }
 
+    /// The top's index of column `row`, NONE outside the top.
+    fn top_of(&self, row: usize) -> usize {
+        if self.top.is_empty() {
+            NONE
+        } else {
+            self.top_at[row]
+        }
+    }
+
     /// Threads the solves use (one bin of subtrees each).
     #[cfg(test)]
-    fn threads(&self) -> usize {
+    pub(crate) fn threads(&self) -> usize {
         self.bins.len()
+    }
+}
+
+/// `f` on each bin with its scratch: on the pool's threads, one bin each,
+/// unless `par` is sequential.
+fn for_each_bin<T: Send>(
+    par: Par,
+    bins: &[Vec<usize>],
+    scratch: &mut [(Vec<T>, Vec<T>)],
+    f: impl Fn((&Vec<usize>, &mut (Vec<T>, Vec<T>))) + Sync + Send,
+) {
+    match par {
+        Par::Seq => bins.iter().zip(scratch.iter_mut()).for_each(f),
+        _ => (bins.par_iter(), scratch.par_iter_mut())
+            .into_par_iter()
+            .for_each(f),
     }
 }
 
@@ -309,10 +364,10 @@ macro_rules! back_node {
 macro_rules! tree_solve {
     ($name:ident, $t:ty) => {
         impl TreeSolve {
-            /// x := K^-1 x (x: n, original numbering), with L's values `values`
-            /// in this precision, on `threads`; restricted to paths (see
-            /// [`TreeSolve::of`]), only at their DOFs, x's other entries left as
-            /// they were.
+            /// x := K^-1 x (x: n, original numbering) for an x that vanishes
+            /// outside the DOFs [`TreeSolve::of`] was given, with L's values
+            /// `values` in this precision, on `threads`; restricted to paths,
+            /// only at their DOFs, x's other entries left as they were.
             pub(crate) fn $name(
                 &self,
                 factor: &Factor,
@@ -338,8 +393,7 @@ macro_rules! tree_solve {
                         .enumerate()
                         .for_each(|(new, &old)| work[new] = x[old]),
                 }
-                let top_at = &self.top_at;
-                threads.run(true, |par| {
+                threads.run(self.bins.len() > 1, |par| {
                     let shared = Shared(work.as_mut_ptr());
                     // SAFETY (both closures): a bin's threads touch only the
                     // columns of its own subtrees' supernodes: the x_s of a
@@ -359,7 +413,7 @@ macro_rules! tree_solve {
                                 s,
                                 cols,
                                 buf,
-                                |row: usize, v: $t| match top_at[row] {
+                                |row: usize, v: $t| match self.top_of(row) {
                                     NONE => *entry(row) -= v,
                                     i => acc[i] -= v,
                                 },
@@ -367,12 +421,7 @@ macro_rules! tree_solve {
                             );
                         }
                     };
-                    match par {
-                        Par::Seq => self.bins.iter().zip(per_bin.iter_mut()).for_each(forward),
-                        _ => (self.bins.par_iter(), per_bin.par_iter_mut())
-                            .into_par_iter()
-                            .for_each(forward),
-                    }
+                    for_each_bin(par, &self.bins, per_bin, forward);
                     for (acc, _) in per_bin.iter() {
                         for (&col, &v) in self.top_cols.iter().zip(acc) {
                             *entry(col) += v;
@@ -407,7 +456,7 @@ macro_rules! tree_solve {
                                 s,
                                 cols,
                                 buf,
-                                |row: usize| match top_at[row] {
+                                |row: usize| match self.top_of(row) {
                                     NONE => *entry(row),
                                     i => top_vals[i],
                                 },
@@ -415,12 +464,7 @@ macro_rules! tree_solve {
                             );
                         }
                     };
-                    match par {
-                        Par::Seq => self.bins.iter().zip(per_bin.iter_mut()).for_each(back),
-                        _ => (self.bins.par_iter(), per_bin.par_iter_mut())
-                            .into_par_iter()
-                            .for_each(back),
-                    }
+                    for_each_bin(par, &self.bins, per_bin, back);
                 });
                 match &self.cols {
                     Some(cols) => cols.iter().for_each(|&new| x[old_of[new]] = work[new]),
@@ -444,19 +488,25 @@ mod tests {
     use crate::selected_inverse::tests::grid3;
     use std::sync::Arc;
 
-    /// Restricted to the paths of a strip's bottom row: the tree solve equals
-    /// the full solve at the row's DOFs (double to 1e-13, single to 1e-5) and
-    /// touches no other entry of x.
+    /// Restricted to the paths of a strip's bottom row, on one thread (one
+    /// bin, no top) and split between two: the tree solve equals the full
+    /// solve at the row's DOFs (double to 1e-13, single to 1e-5) and touches
+    /// no other entry of x.
     #[test]
     fn restricted_tree_solve_equals_the_full_one_at_the_dofs() {
         let (nx, ny) = (2000, 20);
         let k = crate::dual::tests::grid(nx, ny);
         let n = nx * ny;
         let dofs: Vec<usize> = (0..nx).collect();
-        for ordering in [Ordering::Amd, Ordering::Metis] {
-            let f = Factor::with_last(&k, &[], ordering, Arc::new(Threads::new(2))).unwrap();
-            let ts = TreeSolve::of(&f, Some(&dofs)).expect("a split");
-            assert!(ts.restricted() && ts.threads() == 2);
+        for (ordering, threads) in [Ordering::Amd, Ordering::Metis]
+            .into_iter()
+            .flat_map(|o| [(o, 1), (o, 2)])
+        {
+            let pool = Arc::new(Threads::new(threads));
+            let f = Factor::with_last(&k, &[], ordering, pool).unwrap();
+            let ts = TreeSolve::of(&f, &dofs).expect("restricted");
+            assert!(ts.restricted() && ts.threads() == threads);
+            assert_eq!(ts.top.is_empty(), threads == 1);
             assert!(
                 ts.cols.as_ref().unwrap().len() < n / 2,
                 "paths hold few columns"
@@ -509,14 +559,17 @@ mod tests {
         let two = crate::sparse::Csc::from_triplets(2 * n1, 2 * n1, &t);
         for k in [&one, &two] {
             let n = k.nrows;
+            // Every DOF: the paths are all of L, never restricted.
+            let all: Vec<usize> = (0..n).collect();
             for ordering in [Ordering::Amd, Ordering::Metis] {
                 let single =
                     Factor::with_last(k, &[], ordering, Arc::new(Threads::new(1))).unwrap();
-                assert!(TreeSolve::of(&single, None).is_none());
+                assert!(TreeSolve::of(&single, &all).is_none());
                 for threads in [2, 3] {
                     let f = Factor::with_last(k, &[], ordering, Arc::new(Threads::new(threads)))
                         .unwrap();
-                    let ts = TreeSolve::of(&f, None).expect("a split");
+                    let ts = TreeSolve::of(&f, &all).expect("a split");
+                    assert!(!ts.restricted());
                     assert_eq!(ts.threads(), threads);
                     assert!(!ts.top.is_empty() || k.nrows == 2 * n1);
                     let x: Vec<f64> = (0..n).map(|i| (i as f64 * 0.37).sin() + 0.1).collect();
