@@ -7,24 +7,34 @@ use faer::linalg::lu::partial_pivoting as lu;
 use faer::linalg::svd::{self, ComputeSvdVectors};
 use faer::{Conj, Mat, MatRef, Par};
 
-/// X = M^-1 R by Cholesky of the symmetric positive definite M (its lower triangle
-/// is read); None when M is not numerically positive definite.
-pub(crate) fn llt_solve(m: MatRef<'_, f64>, r: MatRef<'_, f64>, par: Par) -> Option<Mat<f64>> {
-    let n = m.nrows();
-    let mut l = m.to_owned();
-    let mut mem = MemBuffer::new(llt::factor::cholesky_in_place_scratch::<f64>(
-        n,
+/// L L^T = M in place (M's lower triangle read, L written there), in double
+/// or single precision; None when M is not numerically positive definite.
+fn cholesky_in_place<T: faer::traits::ComplexField>(
+    l: faer::MatMut<'_, T>,
+    par: Par,
+) -> Option<()> {
+    let mut mem = MemBuffer::new(llt::factor::cholesky_in_place_scratch::<T>(
+        l.nrows(),
         par,
         Default::default(),
     ));
     llt::factor::cholesky_in_place(
-        l.as_mut(),
+        l,
         Default::default(),
         par,
         MemStack::new(&mut mem),
         Default::default(),
     )
-    .ok()?;
+    .ok()
+    .map(|_| ())
+}
+
+/// X = M^-1 R by Cholesky of the symmetric positive definite M (its lower triangle
+/// is read); None when M is not numerically positive definite.
+pub(crate) fn llt_solve(m: MatRef<'_, f64>, r: MatRef<'_, f64>, par: Par) -> Option<Mat<f64>> {
+    let n = m.nrows();
+    let mut l = m.to_owned();
+    cholesky_in_place(l.as_mut(), par)?;
     let mut x = r.to_owned();
     let mut mem = MemBuffer::new(llt::solve::solve_in_place_scratch::<f64>(n, r.ncols(), par));
     llt::solve::solve_in_place_with_conj(
@@ -56,19 +66,7 @@ pub(crate) fn llt_solve_mixed(
 ) -> Option<Vec<f64>> {
     let n = m.nrows();
     let mut l = Mat::<f32>::from_fn(n, n, |i, j| if i >= j { m[(i, j)] as f32 } else { 0.0 });
-    let mut mem = MemBuffer::new(llt::factor::cholesky_in_place_scratch::<f32>(
-        n,
-        par,
-        Default::default(),
-    ));
-    llt::factor::cholesky_in_place(
-        l.as_mut(),
-        Default::default(),
-        par,
-        MemStack::new(&mut mem),
-        Default::default(),
-    )
-    .ok()?;
+    cholesky_in_place(l.as_mut(), par)?;
     let mut solve_mem = MemBuffer::new(llt::solve::solve_in_place_scratch::<f32>(n, 1, par));
     let mut corr = Mat::<f32>::zeros(n, 1);
     let mut x = vec![0.0; n];

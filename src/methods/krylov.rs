@@ -10,6 +10,17 @@
 /// Restart length of GMRES.
 pub(super) const RESTART: usize = 40;
 
+/// The signature [`pcg`] and [`gmres`] share: (op, rhs, pre, eta, max_it, z)
+/// -> the products used.
+pub(super) type Solver = fn(
+    &mut dyn FnMut(&[f64], &mut [f64]),
+    &[f64],
+    &mut dyn FnMut(&[f64], &mut [f64]),
+    f64,
+    usize,
+    &mut [f64],
+) -> Option<usize>;
+
 /// z := approximately M^-1 rhs by preconditioned CG from z = 0 (`pre`: y := P x,
 /// P ~ M^-1).
 pub(super) fn pcg(

@@ -512,16 +512,6 @@ fn krylov_step(
     true
 }
 
-/// A Krylov solver of `krylov.rs` (`pcg` or `gmres`).
-type Solver = fn(
-    &mut dyn FnMut(&[f64], &mut [f64]),
-    &[f64],
-    &mut dyn FnMut(&[f64], &mut [f64]),
-    f64,
-    usize,
-    &mut [f64],
-) -> Option<usize>;
-
 /// Rounds of `refine` before it falls back to exact products.
 const REFINE_ROUNDS: usize = 4;
 
@@ -535,7 +525,7 @@ const REFINE_ROUNDS: usize = 4;
 /// solvers: the products used, None on a breakdown.
 #[allow(clippy::too_many_arguments)]
 fn refine(
-    solver: Solver,
+    solver: super::krylov::Solver,
     op: &mut dyn FnMut(&[f64], &mut [f64]),
     rough: &std::cell::Cell<bool>,
     rhs: &[f64],
@@ -1133,7 +1123,7 @@ mod tests {
         let rhs: Vec<f64> = (0..k).map(|i| (0.3 * i as f64).cos() + 0.2).collect();
         for (rough_error, most_rough) in [(1e-7, true), (0.9, false)] {
             for solver in [
-                super::super::krylov::pcg as Solver,
+                super::super::krylov::pcg as super::super::krylov::Solver,
                 super::super::krylov::gmres,
             ] {
                 let rough = std::cell::Cell::new(false);
