@@ -766,7 +766,7 @@ pub(crate) mod tests {
     /// those of one thread: over the whole factor for contacts spread over
     /// the body (their paths cover L; one thread takes the plain solve), and
     /// restricted to the paths of a strip's bottom row (one thread takes the
-    /// restricted solves).
+    /// same restricted solve in one bin).
     #[test]
     fn matrix_free_products_on_two_threads_take_the_tree_solves() {
         for (nx, ny, step, restricted) in [(160, 160, 7, false), (2000, 20, 1, true)] {

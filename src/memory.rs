@@ -113,8 +113,8 @@ pub(crate) struct Sizes {
     pub blocks_work: usize,
     /// Bytes of G = B K B^T, the lumped preconditioner a matrix-free dual holds.
     pub lumped: usize,
-    /// Bytes of the scratch of a matrix-free dual's own solves (restricted or
-    /// by the tree: `dual::own_solves_bytes`).
+    /// Bytes of a matrix-free dual's own solves by the elimination tree and
+    /// their scratch (`dual::own_solves_bytes`).
     pub own_solves: usize,
 }
 
@@ -143,8 +143,8 @@ impl Sizes {
             // work in on all threads (`blocks_work`); then one product's
             // n-vector and solve workspace in double and single precision, L's
             // values in single precision (the rough products), the lumped
-            // preconditioner G = B K B^T, and the scratch of the restricted or
-            // tree solves (where they are taken).
+            // preconditioner G = B K B^T, and the tree solves with their
+            // scratch (where they are taken).
             Condensation::MatrixFree => {
                 let held = 3 * self.c * F64
                     + self.n * (F64 + 4)
