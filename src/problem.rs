@@ -460,8 +460,9 @@ impl ContactProblem {
     }
 
     /// Replaces N and T (m may change) without refactoring K; rebuilds the condensed
-    /// dual. The warm start is kept when m is unchanged. On error the problem is
-    /// unchanged.
+    /// dual in the form the handle holds (dense or matrix-free: the form is kept,
+    /// whatever c becomes). The warm start is kept when m is unchanged. On error the
+    /// problem is unchanged.
     pub fn set_contacts(&mut self, n: &MatrixView<'_>, t: &MatrixView<'_>) -> Result<()> {
         let n = Csc::from_view(n, "N")?;
         let t = Csc::from_view(t, "T")?;
@@ -469,16 +470,14 @@ impl ContactProblem {
         let b = stack_rows(&n, &t);
         let next = Sizes {
             c: self.d * n.nrows,
+            inputs: self.k.bytes() + n.bytes() + t.bytes(),
             blocks_work: crate::contact_blocks::work_bytes(&self.factor, &b, n.nrows, self.d),
             lumped: crate::sparse::congruence_bytes(&self.k, &b, &b.transpose()),
             own_solves: crate::dual::own_solves_bytes(&self.factor, &b),
             ..self.sizes
         };
-        let how = Condensation::of(
-            Dual::trailing_available(&self.factor, &n, &t),
-            DualForm::Auto,
-            next.c,
-        );
+        // The handle keeps its form (dense or matrix-free), as `refactor` does.
+        let how = Dual::condensation_for(&self.factor, &n, &t, self.d, self.current_form());
         let need =
             self.sizes
                 .replace_contacts(self.dual.condensation, n.bytes() + t.bytes(), &next, how);
@@ -493,10 +492,7 @@ impl ContactProblem {
         if dual.c != self.dual.c {
             self.lam_hist = vec![0.0; dual.c];
         }
-        self.sizes.c = dual.c;
-        self.sizes.blocks_work = next.blocks_work;
-        self.sizes.lumped = next.lumped;
-        self.sizes.inputs = self.k.bytes() + n.bytes() + t.bytes();
+        self.sizes = next;
         self.inputs.resize(self.sizes.inputs);
         self.dual = dual;
         self.n = n;

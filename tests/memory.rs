@@ -579,3 +579,127 @@ fn a_refused_dense_setup_names_the_matrix_free_need_of_the_plain_factor() {
         e.message
     );
 }
+
+/// Rows `keep` of N and, contact by contact, their d - 1 rows of T.
+fn some_contacts(sc: &Scene, keep: &[usize]) -> (dualsplit::Csc, dualsplit::Csc) {
+    let dt = sc.d - 1;
+    let rows_of = |a: &dualsplit::Csc, per: usize| {
+        let mut new_row = vec![None; a.nrows];
+        for (k, &i) in keep.iter().enumerate() {
+            for r in 0..per {
+                new_row[i * per + r] = Some(k * per + r);
+            }
+        }
+        let mut trip = Vec::new();
+        for j in 0..a.ncols {
+            for q in a.col_ptr[j]..a.col_ptr[j + 1] {
+                if let Some(r) = new_row[a.row_idx[q]] {
+                    trip.push((r, j, a.values[q]));
+                }
+            }
+        }
+        dualsplit::Csc::from_triplets(keep.len() * per, a.ncols, &trip)
+    };
+    (rows_of(&sc.n, 1), rows_of(&sc.t, dt))
+}
+
+/// The form of a handle read back through ds_problem_info, with its info.
+fn c_info(h: *mut DsProblem, opts: &DsOptions) -> DsInfo {
+    let mut info = DsInfo {
+        struct_size: std::mem::size_of::<DsInfo>() as u32,
+        // SAFETY: DsInfo is plain old data; zero is a value.
+        ..unsafe { std::mem::zeroed() }
+    };
+    // SAFETY: a live handle, valid options, a whole DsInfo.
+    let st = unsafe { ds_problem_info(h, opts, &mut info) };
+    assert_eq!(st, DsStatus::Ok);
+    info
+}
+
+/// ds_problem_set_contacts keeps the handle's dual form (dense or matrix-free,
+/// whatever c becomes; it used to rebuild the dual by AUTO's rule, so a
+/// matrix-free handle with c <= 8,000 got a dense A), and a solve after it is
+/// predicted from the new contacts' sizes: the counted peak within 25 % of the
+/// prediction, the library's own count below it, and the answer converged.
+#[test]
+fn set_contacts_keeps_the_dual_form_and_predicts_the_solve_after_it() {
+    let _serial = SERIAL.lock().unwrap_or_else(|e| e.into_inner());
+    warm_up();
+    let sc = block3d();
+    let (k, n, t) = (
+        common::Owned::of(&sc.k),
+        common::Owned::of(&sc.n),
+        common::Owned::of(&sc.t),
+    );
+    // Every other contact: c changes, and contacts leave the factor's trailing
+    // block's use (a dense handle condenses the rest from it).
+    let keep: Vec<usize> = (0..sc.m()).step_by(2).collect();
+    let (n2, t2) = some_contacts(&sc, &keep);
+    let (n2c, t2c) = (common::Owned::of(&n2), common::Owned::of(&t2));
+    let f = sc.f.clone();
+    let g: Vec<f64> = keep.iter().map(|&i| sc.g[i]).collect();
+    let mu = vec![0.3; keep.len()];
+    for form in [DsDualForm::Dense, DsDualForm::MatrixFree] {
+        let opts = DsOptions {
+            threads: 1,
+            dual_form: form as i32,
+            ..DsOptions::default()
+        };
+        let mut h: *mut DsProblem = std::ptr::null_mut();
+        // SAFETY: valid matrices, options and out pointer.
+        let st = unsafe { ds_problem_new_opts(3, &k.ds(), &n.ds(), &t.ds(), &opts, &mut h) };
+        assert_eq!(st, DsStatus::Ok);
+        assert_eq!(c_info(h, &opts).setup_form, form as i32);
+        // SAFETY: a live handle and valid matrices.
+        let st = unsafe { ds_problem_set_contacts(h, &n2c.ds(), &t2c.ds()) };
+        assert_eq!(st, DsStatus::Ok);
+        let info = c_info(h, &opts);
+        assert_eq!(info.c, 3 * keep.len() as i64);
+        assert_eq!(
+            (info.setup_form, info.solve_form),
+            (form as i32, form as i32),
+            "{form:?}: the form after set_contacts"
+        );
+        // SAFETY: DsReport is plain old data; all-zero bytes are a value.
+        let mut report: DsReport = unsafe { std::mem::zeroed() };
+        let (mut u, mut ln, mut lt) = (
+            vec![0.0; sc.k.nrows],
+            vec![0.0; keep.len()],
+            vec![0.0; 2 * keep.len()],
+        );
+        // SAFETY: a live handle; arrays of the lengths the handle now has.
+        let (st, extra) = peak_of(|| unsafe {
+            ds_solve(
+                h,
+                &opts,
+                DsFriction::Coulomb as i32,
+                f.as_ptr(),
+                g.as_ptr(),
+                mu.as_ptr(),
+                u.as_mut_ptr(),
+                ln.as_mut_ptr(),
+                lt.as_mut_ptr(),
+                &mut report,
+            )
+        });
+        assert_eq!(st, DsStatus::Ok, "{form:?}: {report:?}");
+        assert!(report.err <= 1e-8, "{form:?}: err {}", report.err);
+        assert_eq!(report.memory_predicted, info.solve_bytes, "{form:?}");
+        let counted = info.resident_bytes as usize + extra;
+        eprintln!(
+            "{form:?} after set_contacts: solve {counted} bytes counted, {} by the library, {} predicted",
+            report.memory_peak, report.memory_predicted
+        );
+        assert_within(
+            &format!("{form:?} solve after set_contacts"),
+            counted,
+            report.memory_predicted as usize,
+            0.25,
+        );
+        assert!(report.memory_peak <= report.memory_predicted, "{report:?}");
+        // The form is still the one the handle was created with.
+        assert_eq!(c_info(h, &opts).setup_form, form as i32);
+        // SAFETY: a handle from ds_problem_new_opts, freed once.
+        unsafe { ds_problem_free(h) };
+    }
+}
