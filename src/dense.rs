@@ -50,63 +50,234 @@ pub(crate) fn llt_solve(m: MatRef<'_, f64>, r: MatRef<'_, f64>, par: Par) -> Opt
 /// Rounds of iterative refinement [`llt_solve_mixed`] takes at most.
 const REFINE_ROUNDS: usize = 6;
 
+/// The Cholesky factor L L^T of a symmetric positive definite M rounded to
+/// single precision (half the flops' time and memory of double): the
+/// preconditioner of [`refine`] and [`pcg`].
+pub(crate) struct LltF32 {
+    l: Mat<f32>,
+}
+
+impl LltF32 {
+    /// The factor of M (its lower triangle read); None when M is not positive
+    /// definite in single precision.
+    pub fn of(m: MatRef<'_, f64>, par: Par) -> Option<LltF32> {
+        let n = m.nrows();
+        let mut l = Mat::<f32>::from_fn(n, n, |i, j| if i >= j { m[(i, j)] as f32 } else { 0.0 });
+        cholesky_in_place(l.as_mut(), par)?;
+        Some(LltF32 { l })
+    }
+
+    /// The order of M.
+    pub fn order(&self) -> usize {
+        self.l.nrows()
+    }
+
+    /// L's first entry (tests tell factors apart by it).
+    #[cfg(test)]
+    pub fn first_entry(&self) -> f32 {
+        self.l[(0, 0)]
+    }
+
+    /// out := (L L^T)^-1 r, in single precision; `corr` and `mem` are scratch.
+    fn apply(
+        &self,
+        r: &[f64],
+        out: &mut [f64],
+        corr: &mut Mat<f32>,
+        mem: &mut MemBuffer,
+        par: Par,
+    ) {
+        for (c, &v) in corr.col_mut(0).iter_mut().zip(r) {
+            *c = v as f32;
+        }
+        llt::solve::solve_in_place_with_conj(
+            self.l.as_ref(),
+            Conj::No,
+            corr.as_mut(),
+            par,
+            MemStack::new(mem),
+        );
+        for (o, &c) in out.iter_mut().zip(corr.col(0).iter()) {
+            *o = f64::from(c);
+        }
+    }
+
+    fn scratch(&self, par: Par) -> (Mat<f32>, MemBuffer) {
+        let n = self.order();
+        (
+            Mat::<f32>::zeros(n, 1),
+            MemBuffer::new(llt::solve::solve_in_place_scratch::<f32>(n, 1, par)),
+        )
+    }
+}
+
+/// |M|_inf (the largest row sum of |M|, M symmetric with its lower triangle
+/// given) and |r|_inf: the scales of the normwise backward error
+/// |r - M x|_inf / (|M|_inf |x|_inf + |r|_inf).
+fn scales(m: MatRef<'_, f64>, r: &[f64]) -> (f64, f64) {
+    let n = m.nrows();
+    let mut rows = vec![0.0f64; n];
+    for j in 0..n {
+        rows[j] += m[(j, j)].abs();
+        for i in j + 1..n {
+            let v = m[(i, j)].abs();
+            rows[i] += v;
+            rows[j] += v;
+        }
+    }
+    (inf_norm(&rows), inf_norm(r))
+}
+
+fn inf_norm(x: &[f64]) -> f64 {
+    x.iter().fold(0.0f64, |a, v| a.max(v.abs()))
+}
+
 /// x = M^-1 r (one right-hand side) by Cholesky of M rounded to single
-/// precision (half the flops' time and memory of double) and iterative
-/// refinement with residuals in double precision: each round solves for the
-/// correction with the single-precision factor. Returns x once its residual
-/// is at most `rtol` (|r - M x|_inf <= rtol (|M|_max |x|_inf + |r|_inf)); None
-/// when M is not positive definite in single precision or the refinement
-/// stalls (M too ill-conditioned for it: each round must halve the residual),
-/// for the caller to solve in double. M's lower triangle is read.
+/// precision and iterative refinement with residuals in double precision
+/// ([`refine`]); None when M is not positive definite in single precision or
+/// the refinement stalls, for the caller to solve in double. M's lower
+/// triangle is read.
+#[cfg(test)]
 pub(crate) fn llt_solve_mixed(
     m: MatRef<'_, f64>,
     r: &[f64],
     rtol: f64,
     par: Par,
 ) -> Option<Vec<f64>> {
+    refine(m, &LltF32::of(m, par)?, r, rtol, par)
+}
+
+/// x = M^-1 r by iterative refinement with the single-precision factor `l`
+/// of M: each round solves for the correction with `l`, the residual in
+/// double precision. Returns x once its normwise backward error is at most
+/// `rtol` (|r - M x|_inf <= rtol (|M|_inf |x|_inf + |r|_inf), |M|_inf the
+/// largest row sum: what a Cholesky solve in double meets with rtol ~ 1e-15,
+/// and what rounding lets a residual of a dense M reach); None when a round
+/// does not halve the residual (M too ill-conditioned for single precision)
+/// or after REFINE_ROUNDS rounds.
+pub(crate) fn refine(
+    m: MatRef<'_, f64>,
+    l: &LltF32,
+    r: &[f64],
+    rtol: f64,
+    par: Par,
+) -> Option<Vec<f64>> {
     let n = m.nrows();
-    let mut l = Mat::<f32>::from_fn(n, n, |i, j| if i >= j { m[(i, j)] as f32 } else { 0.0 });
-    cholesky_in_place(l.as_mut(), par)?;
-    let mut solve_mem = MemBuffer::new(llt::solve::solve_in_place_scratch::<f32>(n, 1, par));
-    let mut corr = Mat::<f32>::zeros(n, 1);
+    let (mut corr, mut mem) = l.scratch(par);
+    let mut dx = vec![0.0; n];
     let mut x = vec![0.0; n];
     let mut res = r.to_vec();
-    let m_max = (0..n)
-        .flat_map(|j| (j..n).map(move |i| (i, j)))
-        .fold(0.0f64, |a, (i, j)| a.max(m[(i, j)].abs()));
-    let r_max = r.iter().fold(0.0f64, |a, v| a.max(v.abs()));
+    let (m_inf, r_max) = scales(m, r);
     let mut last = f64::INFINITY;
     for _ in 0..REFINE_ROUNDS {
-        for (c, &v) in corr.col_mut(0).iter_mut().zip(&res) {
-            *c = v as f32;
-        }
-        llt::solve::solve_in_place_with_conj(
-            l.as_ref(),
-            Conj::No,
-            corr.as_mut(),
-            par,
-            MemStack::new(&mut solve_mem),
-        );
-        for (xi, &c) in x.iter_mut().zip(corr.col(0).iter()) {
-            *xi += f64::from(c);
+        l.apply(&res, &mut dx, &mut corr, &mut mem, par);
+        for (xi, &c) in x.iter_mut().zip(&dx) {
+            *xi += c;
         }
         // res = r - M x, with M's lower triangle (symmetric).
         let mx = symmetric_times(m, &x, par);
         for ((ri, &rv), mv) in res.iter_mut().zip(r).zip(&mx) {
             *ri = rv - mv;
         }
-        let now = res.iter().fold(0.0f64, |a, v| a.max(v.abs()));
-        let x_max = x.iter().fold(0.0f64, |a, v| a.max(v.abs()));
+        let now = inf_norm(&res);
+        let x_max = inf_norm(&x);
         if !now.is_finite() || !x_max.is_finite() {
             return None;
         }
-        if now <= rtol * (m_max * x_max + r_max) {
+        if now <= rtol * (m_inf * x_max + r_max) {
             return Some(x);
         }
         if now > 0.5 * last {
             return None;
         }
         last = now;
+    }
+    None
+}
+
+/// x = M^-1 r by conjugate gradients on the symmetric positive definite M
+/// (double precision, its lower triangle read) preconditioned by `l`, the
+/// single-precision factor of a nearby matrix M0 (the reduced system of an
+/// earlier Newton step): where M differs from M0 in a few directions, CG
+/// converges in about as many iterations, at O(k^2) each instead of a new
+/// O(k^3) factorisation. `pos[j]` is unknown j's position in M0 (None for
+/// one M0 does not have); None means the same unknowns in the same order.
+/// The preconditioner is then E^T M0^-1 E on the shared unknowns (E
+/// gathers them into M0's positions, the others zero) plus the diagonal of
+/// M on the new ones: symmetric positive definite, as CG needs. The
+/// stopping test is [`refine`]'s on the true residual; None after `max_it`
+/// iterations or on a breakdown (then factor M itself).
+pub(crate) fn pcg(
+    m: MatRef<'_, f64>,
+    l: &LltF32,
+    pos: Option<&[Option<usize>]>,
+    r: &[f64],
+    rtol: f64,
+    max_it: usize,
+    par: Par,
+) -> Option<Vec<f64>> {
+    let n = m.nrows();
+    let k0 = l.order();
+    match pos {
+        None if k0 != n => return None,
+        Some(pos) if pos.len() != n || pos.iter().flatten().any(|&q| q >= k0) => return None,
+        _ => {}
+    }
+    let (mut corr, mut mem) = l.scratch(par);
+    let (mut embedded, mut out) = (vec![0.0; k0], vec![0.0; k0]);
+    let mut precondition = |res: &[f64], z: &mut [f64]| match pos {
+        None => l.apply(res, z, &mut corr, &mut mem, par),
+        Some(pos) => {
+            embedded.iter_mut().for_each(|v| *v = 0.0);
+            for (j, q) in pos.iter().enumerate() {
+                if let Some(q) = *q {
+                    embedded[q] = res[j];
+                }
+            }
+            l.apply(&embedded, &mut out, &mut corr, &mut mem, par);
+            for (j, q) in pos.iter().enumerate() {
+                z[j] = match *q {
+                    Some(q) => out[q],
+                    None => res[j] / m[(j, j)],
+                };
+            }
+        }
+    };
+    let (m_inf, r_max) = scales(m, r);
+    let mut x = vec![0.0; n];
+    let mut res = r.to_vec();
+    let mut z = vec![0.0; n];
+    precondition(&res, &mut z);
+    let mut p = z.clone();
+    let mut rz: f64 = res.iter().zip(&z).map(|(a, b)| a * b).sum();
+    for _ in 0..max_it {
+        let q = symmetric_times(m, &p, par);
+        let pq: f64 = p.iter().zip(&q).map(|(a, b)| a * b).sum();
+        if !(pq > 0.0 && rz.is_finite()) {
+            return None;
+        }
+        let alpha = rz / pq;
+        for j in 0..n {
+            x[j] += alpha * p[j];
+            res[j] -= alpha * q[j];
+        }
+        if inf_norm(&res) <= rtol * (m_inf * inf_norm(&x) + r_max) {
+            // Confirmed on the true residual (the recurrence drifts by rounding).
+            let mx = symmetric_times(m, &x, par);
+            for ((ri, &rv), mv) in res.iter_mut().zip(r).zip(&mx) {
+                *ri = rv - mv;
+            }
+            if inf_norm(&res) <= rtol * (m_inf * inf_norm(&x) + r_max) {
+                return Some(x);
+            }
+        }
+        precondition(&res, &mut z);
+        let rz_new: f64 = res.iter().zip(&z).map(|(a, b)| a * b).sum();
+        let beta = rz_new / rz;
+        rz = rz_new;
+        for j in 0..n {
+            p[j] = z[j] + beta * p[j];
+        }
     }
     None
 }
@@ -271,9 +442,10 @@ mod tests {
             .iter()
             .zip(&b)
             .fold(0.0f64, |a, (p, q)| a.max((p - q).abs()));
-        let m_max = (0..n).fold(0.0f64, |a, i| (0..n).fold(a, |a, j| a.max(m[(i, j)].abs())));
+        // |M|_inf, the largest row sum of |M|.
+        let m_inf = (0..n).fold(0.0f64, |a, i| a.max((0..n).map(|j| m[(i, j)].abs()).sum()));
         let norm = |v: &[f64]| v.iter().fold(0.0f64, |a, e| a.max(e.abs()));
-        assert!(res <= rtol * (m_max * norm(&y) + norm(&b)), "{res}");
+        assert!(res <= rtol * (m_inf * norm(&y) + norm(&b)), "{res}");
         let err = y
             .iter()
             .zip(&x)
@@ -285,6 +457,91 @@ mod tests {
         // Indefinite: no Cholesky.
         let neg = faer::mat![[1.0, 2.0], [2.0, 1.0]];
         assert!(llt_solve_mixed(neg.as_ref(), &[1.0, 1.0], rtol, Par::Seq).is_none());
+    }
+
+    /// CG preconditioned by the single-precision factor of a nearby matrix:
+    /// where M differs from the factored M0 by a symmetric change of rank r,
+    /// it meets refine's residual bound (and the known solution) in about r
+    /// iterations and a few more, far fewer than the order; with fewer iterations allowed
+    /// than the change needs, or a factor of another order, it gives up (None)
+    /// for the caller to factor M itself.
+    #[test]
+    fn pcg_on_a_nearby_factor_converges_in_about_the_rank_of_the_change() {
+        let n = 300;
+        let (m0, _, _) = spd(n, 1e3);
+        let l0 = LltF32::of(m0.as_ref(), Par::Seq).expect("SPD");
+        // M = M0 + sum of 6 rank-one terms w w^T (SPD), b = M x.
+        let rank = 6;
+        let mut m = m0.clone();
+        for t in 0..rank {
+            let w: Vec<f64> = (0..n)
+                .map(|i| ((i * (t + 2)) as f64 * 0.13).sin())
+                .collect();
+            for j in 0..n {
+                for i in 0..n {
+                    m[(i, j)] += 5.0 * w[i] * w[j];
+                }
+            }
+        }
+        let x: Vec<f64> = (0..n).map(|i| (i as f64 * 0.37).cos()).collect();
+        let b = symmetric_times(m.as_ref(), &x, Par::Seq);
+        let rtol = 1e-15;
+        let needed = (1..=60)
+            .find(|&it| pcg(m.as_ref(), &l0, None, &b, rtol, it, Par::Seq).is_some())
+            .expect("converges");
+        // The 6 outliers, then a few for the cluster single precision leaves
+        // around 1 (width about cond eps_32): 13 here, of an order of 300.
+        assert!(needed <= rank + 8, "{needed} iterations");
+        let y = pcg(m.as_ref(), &l0, None, &b, rtol, needed, Par::Seq).unwrap();
+        let mx = symmetric_times(m.as_ref(), &y, Par::Seq);
+        let res = inf_norm(&mx.iter().zip(&b).map(|(p, q)| p - q).collect::<Vec<_>>());
+        let m_inf = (0..n).fold(0.0f64, |a, i| a.max((0..n).map(|j| m[(i, j)].abs()).sum()));
+        assert!(res <= rtol * (m_inf * inf_norm(&y) + inf_norm(&b)), "{res}");
+        let err = inf_norm(&y.iter().zip(&x).map(|(p, q)| p - q).collect::<Vec<_>>());
+        assert!(err <= 1e-9, "{err}");
+        // Too few iterations for a rank-6 change.
+        assert!(pcg(m.as_ref(), &l0, None, &b, rtol, 3, Par::Seq).is_none());
+        // A factor of another order.
+        let (small, _, _) = spd(10, 10.0);
+        let ls = LltF32::of(small.as_ref(), Par::Seq).unwrap();
+        assert!(pcg(m.as_ref(), &ls, None, &b, rtol, 50, Par::Seq).is_none());
+    }
+
+    /// The same on other unknowns: M0's unknown 5 gone and two new ones
+    /// appended (M's last rows), the factor embedded by `pos`; a `pos` that
+    /// points outside the factor is refused.
+    #[test]
+    fn pcg_on_a_factor_of_other_unknowns_embeds_it() {
+        let n0 = 300;
+        let (m0, _, _) = spd(n0, 1e3);
+        let l0 = LltF32::of(m0.as_ref(), Par::Seq).expect("SPD");
+        let kept: Vec<usize> = (0..n0).filter(|&i| i != 5).collect();
+        let n = kept.len() + 2;
+        let m = Mat::from_fn(n, n, |i, j| match (kept.get(i), kept.get(j)) {
+            (Some(&a), Some(&b)) => m0[(a, b)],
+            (None, None) => {
+                if i == j {
+                    50.0
+                } else {
+                    1.0
+                }
+            }
+            (Some(&a), None) | (None, Some(&a)) => 0.1 * ((a + i + j) as f64).sin(),
+        });
+        let pos: Vec<Option<usize>> = (0..n).map(|i| kept.get(i).copied()).collect();
+        let x: Vec<f64> = (0..n).map(|i| (i as f64 * 0.37).cos()).collect();
+        let b = symmetric_times(m.as_ref(), &x, Par::Seq);
+        let rtol = 1e-15;
+        let needed = (1..=60)
+            .find(|&it| pcg(m.as_ref(), &l0, Some(&pos), &b, rtol, it, Par::Seq).is_some())
+            .expect("converges");
+        assert!(needed <= 14, "{needed} iterations");
+        let y = pcg(m.as_ref(), &l0, Some(&pos), &b, rtol, needed, Par::Seq).unwrap();
+        let err = inf_norm(&y.iter().zip(&x).map(|(p, q)| p - q).collect::<Vec<_>>());
+        assert!(err <= 1e-9, "{err}");
+        let mut bad = pos.clone();
+        bad[0] = Some(n0);
+        assert!(pcg(m.as_ref(), &l0, Some(&bad), &b, rtol, 60, Par::Seq).is_none());
     }
 
     #[test]

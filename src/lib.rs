@@ -13,6 +13,7 @@ mod error;
 mod factor;
 pub mod ffi;
 mod friction;
+mod history;
 mod info;
 mod memory;
 mod methods;

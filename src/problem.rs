@@ -6,6 +6,7 @@ use crate::dual::{BLOCK, Condensation, Dual, check_shapes, contact_dofs, stack_r
 use crate::error::{ErrorKind, Result, fail};
 use crate::factor::Factor;
 use crate::friction::Friction;
+use crate::history::History;
 use crate::info::Info;
 use crate::memory::{self, Claim, F64, Ledger, Sizes};
 use crate::methods::{self, DualProblem, End, Monitor, Progress};
@@ -47,9 +48,9 @@ pub struct ContactProblem {
     /// `Options::max_memory` at creation: the limit of `refactor` and
     /// `set_contacts`, which take no options.
     max_memory: usize,
-    /// History: u_k, and the last converged multipliers [lambda_N; lambda_T].
-    u_hist: Vec<f64>,
-    lam_hist: Vec<f64>,
+    /// The history: u_k, the last converged multipliers and the predictor's
+    /// loads.
+    history: History,
 }
 
 /// The route of a new problem, decided after K's analysis.
@@ -185,8 +186,7 @@ impl ContactProblem {
             sizes: plan.sizes,
             inputs,
             max_memory: opts.max_memory,
-            u_hist: vec![0.0; ndof],
-            lam_hist: vec![0.0; c],
+            history: History::new(ndof, c),
         })
     }
 
@@ -456,6 +456,7 @@ impl ContactProblem {
         self.dual = form_dual(&fresh, &k, &self.n, &self.t, self.d, how)?;
         self.factor = fresh;
         self.k = k;
+        self.history.forget_loads();
         Ok(())
     }
 
@@ -489,9 +490,7 @@ impl ContactProblem {
             "the problem's max_memory (set at creation) must allow for it",
         )?;
         let dual = form_dual(&self.factor, &self.k, &n, &t, self.d, how)?;
-        if dual.c != self.dual.c {
-            self.lam_hist = vec![0.0; dual.c];
-        }
+        self.history.new_contacts(dual.c);
         self.sizes = next;
         self.inputs.resize(self.sizes.inputs);
         self.dual = dual;
@@ -662,7 +661,8 @@ impl ContactProblem {
         Self::check_options(opts)?;
         let predicted = self.prepare_dual(opts)?;
         let mut lam = vec![0.0; self.dual.c];
-        self.solve_from(f, g, friction, opts, &mut lam, monitor, predicted)
+        let (sol, _) = self.solve_from(f, g, friction, opts, &mut lam, None, monitor, predicted)?;
+        Ok(sol)
     }
 
     /// u := K^-1 (f - B^T lambda) given y_f = L^-1 P f (the forward half of the
@@ -695,8 +695,10 @@ impl ContactProblem {
         self.factor.backward(&mut y, u);
     }
 
-    /// The increment solve, starting from the multipliers in `lam`; `predicted`
-    /// is the solve's memory prediction (from `prepare_dual`), for the report.
+    /// The increment solve, starting from the multipliers in `lam`, or, for a
+    /// step of `history`, from the history's prediction (then the step's
+    /// contact-space load is returned too, for the history); `predicted` is the
+    /// solve's memory prediction (from `prepare_dual`), for the report.
     #[allow(clippy::too_many_arguments)]
     fn solve_from(
         &self,
@@ -705,9 +707,10 @@ impl ContactProblem {
         friction: Friction<'_>,
         opts: &Options,
         lam: &mut [f64],
+        history: Option<&History>,
         mut monitor: Option<Monitor<'_>>,
         predicted: usize,
-    ) -> Result<Solution> {
+    ) -> Result<(Solution, Option<Vec<f64>>)> {
         let start = Instant::now();
         let (ndof, m, c) = (self.n_dofs(), self.n_contacts(), self.dual.c);
         // y_f, K^-1 f, u, B^T lambda, K u and the residual below.
@@ -727,6 +730,14 @@ impl ContactProblem {
         for i in 0..m {
             b[i] -= g[i];
         }
+        let mut extrapolated = false;
+        let load = history.map(|h| {
+            let mut bu = vec![0.0; c];
+            self.dual.rows.mul_vec(&h.u, &mut bu);
+            let load = History::load_of(&b, &bu, m);
+            extrapolated = h.start(&load, friction, self.d, lam) > 0.0;
+            load
+        });
         // The monitor sees iteration numbers and times of the whole solve.
         let base = std::cell::Cell::new(0usize);
         let mut relay = |p: &Progress| -> bool {
@@ -746,6 +757,7 @@ impl ContactProblem {
             monitor: Some(std::cell::RefCell::new(&mut relay)),
             deadline: (opts.max_seconds > 0.0)
                 .then(|| start + Duration::from_secs_f64(opts.max_seconds)),
+            predicted: extrapolated,
         };
         let mut target = opts.tol;
         let mut end = End::Converged;
@@ -822,7 +834,7 @@ impl ContactProblem {
             End::Converged | End::Limit | End::Infeasible => SolveStatus::NotConverged,
         };
         let (factor_nnz, factor_flops) = self.factor.nnz_and_flops();
-        Ok(Solution {
+        let sol = Solution {
             u,
             lambda_n: lam[..m].to_vec(),
             lambda_t: lam[m..].to_vec(),
@@ -849,7 +861,8 @@ impl ContactProblem {
                 memory_predicted: predicted,
                 memory_peak: self.factor.ledger().peak(),
             },
-        })
+        };
+        Ok((sol, load))
     }
 
     /// One step of a quasistatic history (docs/design.md section 1): with the held u_k,
@@ -889,27 +902,29 @@ impl ContactProblem {
         // The effective f and K u_k.
         let _vectors = self.factor.ledger().claim_f64(2 * ndof);
         let mut ku = vec![0.0; ndof];
-        self.k.mul_vec(&self.u_hist, &mut ku);
+        let u_k = &self.history.u;
+        self.k.mul_vec(u_k, &mut ku);
         let f: Vec<f64> = (0..ndof).map(|i| f_total[i] - ku[i]).collect();
         let mut nu = vec![0.0; m];
-        self.n.mul_vec(&self.u_hist, &mut nu);
+        self.n.mul_vec(u_k, &mut nu);
         let g: Vec<f64> = (0..m).map(|i| g0[i] - nu[i]).collect();
-        let mut lam = self.lam_hist.clone();
-        let mut sol = self.solve_from(&f, &g, friction, opts, &mut lam, monitor, predicted)?;
-        for (ui, uh) in sol.u.iter_mut().zip(&self.u_hist) {
+        let mut lam = vec![0.0; self.dual.c];
+        let hist = Some(&self.history);
+        let (mut sol, load) =
+            self.solve_from(&f, &g, friction, opts, &mut lam, hist, monitor, predicted)?;
+        for (ui, uh) in sol.u.iter_mut().zip(u_k) {
             *ui += uh;
         }
         if sol.report.status == SolveStatus::Converged {
-            self.u_hist.copy_from_slice(&sol.u);
-            self.lam_hist = lam;
+            let load = load.expect("a step's load");
+            self.history.advance(&sol.u, &lam, load);
         }
         Ok(sol)
     }
 
     /// Forgets the history: u_0 = 0 and no warm start.
     pub fn reset_history(&mut self) {
-        self.u_hist.iter_mut().for_each(|v| *v = 0.0);
-        self.lam_hist.iter_mut().for_each(|v| *v = 0.0);
+        self.history.reset();
     }
 
     /// Contact dimension d (2 or 3).

@@ -160,3 +160,110 @@ fn newton_warm_step_2d_coulomb_large() {
         "warm step: {warm} Newton iterations, more than the first step ({first})"
     );
 }
+
+/// The benchmark's 2D block with its top moved by (sx, sy) times delta.
+fn block_moved(nx: usize, ny: usize, sx: f64, sy: f64) -> Scene {
+    let (lx, ly) = (nx as f64, ny as f64);
+    let delta = 2e-3 * ly;
+    let mesh = Mesh::grid2d(nx, ny, lx, ly);
+    let mut prescribed = Vec::new();
+    for &a in &mesh.top_nodes() {
+        prescribed.push((2 * a, sx * delta));
+        prescribed.push((2 * a + 1, sy * delta));
+    }
+    let f_ext = vec![0.0; mesh.n_dofs()];
+    let bottom = mesh.bottom_nodes();
+    let reach = 0.25 * lx;
+    let kappa = delta / (reach * reach);
+    Scene::build(mesh, 1.0, 0.3, &prescribed, &f_ext, &bottom, |x| {
+        let s = x[0] - 0.5 * lx;
+        kappa * s * s
+    })
+}
+
+/// A history whose contact state no longer changes (pressed, then sheared in
+/// equal increments with a Tresca bound no contact reaches): from the third
+/// step on the history's prediction (src/history.rs: the multipliers
+/// extrapolated from the last two steps along the load) is the answer up to
+/// the last steps' errors: at most one Newton step and a quarter of the
+/// sweeps or products of the second (plainly warm-started) step; every step
+/// is a KKT point of its increment. On both dual forms.
+#[test]
+fn a_proportional_step_with_an_unchanged_contact_state_is_predicted() {
+    let press = block_moved(60, 12, 0.0, -1.0);
+    let shear = block_moved(60, 12, 0.5, 0.0);
+    let p = vec![1.0; press.m()];
+    let friction = Friction::Tresca(&p);
+    for form in [dualsplit::DualForm::Dense, dualsplit::DualForm::MatrixFree] {
+        let o = Options {
+            tol: 1e-10,
+            dual_form: form,
+            ..Options::default()
+        };
+        let sc = &press;
+        let mut pb = dualsplit::ContactProblem::from_csc_with(
+            sc.d,
+            sc.k.clone(),
+            sc.n.clone(),
+            sc.t.clone(),
+            &o,
+        )
+        .unwrap();
+        let mut u_prev = vec![0.0; sc.k.nrows];
+        let mut states = Vec::new();
+        let mut plain = 0;
+        for k in 0..5 {
+            let s = k as f64 / 4.0;
+            let f: Vec<f64> = press
+                .f
+                .iter()
+                .zip(&shear.f)
+                .map(|(a, b)| a + s * b)
+                .collect();
+            let sol = pb.step(&f, &sc.g, friction, &o).unwrap();
+            let what = format!("{form:?} step {}", k + 1);
+            assert_eq!(sol.report.status, SolveStatus::Converged, "{what}");
+            let ku = mul(&sc.k, &u_prev);
+            let nu = mul(&sc.n, &u_prev);
+            let f_inc: Vec<f64> = f.iter().zip(&ku).map(|(a, b)| a - b).collect();
+            let g_inc: Vec<f64> = sc.g.iter().zip(&nu).map(|(a, b)| a - b).collect();
+            let du: Vec<f64> = sol.u.iter().zip(&u_prev).map(|(a, b)| a - b).collect();
+            kkt(
+                sc.d,
+                &sc.k,
+                &sc.n,
+                &sc.t,
+                &f_inc,
+                &g_inc,
+                friction,
+                &du,
+                &sol.lambda_n,
+                &sol.lambda_t,
+            )
+            .assert_ok(&what, 1e-8);
+            let r = &sol.report;
+            states.push((r.n_open, r.n_stick, r.n_slip));
+            println!(
+                "{what}: {} Newton steps, {} inner",
+                r.outer_iterations, r.inner_iterations
+            );
+            if k == 1 {
+                plain = r.inner_iterations;
+            }
+            if k >= 3 {
+                assert_eq!(states[k], states[k - 1], "{what}: the state is unchanged");
+                assert_eq!(r.n_slip, 0, "{what}: nothing slips");
+                // The prediction is the answer up to the last two steps'
+                // errors (each within tol): at most one Newton step to polish
+                // it, a fraction of the plain warm start's work.
+                assert!(
+                    r.outer_iterations <= 1 && 4 * r.inner_iterations <= plain,
+                    "{what}: {} Newton steps, {} inner against {plain} for the plain warm start",
+                    r.outer_iterations,
+                    r.inner_iterations
+                );
+            }
+            u_prev = sol.u;
+        }
+    }
+}

@@ -171,6 +171,30 @@ impl Scene {
         }
     }
 
+    /// The load vectors of the top motion's two parts: the vertical press alone
+    /// and the horizontal shift alone (f = press + shear; f is linear in the
+    /// prescribed displacement).
+    #[allow(dead_code)] // examples/history.rs's; the benchmark has no use for it
+    pub fn press_and_shear(&self) -> (Vec<f64>, Vec<f64>) {
+        let dim = self.d;
+        let ke = if dim == 2 {
+            q4_stiffness(YOUNG, POISSON)
+        } else {
+            h8_stiffness(YOUNG, POISSON)
+        };
+        let height = if dim == 2 {
+            self.spec.ny as f64
+        } else {
+            self.spec.nz as f64
+        };
+        let (delta, _) = top_motion(height);
+        let mut top = vec![0.0; dim];
+        top[dim - 1] = -delta;
+        let (_, press) = assemble(&self.spec, &ke, &top);
+        let shear = self.f.iter().zip(&press).map(|(a, b)| a - b).collect();
+        (press, shear)
+    }
+
     /// The load vector of the same scene with the top motion scaled by `s` (f is
     /// linear in the prescribed displacement).
     pub fn scaled_load(&self, s: f64) -> Vec<f64> {

@@ -69,6 +69,10 @@ pub struct DualProblem<'a> {
     pub monitor: Option<RefCell<Monitor<'a>>>,
     /// The wall-clock budget: no outer iteration starts after it.
     pub deadline: Option<Instant>,
+    /// The starting multipliers are a history's prediction (src/history.rs):
+    /// the load increment is already in them, so the natural map at them sorts
+    /// the contacts (a plain warm start's is sorted by the multipliers alone).
+    pub predicted: bool,
 }
 
 impl DualProblem<'_> {

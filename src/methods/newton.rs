@@ -16,7 +16,10 @@
 //! force follows the normal one. The reduced system on the free unknowns is solved
 //! densely (a free row's equation is (A d)_j = -w_j, w = A lambda - b): by
 //! Cholesky where it is symmetric, in single precision with refinement in
-//! double from order MIXED_MIN on, else by LU (`solve_reduced`).
+//! double from order MIXED_MIN on, else by LU (`solve_reduced`). The single-
+//! precision factor is kept for the next step: where that step has the same
+//! reduced unknowns (the active set settled, only slip directions turning),
+//! CG preconditioned by it solves the next system without a new factorisation.
 //!
 //! A numerically singular reduced system (A singular: redundant or dependent
 //! contact rows) is solved in the least-squares sense with the minimum norm
@@ -265,6 +268,7 @@ fn newton_step(
     ae0: &mut [f64],
     cscale: f64,
     krylov: &mut Krylov,
+    reused: &mut Option<Reused>,
 ) -> bool {
     let dual = problem.dual;
     let red = linearise(problem, lam, w, step, f, cscale);
@@ -313,7 +317,13 @@ fn newton_step(
     let symmetric = red
         .iter()
         .all(|u| u.n_test == u.n_dir && u.test[..u.n_test] == u.dir[..u.n_dir]);
-    let Some(z) = solve_reduced(&mat, &rhs, symmetric, &dual.threads, &dual.ledger) else {
+    let key: Vec<usize> = red.iter().map(|u| 4 * u.test[0].0 + u.n_test).collect();
+    let how = Reduce {
+        symmetric,
+        key,
+        reused,
+    };
+    let Some(z) = solve_reduced(&mat, &rhs, how, &dual.threads, &dual.ledger) else {
         return false;
     };
     for (l, u) in red.iter().enumerate() {
@@ -580,11 +590,64 @@ fn refine(
 }
 
 /// Reduced systems of at least this order, when symmetric, are first solved by
-/// Cholesky in single precision with refinement (`dense::llt_solve_mixed`) to
-/// the relative residual MIXED_RTOL, the backward error of a Cholesky solve in
-/// double; below it the factorisation is cheap anyway.
+/// Cholesky in single precision with refinement (`dense::refine`) to the
+/// normwise backward error MIXED_RTOL, that of a Cholesky solve in double;
+/// below it the factorisation is cheap anyway.
 const MIXED_MIN: usize = 256;
 const MIXED_RTOL: f64 = 1e-15;
+
+/// Most CG iterations a reduced solve spends on the last step's factor
+/// before it factors its own matrix: an iteration costs about 3 k^2 flops
+/// (a product with M in double, two triangular solves in single precision),
+/// a factorisation k^3 / 3 at the faster rate of blocked kernels.
+const REUSE_MAX_IT: usize = 20;
+
+/// The single-precision factor of the last dense reduced system, with the
+/// unknowns it was formed on (`key`: each unknown's first test index and
+/// kind), held for the next Newton step: where that step has the same
+/// unknowns, or a few more or fewer (REUSE_MAX_CHANGED), its matrix differs
+/// in a few directions (those unknowns, the slipping contacts' turned
+/// directions and the curvature terms), and CG preconditioned by this
+/// factor solves it in a few iterations (`dense::pcg`).
+pub(super) struct Reused {
+    key: Vec<usize>,
+    llt: dense::LltF32,
+    _claim: crate::memory::Claim,
+}
+
+impl Reused {
+    /// Each of `key`'s unknowns' position in the kept factor (None for a new
+    /// one); empty when the unknowns are the same, in the same order. None
+    /// when more than REUSE_MAX_CHANGED unknowns came or went: CG on the
+    /// kept factor would need about as many iterations as a factorisation.
+    fn positions(&self, key: &[usize]) -> Option<Vec<Option<usize>>> {
+        if self.key == key {
+            return Some(Vec::new());
+        }
+        let old: std::collections::HashMap<usize, usize> = self
+            .key
+            .iter()
+            .enumerate()
+            .map(|(q, &kq)| (kq, q))
+            .collect();
+        let pos: Vec<Option<usize>> = key.iter().map(|kj| old.get(kj).copied()).collect();
+        let shared = pos.iter().flatten().count();
+        let changed = (key.len() - shared) + (self.key.len() - shared);
+        (changed <= REUSE_MAX_CHANGED).then_some(pos)
+    }
+}
+
+/// Most reduced unknowns that may come or go between two Newton steps for
+/// the second to solve on the first one's factor (see [`Reused`]).
+const REUSE_MAX_CHANGED: usize = 8;
+
+/// How `solve_reduced` may solve: whether M is symmetric, the unknowns'
+/// key, and the factor kept from the last step (replaced by this step's).
+struct Reduce<'a> {
+    symmetric: bool,
+    key: Vec<usize>,
+    reused: &'a mut Option<Reused>,
+}
 
 /// Solves the reduced system M z = rhs: by Cholesky when M is `symmetric` (half the
 /// flops of LU), else or when that fails by a partially pivoted LU, unless M is numerically
@@ -594,10 +657,15 @@ const MIXED_RTOL: f64 = 1e-15;
 fn solve_reduced(
     mat: &Mat<f64>,
     rhs: &Mat<f64>,
-    symmetric: bool,
+    how: Reduce<'_>,
     threads: &Threads,
     ledger: &Arc<Ledger>,
 ) -> Option<Mat<f64>> {
+    let Reduce {
+        symmetric,
+        key,
+        reused,
+    } = how;
     let max_abs = |a: faer::MatRef<'_, f64>| {
         let mut v = 0.0f64;
         for j in 0..a.ncols() {
@@ -615,16 +683,39 @@ fn solve_reduced(
     // Each dense solver works on a copy of M (the SVD on two k x k factors too).
     let k2 = mat.nrows() * mat.ncols();
     let copy_claim = ledger.claim_f64(k2);
+    let rv: Vec<f64> = r.col(0).iter().copied().collect();
+    // The last step's factor, where this step has the same unknowns: CG
+    // preconditioned by it (see REUSE_MAX_IT).
     if symmetric
-        && mat.nrows() >= MIXED_MIN
+        && let Some(old) = reused.as_ref()
+        && let Some(pos) = old.positions(&key)
         && let Some(z) = threads.run(big, |par| {
-            let r: Vec<f64> = r.col(0).iter().copied().collect();
-            dense::llt_solve_mixed(m, &r, MIXED_RTOL, par)
+            let pos = (!pos.is_empty()).then_some(&pos[..]);
+            dense::pcg(m, &old.llt, pos, &rv, MIXED_RTOL, REUSE_MAX_IT, par)
         })
     {
         let z = Mat::from_fn(z.len(), 1, |i, _| z[i]);
         if acceptable(&z) {
             return Some(z);
+        }
+    }
+    // A new factor replaces the old one (never both held: the workspace).
+    *reused = None;
+    if symmetric && mat.nrows() >= MIXED_MIN {
+        let k = mat.nrows();
+        let claim = ledger.claim(k * k * std::mem::size_of::<f32>());
+        if let Some(llt) = threads.run(big, |par| dense::LltF32::of(m, par))
+            && let Some(z) = threads.run(big, |par| dense::refine(m, &llt, &rv, MIXED_RTOL, par))
+        {
+            let z = Mat::from_fn(z.len(), 1, |i, _| z[i]);
+            if acceptable(&z) {
+                *reused = Some(Reused {
+                    key,
+                    llt,
+                    _claim: claim,
+                });
+                return Some(z);
+            }
         }
     }
     if symmetric
@@ -720,6 +811,8 @@ pub(super) struct Newton {
     wt: Vec<f64>,
     /// The reduced solves' Krylov state on a matrix-free dual.
     krylov: Krylov,
+    /// The last dense reduced system's factor (see [`Reused`]).
+    reused: Option<Reused>,
     /// A's columns in single precision for the warm-up and fallback sweeps on
     /// a large assembled dual (made at their first use; see pgs::ROUGH_MIN_C).
     rough_a: Option<pgs::Rough>,
@@ -751,6 +844,7 @@ impl Newton {
             trial: vec![0.0; c],
             wt: vec![0.0; c],
             krylov: Krylov::new(c),
+            reused: None,
             rough_a: None,
             fallback: None,
             radii: Vec::new(),
@@ -827,7 +921,7 @@ impl OuterStep for Newton {
         }
         // A warm start's first step takes its active set from the multipliers
         // (see WARM_C); every later step from the natural map.
-        let cscale = if self.warm && self.warm_sort && k == 0 {
+        let cscale = if self.warm && self.warm_sort && !problem.predicted && k == 0 {
             WARM_C
         } else {
             1.0
@@ -853,6 +947,7 @@ impl OuterStep for Newton {
                 &mut self.ae0,
                 cscale,
                 &mut self.krylov,
+                &mut self.reused,
             );
             *inner += self.krylov.its - before;
             if !solved {
@@ -1057,6 +1152,7 @@ mod tests {
             law: Friction::Coulomb(mu),
             monitor: None,
             deadline: None,
+            predicted: false,
         };
         let mut newton = Newton::new(&problem, 1e-12);
         newton.presweeps = 0;
@@ -1175,6 +1271,7 @@ mod tests {
             law: Friction::Tresca(&p),
             monitor: None,
             deadline: None,
+            predicted: false,
         };
         let c = problem.dual.c;
         let (mut lam_exact, mut w_exact) = (vec![0.0; c], vec![0.0; c]);
@@ -1215,20 +1312,86 @@ mod tests {
     fn the_reduced_solve_takes_cholesky_lu_or_least_squares_as_the_matrix_allows() {
         let rhs = mat(&[&[1.0], &[2.0]]);
         let seq = Threads::sequential();
+        fn fresh(none: &mut Option<Reused>) -> Reduce<'_> {
+            Reduce {
+                symmetric: true,
+                key: Vec::new(),
+                reused: none,
+            }
+        }
+        let mut none = None;
         // SPD: Cholesky; z solves M z = rhs.
         let spd = mat(&[&[4.0, 1.0], &[1.0, 3.0]]);
-        let z = solve_reduced(&spd, &rhs, true, &seq, &Ledger::new()).unwrap();
+        let z = solve_reduced(&spd, &rhs, fresh(&mut none), &seq, &Ledger::new()).unwrap();
         assert!((4.0 * z[(0, 0)] + z[(1, 0)] - 1.0).abs() < 1e-15);
         assert!((z[(0, 0)] + 3.0 * z[(1, 0)] - 2.0).abs() < 1e-15);
         // Symmetric but indefinite: Cholesky fails, LU solves it: z = (2, 1).
         let indef = mat(&[&[0.0, 1.0], &[1.0, 0.0]]);
-        let z = solve_reduced(&indef, &rhs, true, &seq, &Ledger::new()).unwrap();
+        let z = solve_reduced(&indef, &rhs, fresh(&mut none), &seq, &Ledger::new()).unwrap();
         assert!((z[(0, 0)] - 2.0).abs() < 1e-15 && (z[(1, 0)] - 1.0).abs() < 1e-15);
         // Singular: the minimum-norm least-squares solution of [1 1; 1 1] z = (1, 2)
         // is z = (0.75, 0.75).
         let sing = mat(&[&[1.0, 1.0], &[1.0, 1.0]]);
-        let z = solve_reduced(&sing, &rhs, true, &seq, &Ledger::new()).unwrap();
+        let z = solve_reduced(&sing, &rhs, fresh(&mut none), &seq, &Ledger::new()).unwrap();
         assert!((z[(0, 0)] - 0.75).abs() < 1e-12 && (z[(1, 0)] - 0.75).abs() < 1e-12);
+    }
+
+    /// A dense reduced solve keeps its single-precision factor for the next
+    /// step; a next step with the same unknowns, or one more and one fewer,
+    /// solves its own (nearby) matrix by CG on that factor, exactly, without
+    /// factoring again; one with other unknowns factors its own and keeps it.
+    #[test]
+    fn a_reduced_solve_with_the_same_unknowns_reuses_the_last_factor() {
+        let k = MIXED_MIN + 44;
+        let seq = Threads::sequential();
+        let ledger = Ledger::new();
+        // M0: diagonally dominant SPD; M1 = M0 + 3 w w^T.
+        let m0 = Mat::from_fn(k, k, |i, j| {
+            if i == j {
+                4.0 + (i % 7) as f64
+            } else {
+                1.0 / (1.0 + (i as f64 - j as f64).abs()).powi(2)
+            }
+        });
+        let w: Vec<f64> = (0..k).map(|i| (i as f64 * 0.3 + 0.5).sin()).collect();
+        let m1 = Mat::from_fn(k, k, |i, j| m0[(i, j)] + 3.0 * w[i] * w[j]);
+        let rhs = Mat::from_fn(k, 1, |i, _| (i as f64 * 0.7).cos());
+        let key: Vec<usize> = (0..k).collect();
+        let mut reused = None;
+        fn how<'a>(key: &[usize], reused: &'a mut Option<Reused>) -> Reduce<'a> {
+            Reduce {
+                symmetric: true,
+                key: key.to_vec(),
+                reused,
+            }
+        }
+        let check = |m: &Mat<f64>, z: &Mat<f64>| {
+            let r = m * z - &rhs;
+            let res = (0..k).fold(0.0f64, |a, i| a.max(r[(i, 0)].abs()));
+            assert!(res <= 1e-13, "{res}");
+        };
+        let z = solve_reduced(&m0, &rhs, how(&key, &mut reused), &seq, &ledger).unwrap();
+        check(&m0, &z);
+        let first = reused.as_ref().expect("kept").llt.order();
+        assert_eq!(first, k);
+        assert_eq!(ledger.live(), k * k * 4, "the kept factor is claimed");
+        let l00 = |r: &Option<Reused>| r.as_ref().unwrap().llt.first_entry();
+        let before = l00(&reused);
+        let z = solve_reduced(&m1, &rhs, how(&key, &mut reused), &seq, &ledger).unwrap();
+        check(&m1, &z);
+        assert_eq!(l00(&reused), before, "M1 solved on M0's factor");
+        // One unknown gone, one new: still on M0's factor, embedded.
+        let near: Vec<usize> = (1..=k).collect();
+        let z = solve_reduced(&m1, &rhs, how(&near, &mut reused), &seq, &ledger).unwrap();
+        check(&m1, &z);
+        assert_eq!(l00(&reused), before, "embedded");
+        // Other unknowns: M1 factored and kept.
+        let other: Vec<usize> = (k..2 * k).collect();
+        let z = solve_reduced(&m1, &rhs, how(&other, &mut reused), &seq, &ledger).unwrap();
+        check(&m1, &z);
+        assert_ne!(l00(&reused), before);
+        assert_eq!(reused.as_ref().unwrap().key, other);
+        assert_eq!(ledger.live(), k * k * 4, "one factor held at a time");
     }
 
     /// Matrix-free Newton on a grid's bottom row (d = 2: normal on the row's
@@ -1267,6 +1430,7 @@ mod tests {
                 law: Friction::Tresca(&p),
                 monitor: None,
                 deadline: None,
+                predicted: false,
             };
             let mut newton = Newton::new(&problem, 1e-12);
             newton.lumped_start_on = start;

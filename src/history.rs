@@ -1,0 +1,232 @@
+//! The history of a quasistatic simulation (docs/design.md section 1): the
+//! accumulated displacement u_k, the last converged multipliers, and what the
+//! predictor of the next step's multipliers needs.
+//!
+//! The predictor. A step's dual is that of the increment, but its multipliers
+//! are total forces, and its right-hand side is b = l - [0; T u_k] with the
+//! contact-space load l = B K^-1 f_total - [g0; 0]: l is affine in the host's
+//! load. On a fixed contact state (the same contacts closed, sticking and
+//! slipping in the same directions) the multipliers are affine in l too, so
+//! under proportional loading they move along a straight line from step to
+//! step, and the last two steps predict the next one far better than the last
+//! one alone:
+//!
+//! ```text
+//! s      = <l_k+1 - l_k, l_k - l_k-1> / |l_k - l_k-1|^2   (clamped to [0, S_MAX])
+//! lam_0  = P(lam_k + s (lam_k - lam_k-1))
+//! ```
+//!
+//! s is the least-squares fit of this step's load change to the last one's:
+//! 1 for equal proportional increments, 0 where the load turns at right angles
+//! (press, then shear: the plain warm start), and never negative (an unloading
+//! step is not the last path backwards: friction sticks on reversal). P is the
+//! projection onto lambda_N >= 0, |lambda_T,i| <= p_i (mu_i lambda_N,i). Where
+//! the contact state changes the prediction is still nearer than lam_k on the
+//! contacts that keep theirs; Newton's warm start then sorts the contacts by
+//! the predicted multipliers.
+
+use crate::friction::{Friction, project_disk};
+
+/// The largest extrapolation factor: a step more than S_MAX times the last
+/// one's load change is predicted as S_MAX of it (the line is not trusted that
+/// far out).
+const S_MAX: f64 = 4.0;
+
+/// u_k and the last converged multipliers, with the contact-space loads of
+/// the last two steps.
+pub(crate) struct History {
+    /// u_k, the accumulated displacement (n).
+    pub u: Vec<f64>,
+    /// lambda_k = [lambda_N; lambda_T] of the last converged step (c; zero
+    /// before the first).
+    pub lam: Vec<f64>,
+    /// l_k, the contact-space load of the last converged step (c), when there
+    /// was one since the history, K, N or T were last changed.
+    load: Option<Vec<f64>>,
+    /// lambda_k-1 and l_k - l_k-1, when the two last steps both converged on
+    /// the same K, N and T.
+    prev: Option<(Vec<f64>, Vec<f64>)>,
+}
+
+impl History {
+    /// The start of a history: u = 0, lambda = 0, nothing to predict from.
+    pub fn new(n: usize, c: usize) -> History {
+        History {
+            u: vec![0.0; n],
+            lam: vec![0.0; c],
+            load: None,
+            prev: None,
+        }
+    }
+
+    /// Forgets everything: u = 0, lambda = 0.
+    pub fn reset(&mut self) {
+        self.u.iter_mut().for_each(|v| *v = 0.0);
+        self.lam.iter_mut().for_each(|v| *v = 0.0);
+        self.forget_loads();
+    }
+
+    /// Forgets the loads (K, N or T changed: the last loads are not those of
+    /// the new operator); u_k and lambda_k stay as the warm start.
+    pub fn forget_loads(&mut self) {
+        self.load = None;
+        self.prev = None;
+    }
+
+    /// New contacts with c unknowns: lambda is kept when c is unchanged
+    /// (zero otherwise), the loads are forgotten.
+    pub fn new_contacts(&mut self, c: usize) {
+        if self.lam.len() != c {
+            self.lam = vec![0.0; c];
+        }
+        self.forget_loads();
+    }
+
+    /// The contact-space load l = b + [0; T u_k] of a step whose right-hand
+    /// side is `b` (c), given `bu` = B u_k = [N u_k; T u_k] (c) and m.
+    pub fn load_of(b: &[f64], bu: &[f64], m: usize) -> Vec<f64> {
+        let mut l = b.to_vec();
+        for (x, y) in l[m..].iter_mut().zip(&bu[m..]) {
+            *x += y;
+        }
+        l
+    }
+
+    /// The extrapolation factor s of the module docs for a step with load
+    /// `load`; None when there is nothing to extrapolate from.
+    pub fn factor_for(&self, load: &[f64]) -> Option<f64> {
+        let (last, (_, dl)) = (self.load.as_ref()?, self.prev.as_ref()?);
+        let (mut num, mut den) = (0.0, 0.0);
+        for ((x, y), z) in load.iter().zip(last).zip(dl) {
+            num += (x - y) * z;
+            den += z * z;
+        }
+        let s = num / den;
+        (den > 0.0 && s.is_finite() && s > 0.0).then(|| s.min(S_MAX))
+    }
+
+    /// The warm start of a step with load `load` into `lam` (c): the
+    /// prediction of the module docs where two steps are known, else lambda_k.
+    /// Returns the extrapolation factor used (0: the plain warm start).
+    pub fn start(&self, load: &[f64], law: Friction<'_>, d: usize, lam: &mut [f64]) -> f64 {
+        lam.copy_from_slice(&self.lam);
+        let (Some(s), Some((prev, _))) = (self.factor_for(load), self.prev.as_ref()) else {
+            return 0.0;
+        };
+        for (x, p) in lam.iter_mut().zip(prev) {
+            *x += s * (*x - p);
+        }
+        project(lam, law, d);
+        s
+    }
+
+    /// Records a converged step: its total displacement `u`, multipliers `lam`
+    /// and load `load`.
+    pub fn advance(&mut self, u: &[f64], lam: &[f64], load: Vec<f64>) {
+        self.u.copy_from_slice(u);
+        self.prev = self.load.take().map(|last| {
+            let dl = load.iter().zip(&last).map(|(x, y)| x - y).collect();
+            (std::mem::replace(&mut self.lam, lam.to_vec()), dl)
+        });
+        self.lam.copy_from_slice(lam);
+        self.load = Some(load);
+    }
+}
+
+/// Projects [lambda_N; lambda_T] onto lambda_N >= 0, |lambda_T,i| <= the
+/// friction bound of contact i (of the projected lambda_N).
+fn project(lam: &mut [f64], law: Friction<'_>, d: usize) {
+    let m = lam.len() / d;
+    let (ln, lt) = lam.split_at_mut(m);
+    for i in 0..m {
+        ln[i] = ln[i].max(0.0);
+        let r = law.bound(i, ln[i]);
+        project_disk(&mut lt[(d - 1) * i..(d - 1) * (i + 1)], r);
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Two contacts in 2D (c = 4), Tresca bound 1.
+    fn history() -> History {
+        History::new(3, 4)
+    }
+
+    fn assert_close(got: &[f64], want: &[f64]) {
+        let d = got
+            .iter()
+            .zip(want)
+            .fold(0.0f64, |a, (x, y)| a.max((x - y).abs()));
+        assert!(d <= 1e-15, "{got:?} against {want:?}");
+    }
+
+    #[test]
+    fn two_proportional_steps_predict_the_third_on_the_line() {
+        let p = [1.0, 1.0];
+        let law = Friction::Tresca(&p);
+        let mut h = history();
+        let mut lam = vec![0.0; 4];
+        // Nothing to predict from before two steps: the plain warm start.
+        let l1 = vec![1.0, 0.0, 0.5, 0.0];
+        assert_eq!(h.start(&l1, law, 2, &mut lam), 0.0);
+        h.advance(&[0.0; 3], &[1.0, 0.0, 0.2, 0.0], l1.clone());
+        let l2 = vec![2.0, 0.0, 1.0, 0.0];
+        assert_eq!(h.start(&l2, law, 2, &mut lam), 0.0);
+        assert_eq!(lam, [1.0, 0.0, 0.2, 0.0]);
+        h.advance(&[0.0; 3], &[2.0, 0.0, 0.4, 0.0], l2.clone());
+        // A third equal increment: s = 1, the line continued.
+        let l3 = vec![3.0, 0.0, 1.5, 0.0];
+        assert_eq!(h.start(&l3, law, 2, &mut lam), 1.0);
+        assert_close(&lam, &[3.0, 0.0, 0.6, 0.0]);
+        // Half an increment: s = 0.5.
+        let l3h = vec![2.5, 0.0, 1.25, 0.0];
+        assert_eq!(h.start(&l3h, law, 2, &mut lam), 0.5);
+        assert_close(&lam, &[2.5, 0.0, 0.5, 0.0]);
+    }
+
+    #[test]
+    fn the_prediction_is_projected_and_clamped() {
+        let p = [0.5, 0.5];
+        let law = Friction::Tresca(&p);
+        let mut h = history();
+        let mut lam = vec![0.0; 4];
+        h.advance(&[0.0; 3], &[1.0, 1.0, 0.1, -0.3], vec![0.0, 0.0, 1.0, 0.0]);
+        h.advance(&[0.0; 3], &[0.5, 2.0, 0.3, -0.45], vec![0.0, 0.0, 2.0, 0.0]);
+        // s = 1: lambda_N,0 = 0 (cut from -0.5), lambda_T,1 = -0.6 cut to -0.5.
+        assert_eq!(h.start(&[0.0, 0.0, 3.0, 0.0], law, 2, &mut lam), 1.0);
+        assert_close(&lam, &[0.0, 3.0, 0.5, -0.5]);
+        // A load at right angles to the last change: the plain warm start.
+        assert_eq!(h.start(&[0.0, 1.0, 2.0, 0.0], law, 2, &mut lam), 0.0);
+        assert_eq!(lam, [0.5, 2.0, 0.3, -0.45]);
+        // Unloading: no backwards extrapolation.
+        assert_eq!(h.start(&[0.0, 0.0, 1.0, 0.0], law, 2, &mut lam), 0.0);
+        // Ten increments at once: clamped to S_MAX.
+        assert_eq!(h.start(&[0.0, 0.0, 12.0, 0.0], law, 2, &mut lam), S_MAX);
+        // Coulomb: the bound of the projected normal force.
+        let mu = [1.0, 0.1];
+        let law = Friction::Coulomb(&mu);
+        h.start(&[0.0, 0.0, 3.0, 0.0], law, 2, &mut lam);
+        assert_eq!(lam[..2], [0.0, 3.0]);
+        assert_eq!(lam[2], 0.0);
+        assert!((lam[3] + 0.3).abs() < 1e-15, "{lam:?}");
+    }
+
+    #[test]
+    fn new_contacts_and_reset_forget_the_loads() {
+        let p = [1.0, 1.0];
+        let law = Friction::Tresca(&p);
+        let mut h = history();
+        let mut lam = vec![0.0; 4];
+        h.advance(&[1.0; 3], &[1.0, 0.0, 0.0, 0.0], vec![1.0, 0.0, 0.0, 0.0]);
+        h.advance(&[2.0; 3], &[2.0, 0.0, 0.0, 0.0], vec![2.0, 0.0, 0.0, 0.0]);
+        h.new_contacts(4);
+        assert_eq!(h.start(&[3.0, 0.0, 0.0, 0.0], law, 2, &mut lam), 0.0);
+        assert_eq!(lam, [2.0, 0.0, 0.0, 0.0], "lambda kept for the same c");
+        h.new_contacts(6);
+        assert_eq!(h.lam, vec![0.0; 6]);
+        h.reset();
+        assert_eq!((h.u.clone(), h.load.is_none()), (vec![0.0; 3], true));
+    }
+}
