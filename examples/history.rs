@@ -14,15 +14,19 @@
 //!
 //! ```text
 //! cargo run --release --example history -- [--scenes A,B,..] [--threads K]
-//!     [--steps N] [--laws tresca,coulomb] [--csv FILE] [--svg FILE]
+//!     [--steps N] [--laws tresca,coulomb] [--form auto|dense|matrix-free]
+//!     [--path press-shear|proportional] [--csv FILE] [--svg FILE]
 //! ```
+//!
+//! `--path proportional`: step k of N takes k / N of the whole top motion
+//! (press and shear together), as a host that ramps one load does.
 
 #[path = "bench/scene.rs"]
 #[allow(dead_code)]
 mod scene;
 
 use dualsplit::internals::{Factor, Threads};
-use dualsplit::{ContactProblem, Friction, Options, Ordering};
+use dualsplit::{ContactProblem, DualForm, Friction, Options, Ordering};
 use scene::{Scene, Spec};
 use std::io::Write;
 use std::sync::Arc;
@@ -35,6 +39,8 @@ fn main() {
     let mut laws = vec!["tresca".to_string(), "coulomb".to_string()];
     let mut csv: Option<String> = None;
     let mut svg: Option<String> = None;
+    let mut form = DualForm::Auto;
+    let mut proportional = false;
     // (scene and law, time / factor per step) for the figure.
     let mut lines: Vec<(String, Vec<f64>)> = Vec::new();
     let args: Vec<String> = std::env::args().skip(1).collect();
@@ -48,6 +54,8 @@ fn main() {
             "--laws" => laws = value().split(',').map(str::to_string).collect(),
             "--csv" => csv = Some(value()),
             "--svg" => svg = Some(value()),
+            "--path" => proportional = value() == "proportional",
+            "--form" => form = DualForm::from_name(&value()).expect("a dual form"),
             a => panic!("unknown argument {a}"),
         }
         k += 2;
@@ -78,6 +86,7 @@ fn main() {
             .fold(f64::INFINITY, f64::min);
         let opts = Options {
             threads,
+            dual_form: form,
             tol: 1e-10,
             ..Options::default()
         };
@@ -115,7 +124,10 @@ fn main() {
             let half = steps / 2;
             let mut times = Vec::new();
             for k in 1..=steps {
-                let (a, b) = if k <= half {
+                let (a, b) = if proportional {
+                    let s = k as f64 / steps as f64;
+                    (s, s)
+                } else if k <= half {
                     (k as f64 / half as f64, 0.0)
                 } else {
                     (1.0, (k - half) as f64 / (steps - half) as f64)

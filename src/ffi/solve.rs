@@ -220,9 +220,13 @@ pub unsafe extern "C" fn ds_solve(
 /// (n values) and the INITIAL gaps g0 (m values) of the step; with the held
 /// displacement u_k the library solves the increment with f = f_total - K u_k and
 /// g = g0 - N u_k, friction acting on the tangential increment T du, warm-started
-/// from the last multipliers, and returns the total displacement u_k+1 = u_k + du in
-/// u and the total contact forces in lambda_n and lambda_t. The history advances
-/// only on DS_STATUS_OK.
+/// from the last multipliers (after two steps, from the multipliers extrapolated
+/// along the load: under proportional loading they move on a straight line while
+/// no contact changes state, so a step costs a few solves), and returns the total
+/// displacement u_k+1 = u_k + du in u and the total contact forces in lambda_n and
+/// lambda_t. The history advances only on DS_STATUS_OK; ds_problem_refactor and
+/// ds_problem_set_contacts keep u_k and, for the same m, the multipliers, but
+/// restart the extrapolation.
 ///
 /// Arguments, outputs and statuses as ds_solve.
 ///

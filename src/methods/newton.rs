@@ -49,7 +49,9 @@
 //!
 //! Warm start: the first step of a warm-started solve sorts the components by the
 //! multipliers (see WARM_C), not by the natural map, so that a history step starts
-//! from the active set of the previous increment.
+//! from the active set of the previous increment; where the start is a history's
+//! prediction (`DualProblem::predicted`: the load increment is already in it), by
+//! the natural map at it.
 
 use super::driver::{Flow, Gradient, OuterStep};
 use super::mprgp::ConvexQp;
