@@ -73,7 +73,8 @@ fn count(v: usize) -> i64 {
 }
 
 impl Watch {
-    /// Sends one line to the log sink, or to stderr when there is none.
+    /// Sends one line to the log sink, or to stderr when there is none (a
+    /// line stderr cannot take is dropped).
     pub fn log(&self, level: i32, message: &str) {
         if level > self.level {
             return;
@@ -85,7 +86,12 @@ impl Watch {
                 // user pointer; the string lives until the call returns.
                 unsafe { sink(level, line.as_ptr(), self.log_data) };
             }
-            None => eprintln!("dualsplit: {message}"),
+            // Not eprintln!, which panics where stderr cannot be written (a
+            // closed pipe): a log line must never fail a solve.
+            None => {
+                use std::io::Write;
+                let _ = writeln!(std::io::stderr(), "dualsplit: {message}");
+            }
         }
     }
 
