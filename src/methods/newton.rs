@@ -682,9 +682,7 @@ fn solve_reduced(
         |z: &Mat<f64>| z.as_ref().is_all_finite() && mn * max_abs(z.as_ref()) * RCOND <= rn;
     let big = mat.nrows() * mat.ncols() >= PARALLEL_MIN_ENTRIES;
     let (m, r) = (mat.as_ref(), rhs.as_ref());
-    // Each dense solver works on a copy of M (the SVD on two k x k factors too).
     let k2 = mat.nrows() * mat.ncols();
-    let copy_claim = ledger.claim_f64(k2);
     let rv: Vec<f64> = r.col(0).iter().copied().collect();
     // The last step's factor, where this step has the same unknowns: CG
     // preconditioned by it (see REUSE_MAX_IT).
@@ -720,6 +718,9 @@ fn solve_reduced(
             }
         }
     }
+    // The double-precision solvers work on a copy of M (the SVD on two k x k
+    // factors too); the single-precision factor above is claimed by itself.
+    let copy_claim = ledger.claim_f64(k2);
     if symmetric
         && let Some(z) = threads.run(big, |par| dense::llt_solve(m, r, par))
         && acceptable(&z)
