@@ -18,8 +18,9 @@
 //! Cholesky where it is symmetric, in single precision with refinement in
 //! double from order MIXED_MIN on, else by LU (`solve_reduced`). The single-
 //! precision factor is kept for the next step: where that step has the same
-//! reduced unknowns (the active set settled, only slip directions turning),
-//! CG preconditioned by it solves the next system without a new factorisation.
+//! reduced unknowns, or a few more or fewer (the active set settling, slip
+//! directions turning; `Reused`), CG preconditioned by it solves the next
+//! system without a new factorisation.
 //!
 //! A numerically singular reduced system (A singular: redundant or dependent
 //! contact rows) is solved in the least-squares sense with the minimum norm
