@@ -310,14 +310,67 @@ impl Dual {
     }
 
     /// Hands K over to a matrix-free dual, which forms G = B K B^T from it (the
-    /// lumped preconditioner of Newton's reduced systems); nothing on a dense
-    /// dual.
+    /// lumped preconditioner of Newton's reduced systems) and, where it pays,
+    /// the layered Dirichlet preconditioner (`dirichlet.rs`); nothing on a
+    /// dense dual.
     pub(crate) fn set_lumped(&mut self, k: &Csc) {
         if let Some(f) = &mut self.free {
             let g = crate::sparse::congruence(k, &self.rows, &f.bt);
             let claim = self.ledger.claim(g.bytes());
             f.lumped = Some((g, claim));
+            let plan = crate::dirichlet::Plan::of(
+                k,
+                &self.rows,
+                &f.factor,
+                f.factor.threads().clone(),
+                self.ledger.clone(),
+            );
+            f.dirichlet = plan.and_then(|p| p.form(&self.ledger));
         }
+    }
+
+    /// y := P x, P the approximate inverse of A that preconditions Newton's
+    /// reduced systems on a matrix-free dual: the layered Dirichlet one
+    /// (`dirichlet.rs`) where it was formed, else the lumped G = B K B^T.
+    /// False (y untouched) where the dual holds neither (a dense dual, or K
+    /// not handed over).
+    pub(crate) fn precondition(&self, x: &[f64], y: &mut [f64]) -> bool {
+        let Some(f) = &self.free else { return false };
+        if let Some(dn) = &f.dirichlet {
+            dn.apply(&self.rows, x, y);
+            return true;
+        }
+        match &f.lumped {
+            Some((g, _)) => {
+                g.mul_vec(x, y);
+                true
+            }
+            None => false,
+        }
+    }
+
+    /// Drops the layered Dirichlet preconditioner (the tests that measure what
+    /// it buys against the lumped one).
+    #[cfg(test)]
+    pub(crate) fn drop_dirichlet(&mut self) {
+        if let Some(f) = &mut self.free {
+            f.dirichlet = None;
+        }
+    }
+
+    /// Forms the layered Dirichlet preconditioner whatever it costs (the tests
+    /// that measure what it buys, on scenes too small for it to pay); true
+    /// where it was formed.
+    #[cfg(test)]
+    pub(crate) fn force_dirichlet(&mut self, k: &Csc) -> bool {
+        let Some(f) = &mut self.free else {
+            return false;
+        };
+        let threads = f.factor.threads().clone();
+        f.dirichlet =
+            crate::dirichlet::Plan::unguarded(k, &self.rows, threads, self.ledger.clone())
+                .and_then(|p| p.form(&self.ledger));
+        f.dirichlet.is_some()
     }
 
     /// G = B K B^T when a matrix-free dual holds it ([`Dual::set_lumped`]).
@@ -447,6 +500,8 @@ struct Operator {
     /// preconditions Newton's reduced systems, once K is handed over
     /// ([`Dual::set_lumped`]), with its bytes on the ledger.
     lumped: Option<(Csc, Claim)>,
+    /// The layered Dirichlet preconditioner, where it pays (`dirichlet.rs`).
+    dirichlet: Option<crate::dirichlet::Dirichlet>,
     /// The products' own solves, where they pay (see [`OwnSolves`]); None:
     /// the factor's plain solve.
     own: Option<OwnSolves>,
@@ -508,6 +563,7 @@ impl Operator {
             )),
             _single_claim: factor.ledger().claim(single.len() * 4),
             lumped: None,
+            dirichlet: None,
             own,
             single,
             work_single: std::cell::RefCell::new((

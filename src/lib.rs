@@ -8,6 +8,7 @@
 
 mod contact_blocks;
 mod dense;
+mod dirichlet;
 mod dual;
 mod error;
 mod factor;

@@ -116,6 +116,9 @@ pub(crate) struct Sizes {
     /// Bytes of a matrix-free dual's own solves by the elimination tree and
     /// their scratch (`dual::own_solves_bytes`).
     pub own_solves: usize,
+    /// Bytes of the layered Dirichlet preconditioner a matrix-free dual holds
+    /// where it pays (`dirichlet::Plan::bytes`; 0 where it does not).
+    pub dirichlet: usize,
 }
 
 /// Predicted bytes, what the counted allocations will reach.
@@ -143,15 +146,16 @@ impl Sizes {
             // work in on all threads (`blocks_work`); then one product's
             // n-vector and solve workspace in double and single precision, L's
             // values in single precision (the rough products), the lumped
-            // preconditioner G = B K B^T, and the tree solves with their
-            // scratch (where they are taken).
+            // preconditioner G = B K B^T and the layered Dirichlet one, and the
+            // tree solves with their scratch (where they are taken).
             Condensation::MatrixFree => {
                 let held = 3 * self.c * F64
                     + self.n * (F64 + 4)
                     + self.own_solves
                     + self.solve_scratch
                     + self.factor / 2
-                    + self.lumped;
+                    + self.lumped
+                    + self.dirichlet;
                 (held + self.blocks_work, held)
             }
         }

@@ -306,6 +306,7 @@ impl ContactProblem {
             blocks_work: crate::contact_blocks::work_bytes(factor, &b, n.nrows, d),
             lumped: crate::sparse::congruence_bytes(k, &b, &b.transpose()),
             own_solves: crate::dual::own_solves_bytes(factor, &b),
+            dirichlet: crate::dirichlet::plan_bytes(k, &b, factor),
         }
     }
 
@@ -475,6 +476,7 @@ impl ContactProblem {
             blocks_work: crate::contact_blocks::work_bytes(&self.factor, &b, n.nrows, self.d),
             lumped: crate::sparse::congruence_bytes(&self.k, &b, &b.transpose()),
             own_solves: crate::dual::own_solves_bytes(&self.factor, &b),
+            dirichlet: crate::dirichlet::plan_bytes(&self.k, &b, &self.factor),
             ..self.sizes
         };
         // The handle keeps its form (dense or matrix-free), as `refactor` does.

@@ -1,0 +1,356 @@
+//! The layered Dirichlet preconditioner of a matrix-free dual: an approximate
+//! inverse of A = B K^-1 B^T stronger than the lumped G = B K B^T.
+//!
+//! Where B touches the face DOFs F alone, A = B S^-1 B^T with S the Schur
+//! complement of K onto F (the body's stiffness seen from its contact face),
+//! and B S B^T inverts A exactly where B is square and orthogonal on F (nodal
+//! normal and tangent rows). The lumped preconditioner replaces S by K_FF:
+//! the face with every other DOF clamped. FETI's Dirichlet preconditioner
+//! uses S itself; this one the Schur complement of the LAYERS layers of DOFs
+//! next to the face (graph distance in K at most LAYERS from F), clamped
+//! beyond them:
+//!
+//! ```text
+//! S_l y = K_FF y - K_FI K_II^-1 K_IF y,   G_D = B S_l B^T,
+//! ```
+//!
+//! one sparse solve with the factor of K_II (a thin shell of the body, far
+//! cheaper than a solve with K's factor) per application. S_l lies between S
+//! and K_FF (Schur complements grow as DOFs are clamped), so G_D lies between
+//! A^-1 and G. On the thin slabs of the benchmark one layer cuts the products
+//! of a history step by a third (BENCHMARKS.md, "Quasistatic histories").
+
+use crate::factor::Factor;
+use crate::memory::{Claim, F64, Ledger};
+use crate::options::Ordering;
+use crate::sparse::Csc;
+use crate::threads::Threads;
+use faer::MatMut;
+use faer::dyn_stack::{MemBuffer, MemStack};
+use std::cell::RefCell;
+use std::sync::Arc;
+
+/// Layers of DOFs next to the contact face that the preconditioner eliminates.
+pub(crate) const LAYERS: usize = 1;
+
+/// The preconditioner is formed only where one application (the entries of
+/// K_loc read once, L_II's twice) costs at most this fraction of a product
+/// with A (L's entries read twice).
+const MAX_COST: f64 = 0.2;
+
+/// The face, its layers and their matrices, analysed (no numeric factor yet).
+pub(crate) struct Plan {
+    /// Global DOF of each local one: the face DOFs first, then the layers'.
+    global: Vec<usize>,
+    nf: usize,
+    /// K on the face and the layers (local indices, both triangles).
+    k_loc: Csc,
+    /// K_II, and its analysed factor.
+    k_ii: Csc,
+    factor: Factor,
+}
+
+impl Plan {
+    /// The LAYERS layers of K (both triangles stored) around the DOFs B
+    /// touches, with K_II analysed on `threads` (its numeric factor counted
+    /// on `ledger`); None where the layer is empty, or where one application
+    /// would cost more than MAX_COST of a product with K's factor `of_k`.
+    pub(crate) fn of(
+        k: &Csc,
+        b: &Csc,
+        of_k: &Factor,
+        threads: Arc<Threads>,
+        ledger: Arc<Ledger>,
+    ) -> Option<Plan> {
+        let (of_k_nnz, _) = of_k.nnz_and_flops();
+        let budget = MAX_COST * 2.0 * of_k_nnz as f64;
+        let plan = Self::with_layers(k, b, LAYERS, budget, threads, ledger)?;
+        let (nnz, _) = plan.factor.nnz_and_flops();
+        ((plan.k_loc.nnz() + 2 * nnz) as f64 <= budget).then_some(plan)
+    }
+
+    /// The plan of LAYERS layers whatever it costs (None where they are empty).
+    #[cfg(test)]
+    pub(crate) fn unguarded(
+        k: &Csc,
+        b: &Csc,
+        threads: Arc<Threads>,
+        ledger: Arc<Ledger>,
+    ) -> Option<Plan> {
+        Self::with_layers(k, b, LAYERS, f64::INFINITY, threads, ledger)
+    }
+
+    /// The plan of `layers` layers; None where they are empty, or hold more
+    /// entries of K than `budget`.
+    fn with_layers(
+        k: &Csc,
+        b: &Csc,
+        layers: usize,
+        budget: f64,
+        threads: Arc<Threads>,
+        ledger: Arc<Ledger>,
+    ) -> Option<Plan> {
+        let face = crate::dual::contact_dofs(b);
+        let mut local = vec![usize::MAX; k.nrows];
+        for (l, &j) in face.iter().enumerate() {
+            local[j] = l;
+        }
+        let mut global = face.clone();
+        let mut frontier = face.clone();
+        for _ in 0..layers {
+            let mut next = Vec::new();
+            for &j in &frontier {
+                for &i in &k.row_idx[k.col_ptr[j]..k.col_ptr[j + 1]] {
+                    if local[i] == usize::MAX {
+                        local[i] = global.len();
+                        global.push(i);
+                        next.push(i);
+                    }
+                }
+            }
+            frontier = next;
+        }
+        let (nf, nl) = (face.len(), global.len());
+        if nl == nf {
+            return None;
+        }
+        // K_loc column by column (K's column restricted to local rows, sorted
+        // by local index), and K_II as its trailing block.
+        let mut k_loc = Csc {
+            nrows: nl,
+            ncols: nl,
+            col_ptr: Vec::with_capacity(nl + 1),
+            row_idx: Vec::new(),
+            values: Vec::new(),
+        };
+        let mut col: Vec<(usize, f64)> = Vec::new();
+        k_loc.col_ptr.push(0);
+        for &j in &global {
+            col.clear();
+            for p in k.col_ptr[j]..k.col_ptr[j + 1] {
+                let li = local[k.row_idx[p]];
+                if li != usize::MAX {
+                    col.push((li, k.values[p]));
+                }
+            }
+            col.sort_unstable_by_key(|e| e.0);
+            k_loc.row_idx.extend(col.iter().map(|e| e.0));
+            k_loc.values.extend(col.iter().map(|e| e.1));
+            k_loc.col_ptr.push(k_loc.row_idx.len());
+            if k_loc.row_idx.len() as f64 > budget {
+                return None;
+            }
+        }
+        let mut k_ii = Csc {
+            nrows: nl - nf,
+            ncols: nl - nf,
+            col_ptr: Vec::with_capacity(nl - nf + 1),
+            row_idx: Vec::new(),
+            values: Vec::new(),
+        };
+        k_ii.col_ptr.push(0);
+        for j in nf..nl {
+            for p in k_loc.col_ptr[j]..k_loc.col_ptr[j + 1] {
+                if k_loc.row_idx[p] >= nf {
+                    k_ii.row_idx.push(k_loc.row_idx[p] - nf);
+                    k_ii.values.push(k_loc.values[p]);
+                }
+            }
+            k_ii.col_ptr.push(k_ii.row_idx.len());
+        }
+        let factor = Factor::analyse(&k_ii, &[], Ordering::Amd, false, threads, ledger).ok()?;
+        Some(Plan {
+            global,
+            nf,
+            k_loc,
+            k_ii,
+            factor,
+        })
+    }
+
+    /// Bytes the formed preconditioner holds: K_loc, L_II's values and
+    /// workspace, and three vectors.
+    pub(crate) fn bytes(&self) -> usize {
+        let nl = self.global.len();
+        self.k_loc.bytes()
+            + self.factor.values_bytes()
+            + self.factor.factor_scratch_bytes()
+            + self.factor.solve_scratch(1).size_bytes()
+            + 3 * nl * F64
+    }
+
+    /// Factors K_II; None where that fails (it cannot, K_II being a principal
+    /// block of an SPD K, but rounding may say otherwise).
+    pub(crate) fn form(mut self, ledger: &Arc<Ledger>) -> Option<Dirichlet> {
+        self.factor.refactor(&self.k_ii).ok()?;
+        let nl = self.global.len();
+        let claim = ledger.claim(self.k_loc.bytes() + 3 * nl * F64);
+        Some(Dirichlet {
+            mem: RefCell::new(MemBuffer::new(self.factor.solve_scratch(1))),
+            work: RefCell::new((vec![0.0; nl], vec![0.0; nl])),
+            global: self.global,
+            nf: self.nf,
+            k_loc: self.k_loc,
+            factor: self.factor,
+            _claim: claim,
+        })
+    }
+}
+
+/// Bytes the preconditioner of K and B (`b`) on K's factor `of_k` will hold
+/// ([`Plan::bytes`]; 0 where it is not formed). Analyses the layer: it costs
+/// a symbolic factorisation of K_II.
+pub(crate) fn plan_bytes(k: &Csc, b: &Csc, of_k: &Factor) -> usize {
+    Plan::of(k, b, of_k, of_k.threads().clone(), Ledger::new()).map_or(0, |p| p.bytes())
+}
+
+/// G_D = B S_l B^T of the module docs, applied matrix-free.
+pub(crate) struct Dirichlet {
+    global: Vec<usize>,
+    nf: usize,
+    k_loc: Csc,
+    factor: Factor,
+    /// Scratch: the local vector and K_loc times it; the solve's workspace.
+    work: RefCell<(Vec<f64>, Vec<f64>)>,
+    mem: RefCell<MemBuffer>,
+    _claim: Claim,
+}
+
+impl Dirichlet {
+    /// y := B S_l B^T x (x and y of length c), B = `b`. B's columns outside
+    /// the face are empty (the face is the DOFs B touches).
+    pub(crate) fn apply(&self, b: &Csc, x: &[f64], y: &mut [f64]) {
+        let mut work = self.work.borrow_mut();
+        let (v, kv) = &mut *work;
+        let (nf, nl) = (self.nf, self.global.len());
+        // v = [B^T x on the face; 0].
+        v.iter_mut().for_each(|e| *e = 0.0);
+        for (l, &j) in self.global[..nf].iter().enumerate() {
+            v[l] = (b.col_ptr[j]..b.col_ptr[j + 1])
+                .map(|p| b.values[p] * x[b.row_idx[p]])
+                .sum();
+        }
+        // kv = K_loc v: K_FF v_F on the face, K_IF v_F on the layers.
+        kv.iter_mut().for_each(|e| *e = 0.0);
+        for (j, &vj) in v[..nf].iter().enumerate() {
+            if vj != 0.0 {
+                for p in self.k_loc.col_ptr[j]..self.k_loc.col_ptr[j + 1] {
+                    kv[self.k_loc.row_idx[p]] += self.k_loc.values[p] * vj;
+                }
+            }
+        }
+        // s = K_II^-1 K_IF v_F (in v's layer part), then S_l v_F = K_FF v_F - K_FI s.
+        let s = &mut v[nf..nl];
+        s.copy_from_slice(&kv[nf..nl]);
+        self.factor.solve_in_place(
+            MatMut::from_column_major_slice_mut(s, nl - nf, 1),
+            MemStack::new(&mut self.mem.borrow_mut()),
+        );
+        for (l, &sl) in v[nf..].iter().enumerate() {
+            let j = nf + l;
+            for p in self.k_loc.col_ptr[j]..self.k_loc.col_ptr[j + 1] {
+                let i = self.k_loc.row_idx[p];
+                if i < nf {
+                    kv[i] -= self.k_loc.values[p] * sl;
+                }
+            }
+        }
+        // y = B (S_l v_F).
+        y.iter_mut().for_each(|e| *e = 0.0);
+        for (l, &j) in self.global[..nf].iter().enumerate() {
+            let val = kv[l];
+            if val != 0.0 {
+                for p in b.col_ptr[j]..b.col_ptr[j + 1] {
+                    y[b.row_idx[p]] += b.values[p] * val;
+                }
+            }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::dual::tests::grid;
+    use crate::dual::{Condensation, Dual};
+
+    /// The grid of `dual::tests::grid` with its bottom row a contact face
+    /// (one unit row of B per bottom DOF: B square and orthogonal on F), K's
+    /// factor and the assembled A.
+    fn scene(nx: usize, ny: usize) -> (Csc, Csc, Arc<Factor>, Dual) {
+        let k = grid(nx, ny);
+        let rows: Vec<_> = (0..nx).map(|i| (i, i, 1.0)).collect();
+        let b = Csc::from_triplets(nx, nx * ny, &rows);
+        let factor = Factor::with_last(&k, &[], Ordering::Amd, Arc::new(Threads::new(1))).unwrap();
+        let empty = Csc::from_triplets(0, nx * ny, &[]);
+        let dual = Dual::build_with(&factor, &b, &empty, 1, Condensation::Solves).unwrap();
+        (k, b, factor, dual)
+    }
+
+    fn formed(k: &Csc, b: &Csc, layers: usize) -> Dirichlet {
+        let ledger = Ledger::new();
+        let threads = Arc::new(Threads::new(1));
+        Plan::with_layers(k, b, layers, f64::INFINITY, threads, ledger.clone())
+            .expect("layers")
+            .form(&ledger)
+            .expect("K_II is SPD")
+    }
+
+    fn dot(a: &[f64], b: &[f64]) -> f64 {
+        a.iter().zip(b).map(|(x, y)| x * y).sum()
+    }
+
+    #[test]
+    fn with_every_layer_it_is_the_inverse_of_a() {
+        let (nx, ny) = (12, 9);
+        let (k, b, _, dual) = scene(nx, ny);
+        // ny - 1 layers reach every DOF: S_l is the Schur complement S itself.
+        let dn = formed(&k, &b, ny - 1);
+        let x: Vec<f64> = (0..nx).map(|i| (i as f64 * 0.7).sin() + 0.2).collect();
+        let (mut gx, mut agx) = (vec![0.0; nx], vec![0.0; nx]);
+        dn.apply(&b, &x, &mut gx);
+        dual.apply(&gx, &mut agx);
+        let err = agx
+            .iter()
+            .zip(&x)
+            .map(|(a, b)| (a - b).abs())
+            .fold(0.0, f64::max);
+        assert!(
+            err <= 1e-12 * x.iter().fold(0.0f64, |m, v| m.max(v.abs())),
+            "{err:.2e}"
+        );
+    }
+
+    #[test]
+    fn one_layer_lies_between_the_inverse_of_a_and_the_lumped_one() {
+        let (nx, ny) = (30, 20);
+        let (k, b, _, _) = scene(nx, ny);
+        let dn = formed(&k, &b, 1);
+        // Every layer: A^-1 itself (the test above).
+        let exact_inv = formed(&k, &b, ny - 1);
+        let g = crate::sparse::congruence(&k, &b, &b.transpose());
+        // x^T A^-1 x <= x^T G_D x <= x^T G x.
+        for seed in 0..4 {
+            let x: Vec<f64> = (0..nx)
+                .map(|i| ((i * (seed + 3)) as f64 * 0.9).cos() + if seed == 0 { 1.0 } else { 0.0 })
+                .collect();
+            let mut ainv_x = vec![0.0; nx];
+            exact_inv.apply(&b, &x, &mut ainv_x);
+            let (mut gdx, mut gx) = (vec![0.0; nx], vec![0.0; nx]);
+            dn.apply(&b, &x, &mut gdx);
+            g.mul_vec(&x, &mut gx);
+            let (exact, dirichlet, lumped) = (dot(&x, &ainv_x), dot(&x, &gdx), dot(&x, &gx));
+            assert!(
+                exact <= dirichlet * (1.0 + 1e-10) && dirichlet <= lumped * (1.0 + 1e-12),
+                "{exact} {dirichlet} {lumped}"
+            );
+            // And strictly inside: the layer is neither the body nor nothing
+            // (far inside for the smooth x, whose response reaches deep).
+            let gap = if seed == 0 { 0.99 } else { 1.0 - 1e-4 };
+            assert!(
+                exact < gap * dirichlet && dirichlet < 0.99 * lumped,
+                "{seed}: {exact} {dirichlet} {lumped}"
+            );
+        }
+    }
+}
