@@ -114,7 +114,8 @@ impl Plan {
             frontier = next;
         }
         let (nf, nl) = (face.len(), global.len());
-        if nl == nf {
+        // The application's blocks index rows in 32 bits.
+        if nl == nf || u32::try_from(nl).is_err() {
             return None;
         }
         // K_loc column by column (K's column restricted to local rows, sorted
@@ -213,7 +214,8 @@ impl Plan {
 }
 
 /// Columns of K_loc cut to rows below `rows`, in single precision with
-/// 32-bit row indices (the application is bound by memory traffic).
+/// 32-bit row indices (the application is bound by memory traffic; a plan
+/// exists only where K_loc's order fits them).
 struct Block {
     col_ptr: Vec<usize>,
     row: Vec<u32>,

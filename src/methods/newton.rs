@@ -1403,11 +1403,6 @@ mod tests {
         assert_eq!(ledger.live(), k * k * 4, "one factor held at a time");
     }
 
-    /// Matrix-free Newton on a grid's bottom row (d = 2: normal on the row's
-    /// DOFs, tangent on the row above), Tresca, with the lumped preconditioner
-    /// G = B K B^T (from zero and from the lumped start) and with Jacobi: all
-    /// converge to dense Newton's multipliers (1e-10 relative), the lumped
-    /// preconditioner with fewer products than Jacobi.
     /// A thin slab of springs, nx x ny x nz nodes with 3 DOFs each: every two
     /// nodes at most one cell diagonal apart joined by a unit spring along
     /// their line (a lattice that resists shear through its diagonals, as an
@@ -1455,6 +1450,10 @@ mod tests {
         Csc::from_triplets(n, n, &t)
     }
 
+    /// Matrix-free Newton on a thin 3D lattice slab, Tresca, with the layered
+    /// Dirichlet preconditioner and with the lumped one: both converge to dense
+    /// Newton's multipliers (1e-10 relative), the layered one with fewer
+    /// products.
     #[test]
     fn the_layered_dirichlet_preconditioner_saves_products() {
         use crate::dual::{Condensation, Dual};
@@ -1530,6 +1529,11 @@ mod tests {
         );
     }
 
+    /// Matrix-free Newton on a grid's bottom row (d = 2: normal on the row's
+    /// DOFs, tangent on the row above), Tresca, with the lumped preconditioner
+    /// G = B K B^T (from zero and from the lumped start) and with Jacobi: all
+    /// converge to dense Newton's multipliers (1e-10 relative), the lumped
+    /// preconditioner with fewer products than Jacobi.
     #[test]
     fn the_lumped_preconditioner_saves_products() {
         use crate::dual::tests::grid;
