@@ -391,6 +391,36 @@ impl Dual {
         }
     }
 
+    /// Narrows the products of [`Dual::apply_narrow`] to the dual rows `rows`
+    /// (ascending, no repeats): the x they are given vanishes outside them and
+    /// y is wanted only there (Newton's reduced solves: their unknowns' rows
+    /// and the explicit part's). The solves then take only the supernodes of
+    /// K's factor on the paths of those rows' DOFs (`tree_solve.rs`); on a
+    /// matrix-free dual where those hold at most MAX_FRACTION of L's entries.
+    /// False, and the products stay whole, where they hold more, and on an
+    /// assembled dual. In force until the next call or [`Dual::widen`].
+    pub(crate) fn narrow_to(&self, rows: &[usize]) -> bool {
+        self.free.as_ref().is_some_and(|f| f.narrow_to(rows))
+    }
+
+    /// Ends a narrowing (see [`Dual::narrow_to`]).
+    pub(crate) fn widen(&self) {
+        if let Some(f) = &self.free {
+            f.narrow.borrow_mut().split = None;
+        }
+    }
+
+    /// y := A x, in single precision where `rough` (as [`Dual::apply_rough`]),
+    /// where a narrowing is in force ([`Dual::narrow_to`]) only at its rows
+    /// and zero elsewhere (x must vanish outside them); else as
+    /// [`Dual::apply`] / [`Dual::apply_rough`].
+    pub(crate) fn apply_narrow(&self, x: &[f64], y: &mut [f64], rough: bool) {
+        match &self.free {
+            Some(f) => f.apply_narrow(x, y, rough),
+            None => self.apply(x, y),
+        }
+    }
+
     /// y ~= A x for an inexact inner solve: on a matrix-free dual the solve with
     /// K's factor runs in single precision (relative error about 1e-7 times the
     /// factor's conditioning, half the memory traffic); exactly [`Dual::apply`]
@@ -505,6 +535,32 @@ struct Operator {
     /// The products' own solves, where they pay (see [`OwnSolves`]); None:
     /// the factor's plain solve.
     own: Option<OwnSolves>,
+    /// The narrowed products of Newton's reduced solves (see
+    /// [`Dual::narrow_to`]).
+    narrow: std::cell::RefCell<Narrow>,
+}
+
+/// Products narrowed to a set of dual rows: x vanishes outside them and y is
+/// wanted only there (a Newton step's reduced unknowns and explicit part), so
+/// the solves take the supernodes on the paths of their DOFs alone
+/// (`tree_solve.rs`). The split is replaced at each narrowing; its scratch in
+/// double and single precision is made at the first one, refitted after,
+/// and claimed on the ledger (`TreeSolve::bytes_bound` in the prediction).
+#[derive(Default)]
+struct Narrow {
+    /// The rows, ascending, and the split for their DOFs; None: the products
+    /// are not narrowed.
+    rows: Vec<usize>,
+    split: Option<crate::tree_solve::TreeSolve>,
+    /// The DOFs of the rows (scratch of [`Dual::narrow_to`]).
+    dofs: Vec<usize>,
+    work: Option<NarrowWork>,
+}
+
+struct NarrowWork {
+    double: crate::tree_solve::TreeScratch<f64>,
+    single: crate::tree_solve::TreeScratch<f32>,
+    _claim: Claim,
 }
 
 /// The solves a matrix-free dual's products take instead of the factor's
@@ -534,10 +590,12 @@ impl OwnSolves {
 }
 
 /// Bytes the products of a matrix-free dual of B (`b`) on `factor` claim for
-/// their own solves ([`OwnSolves`]).
+/// their own solves ([`OwnSolves`]), and at most for their narrowed ones
+/// ([`Narrow`]).
 pub(crate) fn own_solves_bytes(factor: &Factor, b: &Csc) -> usize {
     crate::tree_solve::TreeSolve::of(factor, &contact_dofs(b))
         .map_or(0, |split| split.bytes_with_scratch(factor.n()))
+        + crate::tree_solve::TreeSolve::bytes_bound(factor)
 }
 
 impl Operator {
@@ -565,6 +623,7 @@ impl Operator {
             lumped: None,
             dirichlet: None,
             own,
+            narrow: std::cell::RefCell::new(Narrow::default()),
             single,
             work_single: std::cell::RefCell::new((
                 vec![0.0; factor.n()],
@@ -576,6 +635,10 @@ impl Operator {
     /// y ~= A x with the solve in single precision (the products with B in
     /// double): relative error about 1e-7 times the conditioning of K's factor.
     fn apply_single(&self, x: &[f64], y: &mut [f64]) {
+        if x.iter().all(|&v| v == 0.0) {
+            y.iter_mut().for_each(|v| *v = 0.0);
+            return;
+        }
         let mut work = self.work_single.borrow_mut();
         let (z, mem) = &mut *work;
         z.iter_mut().for_each(|v| *v = 0.0);
@@ -645,6 +708,102 @@ impl Operator {
                 s += self.bt.values[k] * z[self.bt.row_idx[k]];
             }
             *yr = s;
+        }
+    }
+}
+
+impl Operator {
+    /// See [`Dual::narrow_to`].
+    fn narrow_to(&self, rows: &[usize]) -> bool {
+        let mut narrow = self.narrow.borrow_mut();
+        let Narrow {
+            rows: held,
+            split,
+            dofs,
+            work,
+        } = &mut *narrow;
+        dofs.clear();
+        for &r in rows {
+            dofs.extend_from_slice(&self.bt.row_idx[self.bt.col_ptr[r]..self.bt.col_ptr[r + 1]]);
+        }
+        dofs.sort_unstable();
+        dofs.dedup();
+        *split = crate::tree_solve::TreeSolve::of(&self.factor, dofs).filter(|s| s.restricted());
+        let Some(split) = split else {
+            return false;
+        };
+        held.clear();
+        held.extend_from_slice(rows);
+        let n = self.factor.n();
+        let work = work.get_or_insert_with(|| NarrowWork {
+            _claim: self
+                .factor
+                .ledger()
+                .claim(crate::tree_solve::TreeSolve::bytes_bound(&self.factor)),
+            double: split.scratch(n),
+            single: split.scratch(n),
+        });
+        split.refit(&mut work.double);
+        split.refit(&mut work.single);
+        true
+    }
+
+    /// See [`Dual::apply_narrow`].
+    fn apply_narrow(&self, x: &[f64], y: &mut [f64], rough: bool) {
+        let mut narrow = self.narrow.borrow_mut();
+        let Narrow {
+            rows,
+            split: Some(split),
+            work: Some(work),
+            ..
+        } = &mut *narrow
+        else {
+            drop(narrow);
+            return if rough {
+                self.apply_single(x, y)
+            } else {
+                self.apply(x, y)
+            };
+        };
+        debug_assert!(
+            x.iter()
+                .enumerate()
+                .all(|(r, &v)| v == 0.0 || rows.binary_search(&r).is_ok()),
+            "x vanishes outside the narrowed rows"
+        );
+        y.iter_mut().for_each(|v| *v = 0.0);
+        if rows.iter().all(|&r| x[r] == 0.0) {
+            return;
+        }
+        let (bt, threads) = (&self.bt, self.factor.threads());
+        // The solve reads and writes z on the paths' columns, which hold the
+        // rows' DOFs: B^T x is scattered into a cleared z, and A x gathered
+        // at the rows.
+        macro_rules! narrowed {
+            ($z:expr, $t:ty, $solve:ident, $values:expr, $scratch:expr) => {{
+                let z = $z;
+                z.iter_mut().for_each(|v| *v = 0.0);
+                for &r in rows.iter() {
+                    if x[r] != 0.0 {
+                        for k in bt.col_ptr[r]..bt.col_ptr[r + 1] {
+                            z[bt.row_idx[k]] += (bt.values[k] * x[r]) as $t;
+                        }
+                    }
+                }
+                split.$solve(&self.factor, $values, z, $scratch, threads);
+                for &r in rows.iter() {
+                    y[r] = (bt.col_ptr[r]..bt.col_ptr[r + 1])
+                        .map(|k| bt.values[k] * f64::from(z[bt.row_idx[k]]))
+                        .sum();
+                }
+            }};
+        }
+        if rough {
+            let mut w = self.work_single.borrow_mut();
+            narrowed!(&mut w.0, f32, solve_single, &self.single, &mut work.single);
+        } else {
+            let mut w = self.work.borrow_mut();
+            narrowed!(&mut w.0, f64, solve, self.factor.values(), &mut work.double);
         }
     }
 }
@@ -856,7 +1015,9 @@ pub(crate) mod tests {
                 )
                 .unwrap();
                 let dual = Dual::build(&f, &n, &t, 2, DualForm::MatrixFree).unwrap();
-                let own = own_solves_bytes(&f, &stack_rows(&n, &t));
+                // The own solves' bytes, besides the bound on the narrowed ones'.
+                let own = own_solves_bytes(&f, &stack_rows(&n, &t))
+                    - crate::tree_solve::TreeSolve::bytes_bound(&f);
                 (dual, own)
             };
             let (one, own_one) = free_on(1);
@@ -889,6 +1050,89 @@ pub(crate) mod tests {
                 assert!((a - b).abs() <= 1e-5 * scale, "{a} vs {b}");
             }
         }
+    }
+
+    /// Products narrowed to some contacts' rows (`Dual::narrow_to`) equal the
+    /// whole products there, in double and single precision, on one and two
+    /// threads, and are zero elsewhere; each narrowing replaces the last
+    /// (the second set overlaps the first, so values a solve left behind
+    /// would show); no narrowing where the rows' paths cover the factor.
+    #[test]
+    fn narrowed_products_equal_the_whole_ones_at_their_rows() {
+        // A strip with contacts along its bottom row (d = 2): the paths of a
+        // stretch of them hold a small part of the factor.
+        let (nx, ny) = (2000, 20);
+        let k = grid(nx, ny);
+        let nt: Vec<_> = (0..nx).map(|i| (i, i, -1.0)).collect();
+        let tt: Vec<_> = (0..nx).map(|i| (i, (i + 1) % nx, 1.0)).collect();
+        let n = Csc::from_triplets(nx, nx * ny, &nt);
+        let t = Csc::from_triplets(nx, nx * ny, &tt);
+        for threads in [1, 2] {
+            let f = Factor::with_last(
+                &k,
+                &[],
+                crate::Ordering::Metis,
+                std::sync::Arc::new(crate::threads::Threads::new(threads)),
+            )
+            .unwrap();
+            let dual = Dual::build(&f, &n, &t, 2, DualForm::MatrixFree).unwrap();
+            let c = dual.c;
+            for stretch in [300..700, 600..650] {
+                let mut rows: Vec<usize> = stretch.clone().chain(stretch.map(|i| nx + i)).collect();
+                rows.sort_unstable();
+                assert!(dual.narrow_to(&rows), "{threads} thread(s)");
+                let mut x = vec![0.0; c];
+                for &r in &rows {
+                    x[r] = (r as f64 * 0.37).sin();
+                }
+                let mut whole = vec![0.0; c];
+                dual.apply(&x, &mut whole);
+                let scale = whole.iter().fold(0.0f64, |a, v| a.max(v.abs()));
+                for (rough, tol) in [(false, 1e-13), (true, 1e-5)] {
+                    let mut y = vec![f64::NAN; c];
+                    dual.apply_narrow(&x, &mut y, rough);
+                    for r in 0..c {
+                        let want = if rows.binary_search(&r).is_ok() {
+                            whole[r]
+                        } else {
+                            0.0
+                        };
+                        assert!(
+                            (y[r] - want).abs() <= tol * scale,
+                            "row {r}: {} vs {want} ({threads} thread(s), rough {rough})",
+                            y[r]
+                        );
+                    }
+                }
+            }
+            dual.widen();
+        }
+        // Contacts spread over a square: their paths hold the whole factor.
+        let (nx, step) = (60, 7);
+        let k = grid(nx, nx);
+        let dofs: Vec<usize> = (0..nx * nx).step_by(step).collect();
+        let nt: Vec<_> = dofs
+            .iter()
+            .enumerate()
+            .map(|(i, &j)| (i, j, -1.0))
+            .collect();
+        let tt: Vec<_> = dofs
+            .iter()
+            .enumerate()
+            .map(|(i, &j)| (i, j + 1, 1.0))
+            .collect();
+        let n = Csc::from_triplets(dofs.len(), nx * nx, &nt);
+        let t = Csc::from_triplets(dofs.len(), nx * nx, &tt);
+        let f = Factor::with_last(
+            &k,
+            &[],
+            crate::Ordering::Metis,
+            std::sync::Arc::new(crate::threads::Threads::sequential()),
+        )
+        .unwrap();
+        let dual = Dual::build(&f, &n, &t, 2, DualForm::MatrixFree).unwrap();
+        let all: Vec<usize> = (0..dual.c).collect();
+        assert!(!dual.narrow_to(&all));
     }
 
     #[test]

@@ -227,6 +227,48 @@ impl TreeSolve {
         }
     }
 
+    /// Fits `scratch`, made by another split of the same factor, to this
+    /// one: its vectors keep their capacity, so refitting allocates only
+    /// where this split needs more than any before it.
+    pub(crate) fn refit<T: Copy + Default>(&self, scratch: &mut TreeScratch<T>) {
+        let top = self.top_cols.len();
+        scratch
+            .per_bin
+            .resize_with(self.bins.len(), || (Vec::new(), Vec::new()));
+        for (acc, buf) in &mut scratch.per_bin {
+            acc.resize(top, T::default());
+            buf.resize(self.below, T::default());
+        }
+        scratch.top_vals.resize(top, T::default());
+        scratch.buf.resize(self.below, T::default());
+    }
+
+    /// An upper bound on [`TreeSolve::bytes_with_scratch`] for the split of
+    /// `factor` restricted to any set of DOFs: every column on the paths and
+    /// in the top, a bin per thread, the longest pattern below a supernode.
+    pub(crate) fn bytes_bound(factor: &Factor) -> usize {
+        let n = factor.n();
+        if factor.is_dense() {
+            return 0;
+        }
+        let sym = factor.supernodal_symbolic();
+        let ns = sym.n_supernodes();
+        let below = (0..ns)
+            .map(|s| sym.supernode(s).pattern().len())
+            .max()
+            .unwrap_or(0);
+        let threads = factor.threads().count();
+        // Without a split: one bin, no top (and no index of the top's columns).
+        let (bins, top, top_index) = if threads >= 2 {
+            (threads, n, n)
+        } else {
+            (1, 0, 0)
+        };
+        let scratch = n + (bins + 1) * (top + below);
+        scratch * (std::mem::size_of::<f64>() + std::mem::size_of::<f32>())
+            + (top_index + n + top + ns) * std::mem::size_of::<usize>()
+    }
+
     /// Entries of [`TreeSolve::scratch`] (in its precision).
     pub(crate) fn scratch_len(&self, n: usize) -> usize {
         n + (self.bins.len() + 1) * (self.top_cols.len() + self.below)
@@ -251,7 +293,6 @@ impl TreeSolve {
     }
 
     /// Whether the solves are restricted to paths (see [`TreeSolve::of`]).
-    #[cfg(test)]
     pub(crate) fn restricted(&self) -> bool {
         self.cols.is_some()
     }

@@ -280,14 +280,28 @@ fn newton_step(
         return true;
     }
     if dual.is_matrix_free() {
+        // The products of this step read and give only the rows of the
+        // reduced unknowns and of the explicit part: narrowed to them (where
+        // their DOFs' paths hold few of L's entries; Coulomb's open contacts
+        // leave the reduced system).
+        let rows = &mut krylov.rows;
+        rows.clear();
+        for u in &red {
+            rows.extend(u.dir[..u.n_dir].iter().map(|&(j, _)| j));
+            rows.extend(u.test[..u.n_test].iter().map(|&(j, _)| j));
+        }
+        rows.extend((0..dual.c).filter(|&j| step[j] != 0.0));
+        rows.sort_unstable();
+        rows.dedup();
+        if dual.narrow_to(rows) {
+            krylov.narrowed += 1;
+        }
         // The fixed components' part of the right-hand side, to the accuracy
         // the reduced solve asks for.
-        if krylov.rough() {
-            dual.apply_rough(step, ae0);
-        } else {
-            dual.apply(step, ae0);
-        }
-        return krylov_step(problem, &red, step, ae0, krylov);
+        dual.apply_narrow(step, ae0, krylov.rough());
+        let solved = krylov_step(problem, &red, step, ae0, krylov);
+        dual.widen();
+        return solved;
     }
     dual.apply(step, ae0);
     // M = T^T A V + diag, column by column: column l is the sum over the entries of
@@ -351,6 +365,10 @@ pub(super) struct Krylov {
     pub exact: bool,
     v: Vec<f64>,
     av: Vec<f64>,
+    /// The rows a step's products are narrowed to (`Dual::narrow_to`).
+    rows: Vec<usize>,
+    /// Steps whose products were narrowed.
+    pub narrowed: usize,
 }
 
 impl Krylov {
@@ -368,6 +386,8 @@ impl Krylov {
             exact: false,
             v: vec![0.0; c],
             av: vec![0.0; c],
+            rows: Vec::with_capacity(c),
+            narrowed: 0,
         }
     }
 }
@@ -450,11 +470,7 @@ fn krylov_step(
                 v[j] += c * xl;
             }
         }
-        if rough.get() {
-            dual.apply_rough(v, av);
-        } else {
-            dual.apply(v, av);
-        }
+        dual.apply_narrow(v, av, rough.get());
         for ((u, &xl), yl) in red.iter().zip(x).zip(y.iter_mut()) {
             *yl = u.diag * xl
                 + u.test[..u.n_test]
@@ -1527,6 +1543,89 @@ mod tests {
             (its_layered as f64) < 0.85 * its_lumped as f64,
             "products: layered {its_layered}, lumped {its_lumped}"
         );
+    }
+
+    /// Matrix-free Newton on a 3D lattice slab, Coulomb, pressed in a small
+    /// central patch (most contacts open, so they leave the reduced systems)
+    /// and sheared so that its contacts slip: its steps' products are narrowed
+    /// to the patch's rows (`Dual::narrow_to`), and it converges to dense
+    /// Newton's multipliers (1e-10 relative).
+    #[test]
+    fn coulomb_steps_narrow_their_products_to_the_contact_zone() {
+        use crate::dual::{Condensation, Dual};
+        use crate::factor::Factor;
+        use crate::options::Ordering;
+        use std::sync::Arc;
+        let (nx, ny, nz) = (24, 24, 3);
+        let k = lattice(nx, ny, nz, 0.05);
+        let m = nx * ny;
+        let nmat: Vec<_> = (0..m).map(|i| (i, 3 * i + 2, 1.0)).collect();
+        let tmat: Vec<_> = (0..2 * m).map(|r| (r, 3 * (r / 2) + r % 2, 1.0)).collect();
+        let (nm, tm) = (
+            Csc::from_triplets(m, k.nrows, &nmat),
+            Csc::from_triplets(2 * m, k.nrows, &tmat),
+        );
+        let factor = Arc::new(
+            Factor::with_last(&k, &[], Ordering::Metis, Arc::new(Threads::new(1))).unwrap(),
+        );
+        let centre = (nx as f64 - 1.0) / 2.0;
+        let b: Vec<f64> = (0..m)
+            .map(|i| {
+                let (x, y) = ((i % nx) as f64 - centre, (i / nx) as f64 - centre);
+                0.1 - 0.004 * (x * x + y * y)
+            })
+            .chain((0..2 * m).map(|r| if r % 2 == 0 { 0.005 } else { 0.0 }))
+            .collect();
+        let mu = vec![0.3; m];
+        let solve = |dual: &Dual| {
+            let problem = DualProblem {
+                dual,
+                b: &b,
+                law: Friction::Coulomb(&mu),
+                monitor: None,
+                deadline: None,
+                predicted: false,
+            };
+            let mut newton = Newton::new(&problem, 1e-12);
+            let opts = Options {
+                method: Method::Newton,
+                ..Options::default()
+            };
+            let mut lam = vec![0.0; 3 * m];
+            let out = super::super::driver::drive(&problem, &mut lam, &opts, 1e-12, &mut newton);
+            assert_eq!(out.end, super::super::End::Converged, "{out:?}");
+            (lam, out.outer, newton.krylov.narrowed)
+        };
+        let mut free = Dual::build_with(&factor, &nm, &tm, 3, Condensation::MatrixFree).unwrap();
+        free.set_lumped(&k);
+        let dense = Dual::build_with(&factor, &nm, &tm, 3, Condensation::Solves).unwrap();
+        let (l_dense, _, _) = solve(&dense);
+        let (l_free, outer, narrowed) = solve(&free);
+        let closed = l_dense[..m].iter().filter(|&&v| v > 0.0).count();
+        let slipping = (0..m)
+            .filter(|&i| {
+                let t = l_dense[m + 2 * i].hypot(l_dense[m + 2 * i + 1]);
+                l_dense[i] > 0.0 && t >= 0.3 * l_dense[i] * (1.0 - 1e-9)
+            })
+            .count();
+        println!(
+            "closed {closed} of {m}, slipping {slipping}; {outer} Newton steps, {narrowed} narrowed"
+        );
+        assert!(closed > 0 && closed < m / 4, "closed {closed} of {m}");
+        assert!(
+            slipping > 0,
+            "no contact slips: Coulomb's coupling untested"
+        );
+        assert!(
+            narrowed >= outer.saturating_sub(1) && narrowed > 0,
+            "{narrowed} of {outer}"
+        );
+        let diff = l_free
+            .iter()
+            .zip(&l_dense)
+            .map(|(a, b)| (a - b).abs())
+            .fold(0.0, f64::max);
+        assert!(diff <= 1e-10 * norm(&l_dense), "{diff:.2e}");
     }
 
     /// Matrix-free Newton on a grid's bottom row (d = 2: normal on the row's
