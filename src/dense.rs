@@ -167,6 +167,7 @@ pub(crate) fn refine(
     let mut dx = vec![0.0; n];
     let mut x = vec![0.0; n];
     let mut res = r.to_vec();
+    let mut mx = vec![0.0; n];
     let (m_inf, r_max) = scales(m, r);
     let mut last = f64::INFINITY;
     for _ in 0..REFINE_ROUNDS {
@@ -175,7 +176,7 @@ pub(crate) fn refine(
             *xi += c;
         }
         // res = r - M x, with M's lower triangle (symmetric).
-        let mx = symmetric_times(m, &x, par);
+        symmetric_times_into(m, &x, &mut mx, par);
         for ((ri, &rv), mv) in res.iter_mut().zip(r).zip(&mx) {
             *ri = rv - mv;
         }
@@ -249,9 +250,10 @@ pub(crate) fn pcg(
     let mut z = vec![0.0; n];
     precondition(&res, &mut z);
     let mut p = z.clone();
+    let (mut q, mut mx) = (vec![0.0; n], vec![0.0; n]);
     let mut rz: f64 = res.iter().zip(&z).map(|(a, b)| a * b).sum();
     for _ in 0..max_it {
-        let q = symmetric_times(m, &p, par);
+        symmetric_times_into(m, &p, &mut q, par);
         let pq: f64 = p.iter().zip(&q).map(|(a, b)| a * b).sum();
         if !(pq > 0.0 && rz.is_finite()) {
             return None;
@@ -263,7 +265,7 @@ pub(crate) fn pcg(
         }
         if inf_norm(&res) <= rtol * (m_inf * inf_norm(&x) + r_max) {
             // Confirmed on the true residual (the recurrence drifts by rounding).
-            let mx = symmetric_times(m, &x, par);
+            symmetric_times_into(m, &x, &mut mx, par);
             for ((ri, &rv), mv) in res.iter_mut().zip(r).zip(&mx) {
                 *ri = rv - mv;
             }
@@ -282,10 +284,19 @@ pub(crate) fn pcg(
     None
 }
 
-/// M x for the symmetric M whose lower triangle is given.
+/// M x for the symmetric M whose lower triangle is given (the tests' checks).
+#[cfg(test)]
 fn symmetric_times(m: MatRef<'_, f64>, x: &[f64], par: Par) -> Vec<f64> {
+    let mut y = vec![0.0; m.nrows()];
+    symmetric_times_into(m, x, &mut y, par);
+    y
+}
+
+/// y := M x for the symmetric M whose lower triangle is given, into the
+/// caller's `y` (the iterations' scratch: no allocation).
+fn symmetric_times_into(m: MatRef<'_, f64>, x: &[f64], y: &mut [f64], par: Par) {
     let n = m.nrows();
-    let mut y = Mat::<f64>::zeros(n, 1);
+    let mut y = faer::MatMut::from_column_major_slice_mut(y, n, 1);
     let xm = MatRef::from_column_major_slice(x, n, 1);
     faer::linalg::matmul::triangular::matmul(
         y.as_mut(),
@@ -309,7 +320,6 @@ fn symmetric_times(m: MatRef<'_, f64>, x: &[f64], par: Par) -> Vec<f64> {
         1.0,
         par,
     );
-    y.col(0).iter().copied().collect()
 }
 
 /// X = M^-1 R by LU with partial pivoting of the square M (the result may be

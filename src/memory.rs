@@ -114,7 +114,8 @@ pub(crate) struct Sizes {
     /// Bytes of G = B K B^T, the lumped preconditioner a matrix-free dual holds.
     pub lumped: usize,
     /// Bytes of a matrix-free dual's own solves by the elimination tree and
-    /// their scratch (`dual::own_solves_bytes`).
+    /// their scratch, with a bound on those of Newton's narrowed products
+    /// (`dual::own_solves_bytes`).
     pub own_solves: usize,
     /// Bytes of the layered Dirichlet preconditioner a matrix-free dual holds
     /// where it pays (`dirichlet::Plan::bytes`; 0 where it does not).

@@ -479,7 +479,6 @@ fn krylov_step(
                     .sum::<f64>();
         }
     };
-    let lumped = dual.lumped();
     let (mut gv, mut gg) = (vec![0.0; dual.c], vec![0.0; dual.c]);
     // The preconditioner S V^T G V S, S_l = sqrt(a_l / (a_l + diag_l)) with
     // a_l = v_l^T A v_l (G ~ A^-1 where diag vanishes, 1 / M_ll where it
@@ -497,15 +496,14 @@ fn krylov_step(
             }
         })
         .collect();
-    let mut pre = |x: &[f64], y: &mut [f64]| match lumped {
-        Some(_) => {
-            gv.iter_mut().for_each(|e| *e = 0.0);
-            for ((u, &xl), &sl) in red.iter().zip(x).zip(&scale) {
-                for &(j, c) in &u.dir[..u.n_dir] {
-                    gv[j] += c * sl * xl;
-                }
+    let mut pre = |x: &[f64], y: &mut [f64]| {
+        gv.iter_mut().for_each(|e| *e = 0.0);
+        for ((u, &xl), &sl) in red.iter().zip(x).zip(&scale) {
+            for &(j, c) in &u.dir[..u.n_dir] {
+                gv[j] += c * sl * xl;
             }
-            dual.precondition(&gv, &mut gg);
+        }
+        if dual.precondition(&gv, &mut gg) {
             for ((u, yl), &sl) in red.iter().zip(y.iter_mut()).zip(&scale) {
                 *yl = sl
                     * u.dir[..u.n_dir]
@@ -513,8 +511,7 @@ fn krylov_step(
                         .map(|&(j, c)| c * gg[j])
                         .sum::<f64>();
             }
-        }
-        None => {
+        } else {
             for ((yl, &xl), &mll) in y.iter_mut().zip(x).zip(&mdiag) {
                 *yl = if mll > 0.0 { xl / mll } else { xl };
             }
