@@ -591,11 +591,13 @@ impl OwnSolves {
 
 /// Bytes the products of a matrix-free dual of B (`b`) on `factor` claim for
 /// their own solves ([`OwnSolves`]), and at most for their narrowed ones
-/// ([`Narrow`]).
+/// ([`Narrow`]: the split and its scratch, the lists of its DOFs and rows,
+/// and Newton's list of the rows).
 pub(crate) fn own_solves_bytes(factor: &Factor, b: &Csc) -> usize {
     crate::tree_solve::TreeSolve::of(factor, &contact_dofs(b))
         .map_or(0, |split| split.bytes_with_scratch(factor.n()))
         + crate::tree_solve::TreeSolve::bytes_bound(factor)
+        + (factor.n() + 2 * b.nrows) * std::mem::size_of::<usize>()
 }
 
 impl Operator {
@@ -735,11 +737,13 @@ impl Operator {
         held.clear();
         held.extend_from_slice(rows);
         let n = self.factor.n();
+        // The split and scratch at their bound, and the lists of DOFs and rows.
+        let lists = (n + self.bt.ncols) * std::mem::size_of::<usize>();
         let work = work.get_or_insert_with(|| NarrowWork {
             _claim: self
                 .factor
                 .ledger()
-                .claim(crate::tree_solve::TreeSolve::bytes_bound(&self.factor)),
+                .claim(crate::tree_solve::TreeSolve::bytes_bound(&self.factor) + lists),
             double: split.scratch(n),
             single: split.scratch(n),
         });
@@ -1016,8 +1020,10 @@ pub(crate) mod tests {
                 .unwrap();
                 let dual = Dual::build(&f, &n, &t, 2, DualForm::MatrixFree).unwrap();
                 // The own solves' bytes, besides the bound on the narrowed ones'.
-                let own = own_solves_bytes(&f, &stack_rows(&n, &t))
-                    - crate::tree_solve::TreeSolve::bytes_bound(&f);
+                let b = stack_rows(&n, &t);
+                let own = own_solves_bytes(&f, &b)
+                    - crate::tree_solve::TreeSolve::bytes_bound(&f)
+                    - (f.n() + 2 * b.nrows) * std::mem::size_of::<usize>();
                 (dual, own)
             };
             let (one, own_one) = free_on(1);
