@@ -532,8 +532,8 @@ struct Operator {
     lumped: Option<(Csc, Claim)>,
     /// The layered Dirichlet preconditioner, where it pays (`dirichlet.rs`).
     dirichlet: Option<crate::dirichlet::Dirichlet>,
-    /// The products' own solves, where they pay (see [`OwnSolves`]); None:
-    /// the factor's plain solve.
+    /// The products' own solves (see [`OwnSolves`]); None on a dense
+    /// factor: its plain solve.
     own: Option<OwnSolves>,
     /// The narrowed products of Newton's reduced solves (see
     /// [`Dual::narrow_to`]).
@@ -552,22 +552,36 @@ struct Narrow {
     /// are not narrowed.
     rows: Vec<usize>,
     split: Option<crate::tree_solve::TreeSolve>,
+    /// The factor's elimination tree, made at the first narrowing.
+    tree: Option<crate::supernode_tree::Tree>,
     /// The DOFs of the rows (scratch of [`Dual::narrow_to`]).
     dofs: Vec<usize>,
     work: Option<NarrowWork>,
+    /// The bytes of all this at their bound ([`narrow_bytes`]), claimed at
+    /// the first narrowing.
+    claim: Option<Claim>,
 }
 
 struct NarrowWork {
     double: crate::tree_solve::TreeScratch<f64>,
     single: crate::tree_solve::TreeScratch<f32>,
-    _claim: Claim,
+}
+
+/// Bytes the narrowed products of a dual with c rows on `factor` (sparse)
+/// claim at most: the split and its scratch (`TreeSolve::bytes_bound`), the
+/// elimination tree, and the lists of DOFs and rows.
+fn narrow_bytes(factor: &Factor, c: usize) -> usize {
+    crate::tree_solve::TreeSolve::bytes_bound(factor)
+        + crate::supernode_tree::Tree::bytes_of(factor)
+        + (factor.n() + c) * std::mem::size_of::<usize>()
 }
 
 /// The solves a matrix-free dual's products take instead of the factor's
-/// plain solve, where they pay (`tree_solve.rs`: restricted to the contact
-/// DOFs' paths where those hold few of L's entries, split between threads
-/// where there are several), with their scratch in double and single
-/// precision and its bytes on the ledger.
+/// plain solve (`tree_solve.rs`: restricted to the contact DOFs' paths where
+/// those hold few of L's entries, split between threads where there are
+/// several, and skipping the supernodes a sparse x leaves zero in the forward
+/// solve: a Newton direction on a large face's closed zone), with their
+/// scratch in double and single precision and its bytes on the ledger.
 struct OwnSolves {
     split: crate::tree_solve::TreeSolve,
     work: std::cell::RefCell<crate::tree_solve::TreeScratch<f64>>,
@@ -576,7 +590,7 @@ struct OwnSolves {
 }
 
 impl OwnSolves {
-    /// The solves of B's DOFs on `factor`; None for the plain solve.
+    /// The solves of B's DOFs on `factor`; None on a dense factor.
     fn of(factor: &Factor, b: &Csc) -> Option<OwnSolves> {
         let split = crate::tree_solve::TreeSolve::of(factor, &contact_dofs(b))?;
         let n = factor.n();
@@ -591,13 +605,15 @@ impl OwnSolves {
 
 /// Bytes the products of a matrix-free dual of B (`b`) on `factor` claim for
 /// their own solves ([`OwnSolves`]), and at most for their narrowed ones
-/// ([`Narrow`]: the split and its scratch, the lists of its DOFs and rows,
-/// and Newton's list of the rows).
+/// ([`narrow_bytes`], and Newton's list of the rows).
 pub(crate) fn own_solves_bytes(factor: &Factor, b: &Csc) -> usize {
+    if factor.is_dense() {
+        return 0;
+    }
     crate::tree_solve::TreeSolve::of(factor, &contact_dofs(b))
         .map_or(0, |split| split.bytes_with_scratch(factor.n()))
-        + crate::tree_solve::TreeSolve::bytes_bound(factor)
-        + (factor.n() + 2 * b.nrows) * std::mem::size_of::<usize>()
+        + narrow_bytes(factor, b.nrows)
+        + b.nrows * std::mem::size_of::<usize>()
 }
 
 impl Operator {
@@ -637,79 +653,65 @@ impl Operator {
     /// y ~= A x with the solve in single precision (the products with B in
     /// double): relative error about 1e-7 times the conditioning of K's factor.
     fn apply_single(&self, x: &[f64], y: &mut [f64]) {
-        if x.iter().all(|&v| v == 0.0) {
-            y.iter_mut().for_each(|v| *v = 0.0);
-            return;
-        }
-        let mut work = self.work_single.borrow_mut();
-        let (z, mem) = &mut *work;
-        z.iter_mut().for_each(|v| *v = 0.0);
-        for (r, &xr) in x.iter().enumerate() {
-            if xr != 0.0 {
-                for k in self.bt.col_ptr[r]..self.bt.col_ptr[r + 1] {
-                    z[self.bt.row_idx[k]] += (self.bt.values[k] * xr) as f32;
-                }
-            }
-        }
-        match &self.own {
-            Some(own) => {
-                let mut scratch = own.work_single.borrow_mut();
-                let threads = self.factor.threads();
-                own.split
-                    .solve_single(&self.factor, &self.single, z, &mut scratch, threads);
-            }
-            None => {
-                let n = z.len();
-                let zm = MatMut::from_column_major_slice_mut(&mut z[..], n, 1);
-                self.factor
-                    .solve_single(&self.single, zm, MemStack::new(mem));
-            }
-        }
-        for (r, yr) in y.iter_mut().enumerate() {
-            let mut s = 0.0;
-            for k in self.bt.col_ptr[r]..self.bt.col_ptr[r + 1] {
-                s += self.bt.values[k] * f64::from(z[self.bt.row_idx[k]]);
-            }
-            *yr = s;
-        }
+        self.apply_in(x, y, true);
     }
 
     /// y := A x (leading blocks for shorter x and y, as [`Dual::apply`]).
     fn apply(&self, x: &[f64], y: &mut [f64]) {
+        self.apply_in(x, y, false);
+    }
+
+    /// y := A x with the solve in single precision where `rough`, else in
+    /// double: B^T x scattered into the n-vector, the solve (the own one,
+    /// else the factor's plain one), B z gathered. No solve for a zero x
+    /// (Newton's explicit part near convergence, often Tresca's).
+    fn apply_in(&self, x: &[f64], y: &mut [f64], rough: bool) {
         if x.iter().all(|&v| v == 0.0) {
-            // No solve for a zero x (Newton's explicit part near convergence).
             y.iter_mut().for_each(|v| *v = 0.0);
             return;
         }
-        let mut work = self.work.borrow_mut();
-        let (z, mem) = &mut *work;
-        z.iter_mut().for_each(|v| *v = 0.0);
-        for (r, &xr) in x.iter().enumerate() {
-            if xr != 0.0 {
-                for k in self.bt.col_ptr[r]..self.bt.col_ptr[r + 1] {
-                    z[self.bt.row_idx[k]] += self.bt.values[k] * xr;
+        let (bt, factor) = (&self.bt, &self.factor);
+        macro_rules! whole {
+            ($work:expr, $t:ty, $values:expr, $own_work:ident, $solve:ident) => {{
+                let mut work = $work.borrow_mut();
+                let (z, mem) = &mut *work;
+                z.iter_mut().for_each(|v| *v = 0.0);
+                for (r, &xr) in x.iter().enumerate() {
+                    if xr != 0.0 {
+                        for k in bt.col_ptr[r]..bt.col_ptr[r + 1] {
+                            z[bt.row_idx[k]] += (bt.values[k] * xr) as $t;
+                        }
+                    }
                 }
-            }
+                match &self.own {
+                    Some(own) => {
+                        let mut scratch = own.$own_work.borrow_mut();
+                        own.split
+                            .$solve(factor, $values, z, &mut scratch, factor.threads());
+                    }
+                    None => {
+                        let n = z.len();
+                        let zm = MatMut::from_column_major_slice_mut(&mut z[..], n, 1);
+                        factor.solve_values($values, zm, MemStack::new(mem));
+                    }
+                }
+                for (r, yr) in y.iter_mut().enumerate() {
+                    *yr = (bt.col_ptr[r]..bt.col_ptr[r + 1])
+                        .map(|k| bt.values[k] * f64::from(z[bt.row_idx[k]]))
+                        .sum();
+                }
+            }};
         }
-        match &self.own {
-            Some(own) => {
-                let mut scratch = own.work.borrow_mut();
-                let threads = self.factor.threads();
-                own.split
-                    .solve(&self.factor, self.factor.values(), z, &mut scratch, threads);
-            }
-            None => {
-                let n = z.len();
-                let zm = MatMut::from_column_major_slice_mut(&mut z[..], n, 1);
-                self.factor.solve_in_place(zm, MemStack::new(mem));
-            }
-        }
-        for (r, yr) in y.iter_mut().enumerate() {
-            let mut s = 0.0;
-            for k in self.bt.col_ptr[r]..self.bt.col_ptr[r + 1] {
-                s += self.bt.values[k] * z[self.bt.row_idx[k]];
-            }
-            *yr = s;
+        if rough {
+            whole!(
+                self.work_single,
+                f32,
+                &self.single,
+                work_single,
+                solve_single
+            );
+        } else {
+            whole!(self.work, f64, factor.values(), work, solve);
         }
     }
 }
@@ -718,11 +720,16 @@ impl Operator {
     /// See [`Dual::narrow_to`].
     fn narrow_to(&self, rows: &[usize]) -> bool {
         let mut narrow = self.narrow.borrow_mut();
+        if self.factor.is_dense() {
+            return false;
+        }
         let Narrow {
             rows: held,
             split,
+            tree,
             dofs,
             work,
+            claim,
         } = &mut *narrow;
         dofs.clear();
         for &r in rows {
@@ -730,25 +737,34 @@ impl Operator {
         }
         dofs.sort_unstable();
         dofs.dedup();
-        *split = crate::tree_solve::TreeSolve::of(&self.factor, dofs).filter(|s| s.restricted());
+        if claim.is_none() {
+            *claim = Some(
+                self.factor
+                    .ledger()
+                    .claim(narrow_bytes(&self.factor, self.bt.ncols)),
+            );
+        }
+        let tree = tree.get_or_insert_with(|| crate::supernode_tree::Tree::of(&self.factor));
+        *split = Some(crate::tree_solve::TreeSolve::on(&self.factor, tree, dofs))
+            .filter(|s| s.restricted());
         let Some(split) = split else {
             return false;
         };
         held.clear();
         held.extend_from_slice(rows);
-        let n = self.factor.n();
-        // The split and scratch at their bound, and the lists of DOFs and rows.
-        let lists = (n + self.bt.ncols) * std::mem::size_of::<usize>();
-        let work = work.get_or_insert_with(|| NarrowWork {
-            _claim: self
-                .factor
-                .ledger()
-                .claim(crate::tree_solve::TreeSolve::bytes_bound(&self.factor) + lists),
-            double: split.scratch(n),
-            single: split.scratch(n),
-        });
-        split.refit(&mut work.double);
-        split.refit(&mut work.single);
+        match work {
+            Some(work) => {
+                split.refit(&mut work.double);
+                split.refit(&mut work.single);
+            }
+            None => {
+                let n = self.factor.n();
+                *work = Some(NarrowWork {
+                    double: split.scratch(n),
+                    single: split.scratch(n),
+                });
+            }
+        }
         true
     }
 
@@ -781,12 +797,12 @@ impl Operator {
         }
         let (bt, threads) = (&self.bt, self.factor.threads());
         // The solve reads and writes z on the paths' columns, which hold the
-        // rows' DOFs: B^T x is scattered into a cleared z, and A x gathered
-        // at the rows.
+        // rows' DOFs: z is cleared there (`TreeSolve::clear`), B^T x
+        // scattered into it, and A x gathered at the rows.
         macro_rules! narrowed {
             ($z:expr, $t:ty, $solve:ident, $values:expr, $scratch:expr) => {{
                 let z = $z;
-                z.iter_mut().for_each(|v| *v = 0.0);
+                split.clear(&self.factor, z);
                 for &r in rows.iter() {
                     if x[r] != 0.0 {
                         for k in bt.col_ptr[r]..bt.col_ptr[r + 1] {
@@ -942,6 +958,30 @@ pub(crate) mod tests {
         Csc::from_triplets(nx * ny, nx * ny, &t)
     }
 
+    /// d = 2 contacts at `dofs` of a body with `ndof` DOFs: contact i's
+    /// normal row is -e_j, its tangent row e_(j+1 mod ndof), j = dofs[i].
+    fn contacts_at(dofs: &[usize], ndof: usize) -> (Csc, Csc) {
+        let m = dofs.len();
+        let nt: Vec<_> = dofs
+            .iter()
+            .enumerate()
+            .map(|(i, &j)| (i, j, -1.0))
+            .collect();
+        let tt: Vec<_> = (dofs.iter().enumerate())
+            .map(|(i, &j)| (i, (j + 1) % ndof, 1.0))
+            .collect();
+        (
+            Csc::from_triplets(m, ndof, &nt),
+            Csc::from_triplets(m, ndof, &tt),
+        )
+    }
+
+    /// K's factor in the METIS ordering on `threads`.
+    fn metis_factor(k: &Csc, threads: usize) -> std::sync::Arc<Factor> {
+        let pool = std::sync::Arc::new(crate::threads::Threads::new(threads));
+        Factor::with_last(k, &[], crate::Ordering::Metis, pool).unwrap()
+    }
+
     #[test]
     fn trailing_block_and_solves_give_the_same_a() {
         let (nx, ny) = (9, 7);
@@ -997,33 +1037,15 @@ pub(crate) mod tests {
             } else {
                 (0..nx * ny).step_by(step).collect()
             };
-            let m = dofs.len();
-            let nt: Vec<_> = dofs
-                .iter()
-                .enumerate()
-                .map(|(i, &j)| (i, j, -1.0))
-                .collect();
-            let tt: Vec<_> = dofs
-                .iter()
-                .enumerate()
-                .map(|(i, &j)| (i, (j + 1) % (nx * ny), 1.0))
-                .collect();
-            let n = Csc::from_triplets(m, nx * ny, &nt);
-            let t = Csc::from_triplets(m, nx * ny, &tt);
+            let (n, t) = contacts_at(&dofs, nx * ny);
             let free_on = |threads: usize| {
-                let f = Factor::with_last(
-                    &k,
-                    &[],
-                    crate::Ordering::Metis,
-                    std::sync::Arc::new(crate::threads::Threads::new(threads)),
-                )
-                .unwrap();
+                let f = metis_factor(&k, threads);
                 let dual = Dual::build(&f, &n, &t, 2, DualForm::MatrixFree).unwrap();
                 // The own solves' bytes, besides the bound on the narrowed ones'.
                 let b = stack_rows(&n, &t);
                 let own = own_solves_bytes(&f, &b)
-                    - crate::tree_solve::TreeSolve::bytes_bound(&f)
-                    - (f.n() + 2 * b.nrows) * std::mem::size_of::<usize>();
+                    - narrow_bytes(&f, b.nrows)
+                    - b.nrows * std::mem::size_of::<usize>();
                 (dual, own)
             };
             let (one, own_one) = free_on(1);
@@ -1031,13 +1053,9 @@ pub(crate) mod tests {
             fn own(d: &Dual) -> Option<&OwnSolves> {
                 d.free.as_ref().expect("matrix-free").own.as_ref()
             }
-            match own(&one) {
-                None => assert!(!restricted && own_one == 0),
-                Some(o) => {
-                    assert!(restricted && own_one > 0);
-                    assert!(o.split.restricted() && o.split.threads() == 1);
-                }
-            }
+            let on_one = &own(&one).expect("a sparse factor takes the tree").split;
+            assert_eq!(on_one.restricted(), restricted);
+            assert!(on_one.threads() == 1 && own_one > 0);
             let split = &own(&two).expect("two threads take the tree").split;
             assert_eq!(split.restricted(), restricted);
             assert_eq!(split.threads(), 2);
@@ -1069,18 +1087,9 @@ pub(crate) mod tests {
         // stretch of them hold a small part of the factor.
         let (nx, ny) = (2000, 20);
         let k = grid(nx, ny);
-        let nt: Vec<_> = (0..nx).map(|i| (i, i, -1.0)).collect();
-        let tt: Vec<_> = (0..nx).map(|i| (i, (i + 1) % nx, 1.0)).collect();
-        let n = Csc::from_triplets(nx, nx * ny, &nt);
-        let t = Csc::from_triplets(nx, nx * ny, &tt);
+        let (n, t) = contacts_at(&(0..nx).collect::<Vec<_>>(), nx * ny);
         for threads in [1, 2] {
-            let f = Factor::with_last(
-                &k,
-                &[],
-                crate::Ordering::Metis,
-                std::sync::Arc::new(crate::threads::Threads::new(threads)),
-            )
-            .unwrap();
+            let f = metis_factor(&k, threads);
             let dual = Dual::build(&f, &n, &t, 2, DualForm::MatrixFree).unwrap();
             let c = dual.c;
             for stretch in [300..700, 600..650] {
@@ -1117,25 +1126,8 @@ pub(crate) mod tests {
         let (nx, step) = (60, 7);
         let k = grid(nx, nx);
         let dofs: Vec<usize> = (0..nx * nx).step_by(step).collect();
-        let nt: Vec<_> = dofs
-            .iter()
-            .enumerate()
-            .map(|(i, &j)| (i, j, -1.0))
-            .collect();
-        let tt: Vec<_> = dofs
-            .iter()
-            .enumerate()
-            .map(|(i, &j)| (i, j + 1, 1.0))
-            .collect();
-        let n = Csc::from_triplets(dofs.len(), nx * nx, &nt);
-        let t = Csc::from_triplets(dofs.len(), nx * nx, &tt);
-        let f = Factor::with_last(
-            &k,
-            &[],
-            crate::Ordering::Metis,
-            std::sync::Arc::new(crate::threads::Threads::sequential()),
-        )
-        .unwrap();
+        let (n, t) = contacts_at(&dofs, nx * nx);
+        let f = metis_factor(&k, 1);
         let dual = Dual::build(&f, &n, &t, 2, DualForm::MatrixFree).unwrap();
         let all: Vec<usize> = (0..dual.c).collect();
         assert!(!dual.narrow_to(&all));

@@ -617,7 +617,7 @@ impl Factor {
 
     /// K^-1 rhs with L's values `values` (of this factor, in double or single
     /// precision), `stack` as workspace.
-    fn solve_values<T: faer::traits::ComplexField>(
+    pub(crate) fn solve_values<T: faer::traits::ComplexField>(
         &self,
         values: &[T],
         rhs: MatMut<'_, T>,

@@ -66,6 +66,12 @@ impl Tree {
         on
     }
 
+    /// Bytes of the tree of `factor` (a sparse factor), before it is made.
+    pub(crate) fn bytes_of(factor: &Factor) -> usize {
+        let ns = factor.supernodal_symbolic().n_supernodes();
+        (factor.n() + 4 * ns) * std::mem::size_of::<usize>()
+    }
+
     /// Number of supernodes.
     pub(crate) fn len(&self) -> usize {
         self.parent.len()

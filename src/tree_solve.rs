@@ -10,6 +10,12 @@
 //! 3D slab nearly all of them (then every supernode is taken: see
 //! MAX_FRACTION).
 //!
+//! Sparse right-hand sides. The forward solve skips every supernode whose
+//! part of the right-hand side is still zero when it is reached: where x
+//! vanishes outside a few DOFs (a Newton direction on the closed contacts of
+//! a large face), only the supernodes on their paths do work, whatever set
+//! the split was made for; the back solve, which fills every column, cannot.
+//!
 //! On several threads. A solve with one right-hand side is memory-bound and
 //! its dense kernels are matrix-vector products, which threads inside a kernel
 //! do not speed up; the tree does: the subtrees below a top set of supernodes
@@ -106,15 +112,19 @@ impl TreeSolve {
     /// hold at most MAX_FRACTION of L's entries, else over all of them; split
     /// between the factor's threads where the supernodes taken are many enough
     /// and split into at least two subtrees, else in one bin on the calling
-    /// thread. None where that would be the factor's plain solve (a dense
-    /// factor; all supernodes on one thread).
+    /// thread. None for a dense factor (no tree).
     pub(crate) fn of(factor: &Factor, dofs: &[usize]) -> Option<TreeSolve> {
         if factor.is_dense() {
             return None;
         }
+        Some(TreeSolve::on(factor, &Tree::of(factor), dofs))
+    }
+
+    /// As [`TreeSolve::of`] on a sparse factor, with its elimination tree
+    /// `tree` (made once by a caller that splits often).
+    pub(crate) fn on(factor: &Factor, tree: &Tree, dofs: &[usize]) -> TreeSolve {
         let threads = factor.threads().count();
         let sym = factor.supernodal_symbolic();
-        let tree = Tree::of(factor);
         let ns = tree.len();
         let pattern_len = |s: usize| sym.supernode(s).pattern().len();
         let mut weight: Vec<usize> = (0..ns)
@@ -164,17 +174,14 @@ impl TreeSolve {
         }
         if !split || tasks.len() < 2 {
             // No split: every supernode taken, in one bin.
-            if !restricted {
-                return None;
-            }
-            return Some(TreeSolve {
+            return TreeSolve {
                 bins: vec![on().collect()],
                 top: Vec::new(),
                 top_cols: Vec::new(),
                 top_at: Vec::new(),
                 below,
                 cols,
-            });
+            };
         }
         top.sort_unstable();
         let mut top_cols = Vec::new();
@@ -202,14 +209,26 @@ impl TreeSolve {
             bin.sort_unstable();
         }
         bins.retain(|b| !b.is_empty());
-        Some(TreeSolve {
+        TreeSolve {
             bins,
             top,
             top_cols,
             top_at,
             below,
             cols,
-        })
+        }
+    }
+
+    /// Zeroes x (n, original numbering) where the solves read it: at the
+    /// DOFs of the paths' columns, or everywhere when not restricted.
+    pub(crate) fn clear<T: Copy + Default>(&self, factor: &Factor, x: &mut [T]) {
+        match &self.cols {
+            Some(cols) => {
+                let old_of = factor.old_of_new();
+                cols.iter().for_each(|&new| x[old_of[new]] = T::default());
+            }
+            None => x.fill(T::default()),
+        }
     }
 
     /// Scratch for the solves in precision T on a factor of order n.
@@ -341,7 +360,8 @@ fn kernel_par(w: usize, r: usize, par: Par) -> Par {
 
 /// One supernode's forward step on the right-hand side at `x` (the factor's
 /// ordering): x_s := L_ss^-1 x_s, then `scatter(row, v)` for each row of its
-/// pattern with v = (L_Rs x_s)_row, to be subtracted there.
+/// pattern with v = (L_Rs x_s)_row, to be subtracted there; nothing where x_s
+/// is zero.
 macro_rules! forward_node {
     ($llt:expr, $begin:expr, $s:expr, $x:expr, $buf:expr, $scatter:expr, $par:expr) => {{
         let node = $llt.supernode($s);
@@ -350,22 +370,26 @@ macro_rules! forward_node {
         let r = pattern.len();
         let par = kernel_par(w, r, $par);
         let xs = $x($begin[$s], w);
-        solve_lower_triangular_in_place(
-            val.submatrix(0, 0, w, w),
-            MatMut::from_column_major_slice_mut(xs, w, 1),
-            par,
-        );
-        if r > 0 {
-            matmul(
-                MatMut::from_column_major_slice_mut(&mut $buf[..r], r, 1),
-                Accum::Replace,
-                val.submatrix(w, 0, r, w),
-                MatRef::from_column_major_slice(xs, w, 1),
-                1.0,
+        // A supernode whose right-hand side is zero has a zero solution and
+        // scatters nothing (see the module docs: sparse right-hand sides).
+        if xs.iter().any(|v| *v != 0.0) {
+            solve_lower_triangular_in_place(
+                val.submatrix(0, 0, w, w),
+                MatMut::from_column_major_slice_mut(&mut *xs, w, 1),
                 par,
             );
-            for (&row, &v) in pattern.iter().zip(&$buf[..r]) {
-                $scatter(row, v);
+            if r > 0 {
+                matmul(
+                    MatMut::from_column_major_slice_mut(&mut $buf[..r], r, 1),
+                    Accum::Replace,
+                    val.submatrix(w, 0, r, w),
+                    MatRef::from_column_major_slice(xs, w, 1),
+                    1.0,
+                    par,
+                );
+                for (&row, &v) in pattern.iter().zip(&$buf[..r]) {
+                    $scatter(row, v);
+                }
             }
         }
     }};
@@ -603,16 +627,14 @@ mod tests {
             // Every DOF: the paths are all of L, never restricted.
             let all: Vec<usize> = (0..n).collect();
             for ordering in [Ordering::Amd, Ordering::Metis] {
-                let single =
-                    Factor::with_last(k, &[], ordering, Arc::new(Threads::new(1))).unwrap();
-                assert!(TreeSolve::of(&single, &all).is_none());
-                for threads in [2, 3] {
+                for threads in [1, 2, 3] {
                     let f = Factor::with_last(k, &[], ordering, Arc::new(Threads::new(threads)))
                         .unwrap();
                     let ts = TreeSolve::of(&f, &all).expect("a split");
                     assert!(!ts.restricted());
                     assert_eq!(ts.threads(), threads);
-                    assert!(!ts.top.is_empty() || k.nrows == 2 * n1);
+                    assert!(threads == 1 || !ts.top.is_empty() || k.nrows == 2 * n1);
+                    sparse_rhs_solves_equal_the_plain_one(&f, &ts);
                     let x: Vec<f64> = (0..n).map(|i| (i as f64 * 0.37).sin() + 0.1).collect();
                     let mut full = x.clone();
                     f.solve_vec(&mut full);
@@ -638,6 +660,33 @@ mod tests {
                         assert!((f64::from(xs[i]) - full[i]).abs() <= 1e-5 * scale, "{i}");
                     }
                 }
+            }
+        }
+    }
+
+    /// Right-hand sides that vanish outside a few DOFs (the forward solve
+    /// skips the supernodes where they are still zero): the whole solution
+    /// equals the plain solve's, in double and single precision.
+    fn sparse_rhs_solves_equal_the_plain_one(f: &Factor, ts: &TreeSolve) {
+        let n = f.n();
+        for (stride, len) in [(97, n / 10), (13, n), (1, 7)] {
+            let mut x = vec![0.0; n];
+            for i in (0..len).step_by(stride) {
+                x[i] = 1.0 + (i as f64 * 0.61).cos();
+            }
+            let mut full = x.clone();
+            f.solve_vec(&mut full);
+            let scale = full.iter().fold(0.0f64, |a, v| a.max(v.abs()));
+            let mut got = x.clone();
+            ts.solve(f, f.values(), &mut got, &mut ts.scratch(n), f.threads());
+            for i in 0..n {
+                assert!((got[i] - full[i]).abs() <= 1e-13 * scale, "{stride} {i}");
+            }
+            let mut xs: Vec<f32> = x.iter().map(|&v| v as f32).collect();
+            let values = f.single_values();
+            ts.solve_single(f, &values, &mut xs, &mut ts.scratch(n), f.threads());
+            for i in 0..n {
+                assert!((f64::from(xs[i]) - full[i]).abs() <= 1e-5 * scale, "{i}");
             }
         }
     }

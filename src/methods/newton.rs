@@ -1079,10 +1079,16 @@ impl Newton {
     }
 }
 
+/// The fraction of the target a step's error aims at (see [`forcing`]).
+const ENOUGH: f64 = 0.1;
+
 /// The forcing term of an inexact Newton step on a matrix-free dual: the
 /// reduced system is solved to the relative residual eta = |F| / |F_0| (capped
 /// at 0.1: superlinear convergence), but no tighter than a step whose error
-/// leaves |F| at a hundredth of the target (err's scale taken as |lambda|).
+/// leaves |F| at a tenth of the target (err's scale taken as |lambda|; the
+/// history benchmark's last steps then end at err 1e-12 to 8e-11 for the
+/// target 1e-10, and a hundredth spent 2-3 more products per increment for
+/// errors a decade lower).
 fn forcing(res: f64, res0: f64, target: f64, lam_norm: f64) -> f64 {
     let eta = if res0 > 0.0 {
         (res / res0).min(0.1)
@@ -1090,7 +1096,7 @@ fn forcing(res: f64, res0: f64, target: f64, lam_norm: f64) -> f64 {
         0.1
     };
     let enough = if res > 0.0 {
-        0.01 * target * lam_norm / res
+        ENOUGH * target * lam_norm / res
     } else {
         0.1
     };
@@ -1463,6 +1469,70 @@ mod tests {
         Csc::from_triplets(n, n, &t)
     }
 
+    /// Every bottom node of an nx x ny lattice slab a contact: N = e_z, T =
+    /// e_x, e_y (3 DOFs per node, the bottom layer first), as matrices with
+    /// `ndof` columns.
+    fn slab_contacts(nx: usize, ny: usize, ndof: usize) -> (Csc, Csc) {
+        let m = nx * ny;
+        let nmat: Vec<_> = (0..m).map(|i| (i, 3 * i + 2, 1.0)).collect();
+        let tmat: Vec<_> = (0..2 * m).map(|r| (r, 3 * (r / 2) + r % 2, 1.0)).collect();
+        (
+            Csc::from_triplets(m, ndof, &nmat),
+            Csc::from_triplets(2 * m, ndof, &tmat),
+        )
+    }
+
+    /// The slab's contact-space load: the gap closed in a round central
+    /// patch, b_N = 0.1 - curve r^2, and a shear `shear` along x.
+    fn patch_load(nx: usize, ny: usize, curve: f64, shear: f64) -> Vec<f64> {
+        let m = nx * ny;
+        let centre = (nx as f64 - 1.0) / 2.0;
+        (0..m)
+            .map(|i| {
+                let (x, y) = ((i % nx) as f64 - centre, (i / nx) as f64 - centre);
+                0.1 - curve * (x * x + y * y)
+            })
+            .chain((0..2 * m).map(|r| if r % 2 == 0 { shear } else { 0.0 }))
+            .collect()
+    }
+
+    /// Newton (target 1e-12) from zero on `dual`, the lumped start as given:
+    /// asserts that it converged; the multipliers, the driver's outcome and
+    /// the method's state (its Krylov counters).
+    fn drive_newton(
+        dual: &crate::dual::Dual,
+        b: &[f64],
+        law: Friction<'_>,
+        lumped_start: bool,
+    ) -> (Vec<f64>, super::super::driver::Outcome, Newton) {
+        let problem = DualProblem {
+            dual,
+            b,
+            law,
+            monitor: None,
+            deadline: None,
+            predicted: false,
+        };
+        let mut newton = Newton::new(&problem, 1e-12);
+        newton.lumped_start_on = lumped_start;
+        let opts = Options {
+            method: Method::Newton,
+            ..Options::default()
+        };
+        let mut lam = vec![0.0; dual.c];
+        let out = super::super::driver::drive(&problem, &mut lam, &opts, 1e-12, &mut newton);
+        assert_eq!(out.end, super::super::End::Converged, "{out:?}");
+        (lam, out, newton)
+    }
+
+    /// The largest entrywise difference.
+    fn max_diff(a: &[f64], b: &[f64]) -> f64 {
+        a.iter()
+            .zip(b)
+            .map(|(x, y)| (x - y).abs())
+            .fold(0.0, f64::max)
+    }
+
     /// Matrix-free Newton on a thin 3D lattice slab, Tresca, with the layered
     /// Dirichlet preconditioner and with the lumped one: both converge to dense
     /// Newton's multipliers (1e-10 relative), the layered one with fewer
@@ -1473,45 +1543,18 @@ mod tests {
         use crate::factor::Factor;
         use crate::options::Ordering;
         use std::sync::Arc;
-        // A thin slab on its bottom face (every bottom node a contact: N = e_z,
-        // T = e_x, e_y), pressed in a round patch and sheared.
+        // A thin slab on its bottom face (every bottom node a contact), pressed
+        // in a round patch and sheared.
         let (nx, ny, nz) = (16, 16, 4);
         let k = lattice(nx, ny, nz, 1e-4);
         let m = nx * ny;
-        let nmat: Vec<_> = (0..m).map(|i| (i, 3 * i + 2, 1.0)).collect();
-        let tmat: Vec<_> = (0..2 * m).map(|r| (r, 3 * (r / 2) + r % 2, 1.0)).collect();
-        let (nm, tm) = (
-            Csc::from_triplets(m, k.nrows, &nmat),
-            Csc::from_triplets(2 * m, k.nrows, &tmat),
-        );
+        let (nm, tm) = slab_contacts(nx, ny, k.nrows);
         let factor =
             Arc::new(Factor::with_last(&k, &[], Ordering::Amd, Arc::new(Threads::new(1))).unwrap());
-        let centre = (nx as f64 - 1.0) / 2.0;
-        let b: Vec<f64> = (0..m)
-            .map(|i| {
-                let (x, y) = ((i % nx) as f64 - centre, (i / nx) as f64 - centre);
-                0.1 - 0.002 * (x * x + y * y)
-            })
-            .chain((0..2 * m).map(|r| if r % 2 == 0 { 0.01 } else { 0.0 }))
-            .collect();
+        let b = patch_load(nx, ny, 0.002, 0.01);
         let p = vec![0.05; m];
         let solve = |dual: &Dual| {
-            let problem = DualProblem {
-                dual,
-                b: &b,
-                law: Friction::Tresca(&p),
-                monitor: None,
-                deadline: None,
-                predicted: false,
-            };
-            let mut newton = Newton::new(&problem, 1e-12);
-            let opts = Options {
-                method: Method::Newton,
-                ..Options::default()
-            };
-            let mut lam = vec![0.0; 3 * m];
-            let out = super::super::driver::drive(&problem, &mut lam, &opts, 1e-12, &mut newton);
-            assert_eq!(out.end, super::super::End::Converged, "{out:?}");
+            let (lam, out, _) = drive_newton(dual, &b, Friction::Tresca(&p), true);
             (lam, out.inner)
         };
         let mut lumped = Dual::build_with(&factor, &nm, &tm, 3, Condensation::MatrixFree).unwrap();
@@ -1528,11 +1571,7 @@ mod tests {
         assert!(l_dense[..m].contains(&0.0) && l_dense[..m].iter().any(|&v| v > 0.0));
         let scale = norm(&l_dense);
         for (what, l) in [("lumped", &l_lumped), ("layered", &l_layered)] {
-            let diff = l
-                .iter()
-                .zip(&l_dense)
-                .map(|(a, b)| (a - b).abs())
-                .fold(0.0, f64::max);
+            let diff = max_diff(l, &l_dense);
             assert!(diff <= 1e-10 * scale, "{what}: {diff:.2e}");
         }
         println!("products: lumped {its_lumped}, layered Dirichlet {its_layered}");
@@ -1556,41 +1595,14 @@ mod tests {
         let (nx, ny, nz) = (24, 24, 3);
         let k = lattice(nx, ny, nz, 0.05);
         let m = nx * ny;
-        let nmat: Vec<_> = (0..m).map(|i| (i, 3 * i + 2, 1.0)).collect();
-        let tmat: Vec<_> = (0..2 * m).map(|r| (r, 3 * (r / 2) + r % 2, 1.0)).collect();
-        let (nm, tm) = (
-            Csc::from_triplets(m, k.nrows, &nmat),
-            Csc::from_triplets(2 * m, k.nrows, &tmat),
-        );
+        let (nm, tm) = slab_contacts(nx, ny, k.nrows);
         let factor = Arc::new(
             Factor::with_last(&k, &[], Ordering::Metis, Arc::new(Threads::new(1))).unwrap(),
         );
-        let centre = (nx as f64 - 1.0) / 2.0;
-        let b: Vec<f64> = (0..m)
-            .map(|i| {
-                let (x, y) = ((i % nx) as f64 - centre, (i / nx) as f64 - centre);
-                0.1 - 0.004 * (x * x + y * y)
-            })
-            .chain((0..2 * m).map(|r| if r % 2 == 0 { 0.005 } else { 0.0 }))
-            .collect();
+        let b = patch_load(nx, ny, 0.004, 0.005);
         let mu = vec![0.3; m];
         let solve = |dual: &Dual| {
-            let problem = DualProblem {
-                dual,
-                b: &b,
-                law: Friction::Coulomb(&mu),
-                monitor: None,
-                deadline: None,
-                predicted: false,
-            };
-            let mut newton = Newton::new(&problem, 1e-12);
-            let opts = Options {
-                method: Method::Newton,
-                ..Options::default()
-            };
-            let mut lam = vec![0.0; 3 * m];
-            let out = super::super::driver::drive(&problem, &mut lam, &opts, 1e-12, &mut newton);
-            assert_eq!(out.end, super::super::End::Converged, "{out:?}");
+            let (lam, out, newton) = drive_newton(dual, &b, Friction::Coulomb(&mu), true);
             (lam, out.outer, newton.krylov.narrowed)
         };
         let mut free = Dual::build_with(&factor, &nm, &tm, 3, Condensation::MatrixFree).unwrap();
@@ -1617,11 +1629,7 @@ mod tests {
             narrowed >= outer.saturating_sub(1) && narrowed > 0,
             "{narrowed} of {outer}"
         );
-        let diff = l_free
-            .iter()
-            .zip(&l_dense)
-            .map(|(a, b)| (a - b).abs())
-            .fold(0.0, f64::max);
+        let diff = max_diff(&l_free, &l_dense);
         assert!(diff <= 1e-10 * norm(&l_dense), "{diff:.2e}");
     }
 
@@ -1655,23 +1663,7 @@ mod tests {
             .collect();
         let p = vec![0.04; m];
         let solve = |dual: &Dual, start: bool| {
-            let problem = DualProblem {
-                dual,
-                b: &b,
-                law: Friction::Tresca(&p),
-                monitor: None,
-                deadline: None,
-                predicted: false,
-            };
-            let mut newton = Newton::new(&problem, 1e-12);
-            newton.lumped_start_on = start;
-            let opts = Options {
-                method: Method::Newton,
-                ..Options::default()
-            };
-            let mut lam = vec![0.0; 2 * m];
-            let out = super::super::driver::drive(&problem, &mut lam, &opts, 1e-12, &mut newton);
-            assert_eq!(out.end, super::super::End::Converged, "{out:?}");
+            let (lam, out, _) = drive_newton(dual, &b, Friction::Tresca(&p), start);
             (lam, out.inner, out.outer)
         };
         let jacobi = Dual::build_with(&factor, &nm, &tm, 2, Condensation::MatrixFree).unwrap();
@@ -1694,11 +1686,7 @@ mod tests {
             ("lumped", &l_lumped),
             ("start", &l_start),
         ] {
-            let diff = l
-                .iter()
-                .zip(&l_dense)
-                .map(|(a, b)| (a - b).abs())
-                .fold(0.0, f64::max);
+            let diff = max_diff(l, &l_dense);
             assert!(diff <= 1e-10 * scale, "{what}: {diff:.2e}");
         }
         assert!(
