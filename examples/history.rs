@@ -21,16 +21,19 @@
 //! `--path proportional`: step k of N takes k / N of the whole top motion
 //! (press and shear together), as a host that ramps one load does.
 
+#[path = "bench/baseline.rs"]
+mod baseline;
 #[path = "bench/scene.rs"]
 #[allow(dead_code)]
 mod scene;
 
-use dualsplit::internals::{Factor, Threads};
-use dualsplit::{ContactProblem, DualForm, Friction, Options, Ordering};
+use dualsplit::{ContactProblem, DualForm, Friction, Options};
 use scene::{Scene, Spec};
 use std::io::Write;
-use std::sync::Arc;
 use std::time::Instant;
+
+/// Runs of each plain factorisation whose median is the baseline.
+const FACTOR_REPS: usize = 3;
 
 fn main() {
     let mut scenes = vec!["3d-40x40x20".to_string(), "3d-64x64x6".to_string()];
@@ -75,15 +78,7 @@ fn main() {
         let spec = Spec::parse(name).unwrap_or_else(|| panic!("bad scene {name}"));
         let sc = Scene::build(spec);
         let (press, shear) = sc.press_and_shear();
-        let pool = Arc::new(Threads::new(threads));
-        let t_factor = [Ordering::Amd, Ordering::Metis]
-            .into_iter()
-            .map(|ordering| {
-                let t0 = Instant::now();
-                drop(Factor::with_last(&sc.k, &[], ordering, pool.clone()).expect("K is SPD"));
-                t0.elapsed().as_secs_f64()
-            })
-            .fold(f64::INFINITY, f64::min);
+        let t_factor = baseline::best_plain_factor(&sc.k, threads, FACTOR_REPS);
         let opts = Options {
             threads,
             dual_form: form,

@@ -19,15 +19,18 @@
 //! `--form dense` (or `auto`) creates the problem in that form instead, for the
 //! comparison with the dense route (the factor with the contact DOFs last and A).
 
+#[path = "bench/baseline.rs"]
+mod baseline;
 #[path = "bench/scene.rs"]
 #[allow(dead_code)]
 mod scene;
 
-use dualsplit::internals::{Factor, Threads};
-use dualsplit::{ContactProblem, DualForm, Friction, Method, Options, Ordering};
+use dualsplit::{ContactProblem, DualForm, Friction, Method, Options};
 use scene::{Scene, Spec};
-use std::sync::Arc;
 use std::time::Instant;
+
+/// Runs of each plain factorisation whose median is the baseline.
+const FACTOR_REPS: usize = 3;
 
 fn main() {
     let mut scenes = vec!["3d-64x64x6".to_string()];
@@ -65,15 +68,7 @@ fn main() {
         let sc = Scene::build(spec);
         // The best plain factorisation: AMD and METIS each (analysis and numeric
         // factorisation), the faster one.
-        let pool = Arc::new(Threads::new(threads));
-        let t_factor = [Ordering::Amd, Ordering::Metis]
-            .into_iter()
-            .map(|ordering| {
-                let t0 = Instant::now();
-                drop(Factor::with_last(&sc.k, &[], ordering, pool.clone()).expect("K is SPD"));
-                t0.elapsed().as_secs_f64()
-            })
-            .fold(f64::INFINITY, f64::min);
+        let t_factor = baseline::best_plain_factor(&sc.k, threads, FACTOR_REPS);
         let base = Options {
             dual_form: form,
             threads,
