@@ -1021,11 +1021,10 @@ pub(crate) mod tests {
         }
     }
 
-    /// With two threads the products take the tree solves and agree with
-    /// those of one thread: over the whole factor for contacts spread over
-    /// the body (their paths cover L; one thread takes the plain solve), and
-    /// restricted to the paths of a strip's bottom row (one thread takes the
-    /// same restricted solve in one bin).
+    /// The products take the tree solves, split on two threads and in one
+    /// bin on one, and agree: over the whole factor for contacts spread over
+    /// the body (their paths cover L), and restricted to the paths of a
+    /// strip's bottom row.
     #[test]
     fn matrix_free_products_on_two_threads_take_the_tree_solves() {
         for (nx, ny, step, restricted) in [(160, 160, 7, false), (2000, 20, 1, true)] {
