@@ -63,8 +63,14 @@ pub struct Report {
     pub equilibrium_residual: f64,
     /// Outer iterations (see `Options::max_outer`).
     pub outer_iterations: usize,
-    /// Total projected Gauss-Seidel sweeps of the sub-problems (equal to the outer
-    /// count for `Pgs`).
+    /// Inner iterations, in total; what one is depends on the route: a
+    /// projected Gauss-Seidel sweep over the contacts (`Pgs`, where it equals
+    /// the outer count; the splittings' sub-problems on a dense dual; Newton's
+    /// warm-up and fallback sweeps on a dense dual), or one product with A
+    /// (MPRGP, the sub-problems on a matrix-free dual, Newton's Krylov solves
+    /// on a matrix-free dual). Newton's product for the explicit part of a
+    /// step, its backtracking product and the lumped start's two products are
+    /// not counted (about two per Newton step).
     pub inner_iterations: usize,
     /// The dual unknowns the method iterated on: m when a frictionless increment
     /// was solved as the pure Signorini problem (docs/design.md section 2), d m

@@ -38,7 +38,14 @@ pub struct DsReport {
     pub equilibrium_residual: f64,
     /// Outer iterations done.
     pub outer_iterations: i64,
-    /// Projected Gauss-Seidel sweeps of the sub-problems, in total.
+    /// Inner iterations, in total; what one is depends on the route: a
+    /// projected Gauss-Seidel sweep over the contacts (DS_METHOD_PGS, where it equals
+    /// the outer count; the splittings' sub-problems on a dense dual; Newton's
+    /// warm-up and fallback sweeps on a dense dual), or one product with A
+    /// (MPRGP, the sub-problems on a matrix-free dual, Newton's Krylov solves
+    /// on a matrix-free dual). Newton's product for the explicit part of a
+    /// step, its backtracking product and the lumped start's two products are
+    /// not counted (about two per Newton step).
     pub inner_iterations: i64,
     /// Contacts with lambda_N = 0.
     pub n_open: i64,
