@@ -4,7 +4,9 @@
 use std::fmt;
 
 /// What went wrong. Each kind maps onto one C status code (see `ffi::status`).
+/// Later versions may add kinds (`#[non_exhaustive]`).
 #[derive(Copy, Clone, Debug, PartialEq, Eq)]
+#[non_exhaustive]
 pub enum ErrorKind {
     /// A required pointer was NULL (C boundary only).
     NullPointer,

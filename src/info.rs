@@ -7,8 +7,10 @@ use crate::options::{DualForm, Method, Ordering};
 /// The analysis of a contact problem: everything known after the ordering and
 /// the symbolic factorisation of K, before the numeric factorisation
 /// ([`crate::ContactProblem::analyse`], or [`crate::ContactProblem::info`] for a
-/// problem already created).
+/// problem already created). Later versions may add fields
+/// (`#[non_exhaustive]`: read it, do not build it).
 #[derive(Clone, Debug, PartialEq)]
+#[non_exhaustive]
 pub struct Info {
     /// Contact dimension (2 or 3).
     pub d: usize,

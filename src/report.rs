@@ -3,8 +3,9 @@
 
 use crate::options::Method;
 
-/// Outcome of a solve.
+/// Outcome of a solve. Later versions may add statuses (`#[non_exhaustive]`).
 #[derive(Copy, Clone, Debug, PartialEq, Eq)]
+#[non_exhaustive]
 pub enum SolveStatus {
     /// err <= tol was reached (checked on the recovered u, not only in the dual).
     Converged,
@@ -39,8 +40,10 @@ impl SolveStatus {
     }
 }
 
-/// Everything a solve reports besides u and the multipliers.
+/// Everything a solve reports besides u and the multipliers. Later versions
+/// may add fields (`#[non_exhaustive]`: read it, do not build it).
 #[derive(Clone, Debug, PartialEq)]
+#[non_exhaustive]
 pub struct Report {
     /// Converged, or why not.
     pub status: SolveStatus,

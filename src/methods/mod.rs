@@ -134,8 +134,10 @@ fn inner_rule(opts: &Options, target: f64) -> (f64, usize) {
 /// `DsMethod` value, whose count is checked against this table at compile time).
 macro_rules! methods {
     ($( $(#[$doc:meta])* $variant:ident => $spec:path, )*) => {
-        /// The iterative method run on the condensed dual problem.
+        /// The iterative method run on the condensed dual problem. Later
+        /// versions may add methods (`#[non_exhaustive]`).
         #[derive(Copy, Clone, Debug, PartialEq, Eq)]
+        #[non_exhaustive]
         pub enum Method {
             $( $(#[$doc])* $variant, )*
         }
