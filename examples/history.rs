@@ -1,6 +1,6 @@
 //! Quasistatic histories (issue 29): per scene, the best plain factorisation of
-//! K (the baseline: AMD and METIS, analysis and numeric factorisation each, the
-//! faster, measured in the same run), then a contact problem created with the
+//! K (the baseline: AMD and METIS, analysis and numeric factorisation, each the
+//! median of FACTOR_REPS runs, the faster, measured in the same run), then a contact problem created with the
 //! default options and a history of `--steps` calls of `step`: the first half
 //! presses the top down in equal increments, the second half shears it at full
 //! press (so contacts close, stick and slip change along the way), Tresca and

@@ -1,12 +1,13 @@
 //! The matrix-free path on large contact faces (issue 17): per scene, the best
 //! plain factorisation of K (the baseline: AMD and METIS, analysis and numeric
-//! factorisation each, the faster), then a contact problem created
-//! matrix-free (the plain factor and the contacts' diagonal blocks of A, nothing
-//! c x c), and one cold increment to tol with a method, Tresca and Coulomb:
-//! seconds, their ratio to the baseline, err, iterations and the counted peak
-//! memory of the library's large allocations; then warm history steps (5 %
-//! more load each, warm-started from the step before): the median of their
-//! times, with the first one's iterations and err.
+//! factorisation, each the median of FACTOR_REPS runs, the faster), then a
+//! contact problem created matrix-free (the plain factor and the contacts'
+//! diagonal blocks of A, nothing c x c), and one cold increment to tol with a
+//! method, Tresca and Coulomb: seconds, their ratio to the baseline, err,
+//! iterations and the counted peak memory of the library's large allocations;
+//! then warm history steps (5 % more load each, warm-started from the step
+//! before): the median of their times, with the first one's iterations and
+//! err.
 //!
 //! ```text
 //! cargo run --release --example large_face -- [--scenes A,B,..] [--threads K]
@@ -66,8 +67,7 @@ fn main() {
     for name in &scenes {
         let spec = Spec::parse(name).unwrap_or_else(|| panic!("bad scene {name}"));
         let sc = Scene::build(spec);
-        // The best plain factorisation: AMD and METIS each (analysis and numeric
-        // factorisation), the faster one.
+        // The best plain factorisation (`baseline.rs`).
         let t_factor = baseline::best_plain_factor(&sc.k, threads, FACTOR_REPS);
         let base = Options {
             dual_form: form,
