@@ -1174,23 +1174,10 @@ mod tests {
         lam: &mut [f64],
         warm_sort: bool,
     ) -> usize {
-        let problem = DualProblem {
-            dual: pb.dual(),
-            b,
-            law: Friction::Coulomb(mu),
-            monitor: None,
-            deadline: None,
-            predicted: false,
-        };
-        let mut newton = Newton::new(&problem, 1e-12);
-        newton.presweeps = 0;
-        newton.warm_sort = warm_sort;
-        let opts = Options {
-            method: Method::Newton,
-            ..Options::default()
-        };
-        let out = super::super::driver::drive(&problem, lam, &opts, 1e-12, &mut newton);
-        assert_eq!(out.end, super::super::End::Converged, "{out:?}");
+        let (out, _) = drive_newton(pb.dual(), b, Friction::Coulomb(mu), lam, |n| {
+            n.presweeps = 0;
+            n.warm_sort = warm_sort;
+        });
         out.outer
     }
 
@@ -1496,15 +1483,16 @@ mod tests {
             .collect()
     }
 
-    /// Newton (target 1e-12) from zero on `dual`, the lumped start as given:
-    /// asserts that it converged; the multipliers, the driver's outcome and
-    /// the method's state (its Krylov counters).
+    /// Newton (target 1e-12) on `dual` from `lam`, set up by `setup`:
+    /// asserts that it converged; the driver's outcome and the method's state
+    /// (its Krylov counters).
     fn drive_newton(
         dual: &crate::dual::Dual,
         b: &[f64],
         law: Friction<'_>,
-        lumped_start: bool,
-    ) -> (Vec<f64>, super::super::driver::Outcome, Newton) {
+        lam: &mut [f64],
+        setup: impl FnOnce(&mut Newton),
+    ) -> (super::super::driver::Outcome, Newton) {
         let problem = DualProblem {
             dual,
             b,
@@ -1514,15 +1502,14 @@ mod tests {
             predicted: false,
         };
         let mut newton = Newton::new(&problem, 1e-12);
-        newton.lumped_start_on = lumped_start;
+        setup(&mut newton);
         let opts = Options {
             method: Method::Newton,
             ..Options::default()
         };
-        let mut lam = vec![0.0; dual.c];
-        let out = super::super::driver::drive(&problem, &mut lam, &opts, 1e-12, &mut newton);
+        let out = super::super::driver::drive(&problem, lam, &opts, 1e-12, &mut newton);
         assert_eq!(out.end, super::super::End::Converged, "{out:?}");
-        (lam, out, newton)
+        (out, newton)
     }
 
     /// The largest entrywise difference.
@@ -1554,7 +1541,8 @@ mod tests {
         let b = patch_load(nx, ny, 0.002, 0.01);
         let p = vec![0.05; m];
         let solve = |dual: &Dual| {
-            let (lam, out, _) = drive_newton(dual, &b, Friction::Tresca(&p), true);
+            let mut lam = vec![0.0; dual.c];
+            let (out, _) = drive_newton(dual, &b, Friction::Tresca(&p), &mut lam, |_| {});
             (lam, out.inner)
         };
         let mut lumped = Dual::build_with(&factor, &nm, &tm, 3, Condensation::MatrixFree).unwrap();
@@ -1602,7 +1590,8 @@ mod tests {
         let b = patch_load(nx, ny, 0.004, 0.005);
         let mu = vec![0.3; m];
         let solve = |dual: &Dual| {
-            let (lam, out, newton) = drive_newton(dual, &b, Friction::Coulomb(&mu), true);
+            let mut lam = vec![0.0; dual.c];
+            let (out, newton) = drive_newton(dual, &b, Friction::Coulomb(&mu), &mut lam, |_| {});
             (lam, out.outer, newton.krylov.narrowed)
         };
         let mut free = Dual::build_with(&factor, &nm, &tm, 3, Condensation::MatrixFree).unwrap();
@@ -1663,7 +1652,9 @@ mod tests {
             .collect();
         let p = vec![0.04; m];
         let solve = |dual: &Dual, start: bool| {
-            let (lam, out, _) = drive_newton(dual, &b, Friction::Tresca(&p), start);
+            let mut lam = vec![0.0; dual.c];
+            let law = Friction::Tresca(&p);
+            let (out, _) = drive_newton(dual, &b, law, &mut lam, |n| n.lumped_start_on = start);
             (lam, out.inner, out.outer)
         };
         let jacobi = Dual::build_with(&factor, &nm, &tm, 2, Condensation::MatrixFree).unwrap();
