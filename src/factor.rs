@@ -762,6 +762,76 @@ impl Factor {
         }
     }
 
+    /// As [`Factor::backward`] where only the values at the trailing DOFs are
+    /// wanted: `x_last[q]` := x at DOF `last()[q]`, x = P^T L^-T y. L^T is upper
+    /// triangular, so the trailing part of x depends on the trailing part of y
+    /// alone: only the supernodes that end in the trailing block are touched,
+    /// O(nc^2) work, not O(nnz(L)). The arithmetic is `backward`'s, kernel for
+    /// kernel on the same supernodes (a supernode that straddles the block is
+    /// solved whole from its rows of y): the values are bitwise those of
+    /// `backward`, so quantities formed from both (b and the recovered u of a
+    /// solve) keep their rounding correlated. `y` is read only. Panics unless
+    /// `y.len() == n()` and `x_last.len() == last().len()`.
+    pub fn backward_to_last(&self, y: &[f64], x_last: &mut [f64]) {
+        let n = self.n();
+        assert_eq!(y.len(), n);
+        assert_eq!(x_last.len(), self.last.len());
+        let first = n - self.last.len();
+        if self.is_dense() {
+            let mut x = y.to_vec();
+            let xm = faer::MatMut::from_column_major_slice_mut(&mut x, n, 1);
+            self.threads.run(self.parallel, |par| {
+                solve_upper_triangular_in_place(self.dense_l().transpose(), xm, par);
+            });
+            x_last.copy_from_slice(&x[first..]);
+            return;
+        }
+        let sym = self.supernodal_symbolic();
+        let llt = self.supernodal();
+        let from = sym.supernode_end().partition_point(|&end| end <= first);
+        if from == sym.n_supernodes() {
+            return;
+        }
+        // x over the rows of the supernodes from `from` on (all rows their
+        // patterns reach), as in l_transpose_solve_with_conj.
+        let base = sym.supernode_begin()[from];
+        let mut x = y[base..].to_vec();
+        let below = (from..sym.n_supernodes())
+            .map(|s| sym.supernode(s).pattern().len())
+            .max()
+            .unwrap_or(0);
+        let mut tmp = vec![0.0; below];
+        self.threads.run(self.parallel, |par| {
+            for s in (from..sym.n_supernodes()).rev() {
+                let node = llt.supernode(s);
+                let (start, val) = (node.start(), node.val());
+                let width = val.ncols();
+                let pattern = node.pattern();
+                let (top, bot) = val.split_at_row(width);
+                let tmp = &mut tmp[..pattern.len()];
+                for (t, &row) in tmp.iter_mut().zip(pattern) {
+                    *t = x[row - base];
+                }
+                let tmp = faer::MatRef::from_column_major_slice(tmp, pattern.len(), 1);
+                let mut x_top = faer::MatMut::from_column_major_slice_mut(
+                    &mut x[start - base..start - base + width],
+                    width,
+                    1,
+                );
+                faer::linalg::matmul::matmul(
+                    x_top.as_mut(),
+                    faer::Accum::Add,
+                    bot.transpose(),
+                    tmp,
+                    -1.0,
+                    par,
+                );
+                solve_upper_triangular_in_place(top.transpose(), x_top, par);
+            }
+        });
+        x_last.copy_from_slice(&x[first - base..]);
+    }
+
     /// The analysis of this factor without its values (refactor it before use):
     /// the symbolic factor is shared, so a new factorisation can be formed beside
     /// this one and replace it only once everything built on it succeeded.
@@ -970,11 +1040,27 @@ mod tests {
     #[test]
     fn the_halves_of_a_solve_make_the_full_solve() {
         let k = spd();
+        halves_make_the_full_solve(&k);
+        // The same K with every entry stored: a dense factor.
+        let n = k.nrows;
+        let mut full = vec![0.0; n * n];
+        for j in 0..n {
+            for p in k.col_ptr[j]..k.col_ptr[j + 1] {
+                full[k.row_idx[p] + n * j] = k.values[p];
+            }
+        }
+        let t: Vec<_> = (0..n * n).map(|e| (e % n, e / n, full[e])).collect();
+        let dense = Csc::from_triplets(n, n, &t);
+        assert!(is_dense(&dense));
+        halves_make_the_full_solve(&dense);
+    }
+
+    fn halves_make_the_full_solve(k: &Csc) {
         let n = k.nrows;
         // The bottom row and a column in the middle, in no particular order.
         let last = [5, 0, 8, 1, 2, 3, 4, 6, 7, 40, 31, 49];
         let f = Factor::with_last(
-            &k,
+            k,
             &last,
             crate::Ordering::Auto,
             std::sync::Arc::new(crate::threads::Threads::sequential()),
@@ -996,8 +1082,13 @@ mod tests {
         let mut full = x.clone();
         f.solve_vec(&mut full);
         let mut z = vec![f64::NAN; n];
+        let mut z_last = vec![f64::NAN; last.len()];
+        f.backward_to_last(&y2, &mut z_last);
         f.backward(&mut y2, &mut z);
         assert_close(&z, &full, 1e-14);
+        // backward_to_last = backward at the trailing DOFs, to the bit.
+        let at_last: Vec<f64> = last.iter().map(|&j| z[j]).collect();
+        assert_eq!(z_last, at_last);
         let mut kz = vec![0.0; n];
         k.mul_vec(&z, &mut kz);
         assert!((0..n).all(|i| (kz[i] - x[i]).abs() <= 1e-13));

@@ -675,7 +675,9 @@ impl ContactProblem {
     /// forward halves, not between K^-1 f and K^-1 B^T lambda: those two nearly
     /// cancel where the contact carries the load, and on the slender beam of
     /// tests/hard_scenes.rs (cond(K) 1.6e9) their difference left an equilibrium
-    /// residual of 3e-8 against 3e-12 here.
+    /// residual of 3e-8 against 3e-12 here. For the same reason b's K^-1 f
+    /// comes from the same substitution (`Factor::backward_to_last` repeats
+    /// `Factor::backward`'s arithmetic exactly).
     fn recover_u(&self, f: &[f64], y_f: &[f64], bt_lam: &[f64], u: &mut [f64]) {
         if self.dual.condensation == Condensation::Solves {
             for i in 0..u.len() {
@@ -725,8 +727,20 @@ impl ContactProblem {
         // recovery of u.
         let mut y_f = vec![0.0; ndof];
         self.factor.forward(f, &mut y_f);
+        // u0 = K^-1 f where B reads it: at the trailing DOFs alone when B
+        // touches no other (their back substitution needs the trailing block
+        // of L only), else everywhere.
         let mut u0 = vec![0.0; ndof];
-        self.factor.backward(&mut y_f.clone(), &mut u0);
+        if self.dual.trailing {
+            let last = self.factor.last();
+            let mut u_last = vec![0.0; last.len()];
+            self.factor.backward_to_last(&y_f, &mut u_last);
+            for (&j, &v) in last.iter().zip(&u_last) {
+                u0[j] = v;
+            }
+        } else {
+            self.factor.backward(&mut y_f.clone(), &mut u0);
+        }
         let mut b = vec![0.0; c];
         self.dual.rows.mul_vec(&u0, &mut b);
         for i in 0..m {
