@@ -504,7 +504,7 @@ pub(crate) fn work_bytes(factor: &Factor, b: &Csc, m: usize, d: usize) -> usize 
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::dual::stack_rows;
+    use crate::contact_rows::stack_rows;
     use crate::dual::tests::grid;
     use crate::options::Ordering;
     use crate::threads::Threads;

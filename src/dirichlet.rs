@@ -93,7 +93,7 @@ impl Plan {
         threads: Arc<Threads>,
         ledger: Arc<Ledger>,
     ) -> Option<Plan> {
-        let face = crate::dual::contact_dofs(b);
+        let face = crate::contact_rows::contact_dofs(b);
         let mut local = vec![usize::MAX; k.nrows];
         for (l, &j) in face.iter().enumerate() {
             local[j] = l;

@@ -3,7 +3,8 @@
 //! b = B K^-1 f - [g; 0]. Unknown ordering: lambda_N (m), then lambda_T ((d-1) m,
 //! contact by contact).
 
-use crate::error::{ErrorKind, Result, fail};
+use crate::contact_rows::{check_shapes, contact_dofs, stack_rows};
+use crate::error::{ErrorKind, Result};
 use crate::factor::Factor;
 use crate::memory::{Claim, F64, Ledger};
 use crate::options::{DENSE_MAX, DualForm};
@@ -79,67 +80,6 @@ impl Condensation {
             (false, false) => Condensation::Solves,
             (true, false) => Condensation::TrailingBlock,
         }
-    }
-}
-
-/// The DOFs (columns of B) that B touches, in increasing order.
-pub fn contact_dofs(b: &Csc) -> Vec<usize> {
-    (0..b.ncols)
-        .filter(|&j| b.col_ptr[j + 1] > b.col_ptr[j])
-        .collect()
-}
-
-/// Stacks N (m x n) and T ((d-1) m x n) into B = [N; T].
-/// Checks that N (m x n) and T ((d-1) m x n) fit a K of `ndof` rows, before any
-/// code indexes one by the other's sizes.
-///
-/// Errors: `BadSize`.
-pub(crate) fn check_shapes(ndof: usize, d: usize, n: &Csc, t: &Csc) -> Result<()> {
-    if n.ncols != ndof || t.ncols != ndof {
-        return fail(
-            ErrorKind::BadSize,
-            format!(
-                "N has {} columns and T has {}, but K has {ndof} rows",
-                n.ncols, t.ncols
-            ),
-        );
-    }
-    if t.nrows != (d - 1) * n.nrows {
-        return fail(
-            ErrorKind::BadSize,
-            format!(
-                "T has {} rows, expected (d-1) * rows(N) = {}",
-                t.nrows,
-                (d - 1) * n.nrows
-            ),
-        );
-    }
-    Ok(())
-}
-
-pub fn stack_rows(n: &Csc, t: &Csc) -> Csc {
-    let ncols = n.ncols;
-    let mut col_ptr = Vec::with_capacity(ncols + 1);
-    let mut row_idx = Vec::with_capacity(n.nnz() + t.nnz());
-    let mut values = Vec::with_capacity(n.nnz() + t.nnz());
-    col_ptr.push(0);
-    for j in 0..ncols {
-        for k in n.col_ptr[j]..n.col_ptr[j + 1] {
-            row_idx.push(n.row_idx[k]);
-            values.push(n.values[k]);
-        }
-        for k in t.col_ptr[j]..t.col_ptr[j + 1] {
-            row_idx.push(n.nrows + t.row_idx[k]);
-            values.push(t.values[k]);
-        }
-        col_ptr.push(row_idx.len());
-    }
-    Csc {
-        nrows: n.nrows + t.nrows,
-        ncols,
-        col_ptr,
-        row_idx,
-        values,
     }
 }
 

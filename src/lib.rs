@@ -7,6 +7,7 @@
 //! opposes the slip T u.
 
 mod contact_blocks;
+mod contact_rows;
 mod dense;
 mod dirichlet;
 mod dual;
@@ -24,6 +25,7 @@ mod ordering;
 mod problem;
 mod report;
 mod selected_inverse;
+mod sizes;
 mod sparse;
 mod supernode_tree;
 mod threads;
@@ -45,7 +47,8 @@ pub use sparse::{Csc, Format, Indices, MatrixView, SYMMETRY_TOL, Storage};
 #[cfg(feature = "internals")]
 #[doc(hidden)]
 pub mod internals {
-    pub use crate::dual::{Condensation, Dual, contact_dofs, stack_rows};
+    pub use crate::contact_rows::{contact_dofs, stack_rows};
+    pub use crate::dual::{Condensation, Dual};
     pub use crate::factor::Factor;
     pub use crate::report::natural_map_error;
     pub use crate::threads::Threads;

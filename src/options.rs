@@ -1,6 +1,58 @@
 //! Solver options: which method, tolerances and iteration limits.
 
-pub use crate::methods::Method;
+/// The iterative method run on the condensed dual problem. Later versions
+/// may add methods (`#[non_exhaustive]`). The order is the C enum's
+/// (`DsMethod`); each variant's implementation is listed in
+/// `methods::Method::spec`.
+#[derive(Copy, Clone, Debug, PartialEq, Eq)]
+#[non_exhaustive]
+pub enum Method {
+    /// Pop's dual splitting, Schur complement variant (docs/design.md section 3): the
+    /// tangential step on S = A22 - A21 A11^-1 A12 over the current contact set,
+    /// then the normal step on A11; both sub-problems by projected Gauss-Seidel.
+    Split,
+    /// Plain block Gauss-Seidel on (lambda_N, lambda_T): tangential step on A22,
+    /// normal step on A11, both by projected Gauss-Seidel.
+    BlockGs,
+    /// Projected Gauss-Seidel on the whole dual, contact by contact (Siconos NSGS).
+    Pgs,
+    /// Semismooth Newton (primal-dual active set) on the condensed dual with the
+    /// generalised Jacobian of the friction projections. Up to 40 Gauss-Seidel
+    /// sweeps first (counted as inner iterations); a step (or half, a quarter, an
+    /// eighth of it) is kept when it lowers the natural residual |F|, otherwise
+    /// Gauss-Seidel sweeps follow. One outer iteration is one Newton step (a dense
+    /// Cholesky / LU on the free unknowns; on a matrix-free dual, preconditioned CG
+    /// or GMRES on products with A, without the sweeps, falling back to projection
+    /// steps).
+    Newton,
+    /// Pop's splitting (Schur variant) with MPRGP / MPGP for the sub-problems instead
+    /// of projected Gauss-Seidel.
+    SplitMprgp,
+    /// MPRGP / MPGP (Dostal) on the whole dual; for Coulomb, the fixed point
+    /// p = mu lambda_N outside (one outer iteration per Tresca solve).
+    Mprgp,
+    /// The library's choice for the problem at hand (see `methods/auto.rs`), and
+    /// the default: `Newton` on a dense dual, falling back to `SplitMprgp` from
+    /// Newton's best iterate when Newton stalls or reaches its iteration limit;
+    /// on a matrix-free dual `Newton` (Krylov steps), then `Mprgp`. `Report::method` names the method that gave the
+    /// answer and `Report::choice` says why.
+    Auto,
+}
+
+impl Method {
+    /// Every method, in the order of the C enum (a new variant goes here too:
+    /// `methods::Method::spec` will not compile without it, and the C layer
+    /// checks its enum's count against this one).
+    pub const ALL: [Method; 7] = [
+        Method::Split,
+        Method::BlockGs,
+        Method::Pgs,
+        Method::Newton,
+        Method::SplitMprgp,
+        Method::Mprgp,
+        Method::Auto,
+    ];
+}
 
 /// How the products with the condensed dual operator A = B K^-1 B^T are formed.
 #[derive(Copy, Clone, Debug, PartialEq, Eq)]

@@ -2,17 +2,19 @@
 //! dual, and the history of a quasistatic simulation. This is the safe Rust API that
 //! the C boundary wraps.
 
-use crate::dual::{BLOCK, Condensation, Dual, check_shapes, contact_dofs, stack_rows};
+use crate::contact_rows::{check_shapes, contact_dofs, stack_rows};
+use crate::dual::{BLOCK, Condensation, Dual};
 use crate::error::{ErrorKind, Result, fail};
 use crate::factor::Factor;
 use crate::friction::Friction;
 use crate::history::History;
 use crate::info::Info;
-use crate::memory::{self, Claim, F64, Ledger, Sizes};
+use crate::memory::{self, Claim, F64, Ledger};
 use crate::methods::{self, DualProblem, End, Monitor, Progress};
 use crate::options::{DENSE_MAX, DualForm, Method, Options};
 use crate::report::Report;
 use crate::report::{SolveStatus, contact_states, natural_map_error};
+use crate::sizes::Sizes;
 use crate::sparse::{Csc, MatrixView};
 use crate::threads::Threads;
 use std::sync::Arc;

@@ -292,9 +292,9 @@ impl From<DsStorage> for Storage {
     }
 }
 
-// DsMethod lists the methods in the order of `Method::ALL` (the table in
-// `methods/mod.rs`): a method added there without its C value fails to compile
-// here, and `c_values_are_indices` checks that the names match.
+// DsMethod lists the methods in the order of `Method::ALL` (options.rs): a
+// method added there without its C value fails to compile here, and
+// `c_values_are_indices` checks that the names match.
 const _: () = assert!(<DsMethod as CEnum>::ALL.len() == Method::ALL.len());
 
 impl From<DsMethod> for Method {

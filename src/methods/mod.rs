@@ -8,8 +8,7 @@
 //! `driver` owns the outer loop and its stop tests; a method is an
 //! [`driver::OuterStep`] in a file of its own (`pgs`, `split`, `newton`,
 //! `whole` for MPRGP on the whole dual, `signorini` for frictionless increments),
-//! described by a [`MethodSpec`] in its file and listed in the table that defines
-//! [`Method`] (`methods!`). The sub-problems of the splittings are solved by a
+//! described by a [`MethodSpec`] in its file and listed in [`Method`]'s table (`Method::spec`). The sub-problems of the splittings are solved by a
 //! [`subproblem::SubSolver`]: projected Gauss-Seidel or MPRGP. Projections onto
 //! the friction sets and the small local problems live in `projection`.
 
@@ -30,7 +29,7 @@ pub use driver::{End, Outcome};
 use crate::dual::Dual;
 use crate::friction::Friction;
 
-use crate::options::Options;
+use crate::options::{Method, Options};
 use crate::report::natural_map_error;
 use driver::OuterStep;
 use std::cell::RefCell;
@@ -128,68 +127,23 @@ fn inner_rule(opts: &Options, target: f64) -> (f64, usize) {
     (0.1 * target, opts.max_inner)
 }
 
-/// Defines [`Method`] (public API; its order is the C enum's, `DsMethod`) from
-/// the table of `Variant => spec` lines: adding a method is its file (with its
-/// `MethodSpec`), its `mod` line above and one line here (and, for C, its
-/// `DsMethod` value, whose count is checked against this table at compile time).
-macro_rules! methods {
-    ($( $(#[$doc:meta])* $variant:ident => $spec:path, )*) => {
-        /// The iterative method run on the condensed dual problem. Later
-        /// versions may add methods (`#[non_exhaustive]`).
-        #[derive(Copy, Clone, Debug, PartialEq, Eq)]
-        #[non_exhaustive]
-        pub enum Method {
-            $( $(#[$doc])* $variant, )*
-        }
-
-        impl Method {
-            /// Every method, in the order of the C enum.
-            pub const ALL: [Method; [$(stringify!($variant)),*].len()] = [$(Method::$variant),*];
-
-            /// The method's entry in the table.
-            fn spec(self) -> &'static MethodSpec {
-                match self {
-                    $( Method::$variant => &$spec, )*
-                }
-            }
-        }
-    };
-}
-
-methods! {
-    /// Pop's dual splitting, Schur complement variant (docs/design.md section 3): the
-    /// tangential step on S = A22 - A21 A11^-1 A12 over the current contact set,
-    /// then the normal step on A11; both sub-problems by projected Gauss-Seidel.
-    Split => split::SPLIT,
-    /// Plain block Gauss-Seidel on (lambda_N, lambda_T): tangential step on A22,
-    /// normal step on A11, both by projected Gauss-Seidel.
-    BlockGs => split::BLOCK_GS,
-    /// Projected Gauss-Seidel on the whole dual, contact by contact (Siconos NSGS).
-    Pgs => pgs::PGS,
-    /// Semismooth Newton (primal-dual active set) on the condensed dual with the
-    /// generalised Jacobian of the friction projections. Up to 40 Gauss-Seidel
-    /// sweeps first (counted as inner iterations); a step (or half, a quarter, an
-    /// eighth of it) is kept when it lowers the natural residual |F|, otherwise
-    /// Gauss-Seidel sweeps follow. One outer iteration is one Newton step (a dense
-    /// Cholesky / LU on the free unknowns; on a matrix-free dual, preconditioned CG
-    /// or GMRES on products with A, without the sweeps, falling back to projection
-    /// steps).
-    Newton => newton::NEWTON,
-    /// Pop's splitting (Schur variant) with MPRGP / MPGP for the sub-problems instead
-    /// of projected Gauss-Seidel.
-    SplitMprgp => split::SPLIT_MPRGP,
-    /// MPRGP / MPGP (Dostal) on the whole dual; for Coulomb, the fixed point
-    /// p = mu lambda_N outside (one outer iteration per Tresca solve).
-    Mprgp => whole::MPRGP,
-    /// The library's choice for the problem at hand (see `methods/auto.rs`), and
-    /// the default: `Newton` on a dense dual, falling back to `SplitMprgp` from
-    /// Newton's best iterate when Newton stalls or reaches its iteration limit;
-    /// on a matrix-free dual `Newton` (Krylov steps), then `Mprgp`. `Report::method` names the method that gave the
-    /// answer and `Report::choice` says why.
-    Auto => auto::AUTO,
-}
-
 impl Method {
+    /// The method's entry in the table: adding a method is its file (with its
+    /// `MethodSpec`), its `mod` line above, its variant in [`Method`]
+    /// (options.rs; the C enum `DsMethod` follows it, its count checked at
+    /// compile time) and its line here.
+    fn spec(self) -> &'static MethodSpec {
+        match self {
+            Method::Split => &split::SPLIT,
+            Method::BlockGs => &split::BLOCK_GS,
+            Method::Pgs => &pgs::PGS,
+            Method::Newton => &newton::NEWTON,
+            Method::SplitMprgp => &split::SPLIT_MPRGP,
+            Method::Mprgp => &whole::MPRGP,
+            Method::Auto => &auto::AUTO,
+        }
+    }
+
     /// Short lower-case name ("split", "block-gs", "pgs", "newton",
     /// "split-mprgp", "mprgp").
     pub fn name(self) -> &'static str {

@@ -1,0 +1,126 @@
+//! The memory a route will need, predicted from the sizes known after the
+//! symbolic analysis ([`Sizes`]): what the counted allocations of
+//! `crate::memory`'s ledger will reach while the problem is created, held,
+//! refactored and solved, per way of forming the dual ([`Condensation`]).
+
+use crate::dual::Condensation;
+use crate::memory::F64;
+
+/// The sizes a prediction is made from, all known after the symbolic analysis.
+#[derive(Copy, Clone, Debug, Default, PartialEq)]
+pub(crate) struct Sizes {
+    /// DOFs (rows of K).
+    pub n: usize,
+    /// Dual unknowns (c = d m).
+    pub c: usize,
+    /// DOFs that N and T touch (the trailing DOFs of the factor).
+    pub nc: usize,
+    /// Bytes of K, N and T as the problem stores them.
+    pub inputs: usize,
+    /// Bytes of L's values.
+    pub factor: usize,
+    /// Bytes of the numeric factorisation's workspace.
+    pub factor_scratch: usize,
+    /// Bytes of one solve's workspace with [`crate::dual::BLOCK`] right-hand sides.
+    pub solve_scratch: usize,
+    /// Bytes the threads work in together while the matrix-free dual's contact
+    /// blocks are formed (`contact_blocks::work_bytes`).
+    pub blocks_work: usize,
+    /// Bytes of G = B K B^T, the lumped preconditioner a matrix-free dual holds.
+    pub lumped: usize,
+    /// Bytes of a matrix-free dual's own solves by the elimination tree and
+    /// their scratch, with a bound on those of Newton's narrowed products
+    /// (`dual::own_solves_bytes`).
+    pub own_solves: usize,
+    /// Bytes of the layered Dirichlet preconditioner a matrix-free dual holds
+    /// where it pays (`dirichlet::Plan::bytes`; 0 where it does not).
+    pub dirichlet: usize,
+}
+
+/// Predicted bytes, what the counted allocations will reach.
+impl Sizes {
+    /// K, N, T and the factor.
+    fn base(&self) -> usize {
+        self.inputs + self.factor
+    }
+
+    /// Bytes above [`Sizes::base`] while the dual is formed in the way `how`, and
+    /// once it is formed.
+    fn forming(&self, how: Condensation) -> (usize, usize) {
+        let a = self.c * self.c * F64;
+        let lcc = self.nc * self.nc * F64;
+        match how {
+            // A, then L_CC and X = S_CC^-1 (L_CC dropped once X is formed).
+            Condensation::TrailingBlock => (a + 2 * lcc, a),
+            // A and one block of right-hand sides with the solve's workspace.
+            Condensation::Solves => (
+                a + crate::dual::BLOCK * self.n * F64 + self.solve_scratch,
+                a,
+            ),
+            // The contacts' diagonal blocks (d c doubles at most) and, while
+            // they are formed, what their selected inversion or forward solves
+            // work in on all threads (`blocks_work`); then one product's
+            // n-vector and solve workspace in double and single precision, L's
+            // values in single precision (the rough products), the lumped
+            // preconditioner G = B K B^T and the layered Dirichlet one, and the
+            // tree solves with their scratch (where they are taken).
+            Condensation::MatrixFree => {
+                let held = 3 * self.c * F64
+                    + self.n * (F64 + 4)
+                    + self.own_solves
+                    + self.solve_scratch
+                    + self.factor / 2
+                    + self.lumped
+                    + self.dirichlet;
+                (held + self.blocks_work, held)
+            }
+        }
+    }
+
+    /// The peak of creating a problem whose dual is formed in the way `how`: the
+    /// numeric factorisation, then the condensation.
+    pub fn setup(&self, how: Condensation) -> usize {
+        (self.base() + self.factor_scratch).max(self.base() + self.forming(how).0)
+    }
+
+    /// What the problem holds between calls.
+    pub fn resident(&self, how: Condensation) -> usize {
+        self.base() + self.forming(how).1
+    }
+
+    /// The peak of refactoring a problem whose dual is held as `how`: the new K
+    /// (`k_bytes`) beside the old one, the new factor beside the old (kept until
+    /// the dual is rebuilt, so that a failure restores it), and the larger of the
+    /// factorisation's workspace and the dual's rebuild.
+    pub fn refactor(&self, how: Condensation, k_bytes: usize) -> usize {
+        self.resident(how) + k_bytes + self.factor + self.factor_scratch.max(self.forming(how).0)
+    }
+
+    /// The peak of replacing N and T (new ones of `nt_bytes`, a dual described by
+    /// `next` and formed as `how`) on a problem whose dual is held as `now`: the
+    /// new matrices and the new dual are formed beside the old ones.
+    pub fn replace_contacts(
+        &self,
+        now: Condensation,
+        nt_bytes: usize,
+        next: &Sizes,
+        how: Condensation,
+    ) -> usize {
+        self.resident(now) + nt_bytes + next.forming(how).0
+    }
+
+    /// The peak of one solve (or history step) on a problem whose dual is held as
+    /// `now` and is needed as `next` (rebuilt first when they differ), with a
+    /// method whose dense work space is `workspace` bytes: the vectors of length
+    /// n (f and its forward half, K^-1 f, u, B^T lambda, K u, the residual, and
+    /// a step's effective f and K u_k) and the method's work space on top of the
+    /// resident bytes.
+    pub fn solve(&self, now: Condensation, next: Condensation, workspace: usize) -> usize {
+        let working = self.resident(next) + 8 * self.n * F64 + workspace;
+        if now == next {
+            working
+        } else {
+            working.max(self.resident(now) + self.forming(next).0)
+        }
+    }
+}
