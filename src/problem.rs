@@ -113,6 +113,15 @@ fn internal_form(
 /// The dual of (N, T) on `factor` formed in the way `how`, holding the lumped
 /// preconditioner G = B K B^T when it is matrix-free: every dual a problem
 /// holds is formed here.
+/// Checks matrices a Rust caller gave in internal form: K square, symmetric
+/// and in the form's invariants, N and T in them (their shapes against K are
+/// checked with the route).
+fn check_internal_form(k: &Csc, n: &Csc, t: &Csc) -> Result<()> {
+    crate::sparse::check_internal_symmetric(k, "K")?;
+    crate::sparse::check_internal(n, "N")?;
+    crate::sparse::check_internal(t, "T")
+}
+
 fn form_dual(
     factor: &Arc<Factor>,
     k: &Csc,
@@ -159,17 +168,29 @@ impl ContactProblem {
         opts: &Options,
     ) -> Result<Self> {
         let (k, n, t) = internal_form(d, k, n, t)?;
-        Self::from_csc_with(d, k, n, t, opts)
+        Self::from_checked(d, k, n, t, opts)
     }
 
     /// As [`ContactProblem::new`], from matrices already in internal form (`k` holds
-    /// both triangles).
+    /// both triangles; see [`Csc`] for the invariants, which are checked).
+    ///
+    /// Errors: as [`ContactProblem::new`].
     pub fn from_csc(d: usize, k: Csc, n: Csc, t: Csc) -> Result<Self> {
         Self::from_csc_with(d, k, n, t, &Options::default())
     }
 
-    /// As [`ContactProblem::with_options`], from matrices in internal form.
+    /// As [`ContactProblem::with_options`], from matrices in internal form
+    /// (checked as in [`ContactProblem::from_csc`]).
+    ///
+    /// Errors: as [`ContactProblem::with_options`].
     pub fn from_csc_with(d: usize, k: Csc, n: Csc, t: Csc, opts: &Options) -> Result<Self> {
+        check_internal_form(&k, &n, &t)?;
+        Self::from_checked(d, k, n, t, opts)
+    }
+
+    /// [`ContactProblem::from_csc_with`] from matrices known to keep the
+    /// internal form's invariants.
+    fn from_checked(d: usize, k: Csc, n: Csc, t: Csc, opts: &Options) -> Result<Self> {
         let (mut factor, plan) = Self::analysed(d, &k, &n, &t, opts)?;
         let inputs = factor.ledger().claim(plan.sizes.inputs);
         factor.refactor(&k)?;
@@ -210,12 +231,21 @@ impl ContactProblem {
         opts: &Options,
     ) -> Result<Info> {
         let (k, n, t) = internal_form(d, k, n, t)?;
-        Self::analyse_csc(d, &k, &n, &t, opts)
+        Self::analyse_checked(d, &k, &n, &t, opts)
     }
 
     /// As [`ContactProblem::analyse`], from matrices in internal form (`k` holds
-    /// both triangles).
+    /// both triangles; checked as in [`ContactProblem::from_csc`]).
+    ///
+    /// Errors: as [`ContactProblem::analyse`].
     pub fn analyse_csc(d: usize, k: &Csc, n: &Csc, t: &Csc, opts: &Options) -> Result<Info> {
+        check_internal_form(k, n, t)?;
+        Self::analyse_checked(d, k, n, t, opts)
+    }
+
+    /// [`ContactProblem::analyse_csc`] from matrices known to keep the internal
+    /// form's invariants.
+    fn analyse_checked(d: usize, k: &Csc, n: &Csc, t: &Csc, opts: &Options) -> Result<Info> {
         let (factor, plan, limit) = Self::plan(d, k, n, t, opts)?;
         let now = Condensation::of(true, plan.form, plan.sizes.c);
         Ok(Self::info_of(

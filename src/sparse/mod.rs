@@ -20,11 +20,11 @@ mod validate;
 use crate::error::{ErrorKind, Result, fail};
 use assemble::{Triplets, assemble, filled, try_copy, zeroed};
 pub(crate) use congruence::{congruence, congruence_bytes};
-pub(crate) use validate::dense_len;
 use validate::{
     check_base, check_dense_len, check_sums_finite, check_symmetric, collect, collect_dense,
     dense_not_finite,
 };
+pub(crate) use validate::{check_internal, check_internal_symmetric, dense_len};
 
 /// Layout of a borrowed sparse matrix, named as in CSparse.
 #[derive(Copy, Clone, Debug, PartialEq, Eq)]

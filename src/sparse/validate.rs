@@ -384,3 +384,106 @@ pub(super) fn check_symmetric(a: &Csc, what: &str, base: usize) -> Result<()> {
         }
     }
 }
+
+/// Checks that `a` keeps the invariants of the internal form ([`Csc`]'s
+/// docs): `ncols + 1` column pointers from 0, non-decreasing, ending at the
+/// lengths of the index and value arrays; row indices below `nrows` and
+/// strictly increasing in each column; every value finite. For matrices a
+/// Rust caller built itself (`ContactProblem::from_csc` and its kin): the
+/// views of the C boundary are checked as they are read instead.
+///
+/// Errors: `BadSize`, `BadIndex`, `NotFinite`.
+pub(crate) fn check_internal(a: &Csc, what: &str) -> Result<()> {
+    let n = a.ncols;
+    if a.col_ptr.len() != n.saturating_add(1) {
+        return fail(
+            ErrorKind::BadSize,
+            format!(
+                "{what}: {n} columns need {} column pointers, col_ptr has {}",
+                n.saturating_add(1),
+                a.col_ptr.len()
+            ),
+        );
+    }
+    if a.col_ptr[0] != 0 {
+        return fail(
+            ErrorKind::BadIndex,
+            format!("{what}: col_ptr[0] = {}, expected 0", a.col_ptr[0]),
+        );
+    }
+    if let Some(j) = (0..n).find(|&j| a.col_ptr[j + 1] < a.col_ptr[j]) {
+        return fail(
+            ErrorKind::BadIndex,
+            format!(
+                "{what}: column pointers decrease: col_ptr[{j}] = {} > col_ptr[{}] = {}",
+                a.col_ptr[j],
+                j + 1,
+                a.col_ptr[j + 1]
+            ),
+        );
+    }
+    let count = a.col_ptr[n];
+    if a.row_idx.len() != count || a.values.len() != count {
+        return fail(
+            ErrorKind::BadSize,
+            format!(
+                "{what}: col_ptr[{n}] = {count} entries, but row_idx has {} and values {}",
+                a.row_idx.len(),
+                a.values.len()
+            ),
+        );
+    }
+    for j in 0..n {
+        let rows = &a.row_idx[a.col_ptr[j]..a.col_ptr[j + 1]];
+        for (q, &r) in rows.iter().enumerate() {
+            if r >= a.nrows {
+                return fail(
+                    ErrorKind::BadIndex,
+                    format!(
+                        "{what}: row index {r} in column {j} is outside 0..{}",
+                        a.nrows
+                    ),
+                );
+            }
+            if q > 0 && rows[q - 1] >= r {
+                return fail(
+                    ErrorKind::BadIndex,
+                    format!(
+                        "{what}: row indices of column {j} are not strictly increasing \
+                         ({} then {r}): sort them and sum duplicates",
+                        rows[q - 1]
+                    ),
+                );
+            }
+        }
+    }
+    for j in 0..n {
+        for k in a.col_ptr[j]..a.col_ptr[j + 1] {
+            if !a.values[k].is_finite() {
+                return fail(
+                    ErrorKind::NotFinite,
+                    format!(
+                        "{what}: entry (row {}, column {j}) is {}",
+                        a.row_idx[k], a.values[k]
+                    ),
+                );
+            }
+        }
+    }
+    Ok(())
+}
+
+/// [`check_internal`] for a stiffness matrix: also square and symmetric
+/// (both triangles stored, [`check_symmetric`]).
+///
+/// Errors: those of [`check_internal`], `BadSize`, `NotSymmetric`.
+pub(crate) fn check_internal_symmetric(k: &Csc, what: &str) -> Result<()> {
+    check_internal(k, what)?;
+    if k.nrows != k.ncols {
+        return fail(
+            ErrorKind::BadSize,
+            format!("{what} is {} x {}, not square", k.nrows, k.ncols),
+        );
+    }
+    check_symmetric(k, what, 0)
+}
