@@ -13,12 +13,19 @@ mod dirichlet;
 mod dual;
 mod error;
 mod factor;
-pub mod ffi;
+// The C boundary: its `extern "C"` functions are the library's exported
+// symbols whatever this module's visibility; as Rust items they are the
+// tests', through `internals::ffi`, not the Rust API.
+mod ffi;
 mod friction;
 mod history;
 mod info;
 mod memory;
 mod methods;
+/// Matrix Market files and problem folders, for the `dualsplit` command-line
+/// tool (and the tests and benchmarks): not part of the Rust API, it may change
+/// without notice. Rust callers build [`Csc`] or [`MatrixView`] instead.
+#[doc(hidden)]
 pub mod mtx;
 mod options;
 mod ordering;
@@ -52,4 +59,10 @@ pub mod internals {
     pub use crate::factor::Factor;
     pub use crate::report::natural_map_error;
     pub use crate::threads::Threads;
+
+    /// The C boundary's items (the `extern "C"` functions, `#[repr(C)]` types and
+    /// enums), for the tests that call it from Rust.
+    pub mod ffi {
+        pub use crate::ffi::*;
+    }
 }

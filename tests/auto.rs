@@ -6,7 +6,7 @@
 mod common;
 
 use common::{Mesh, Owned, Scene, assert_converged, kkt_of};
-use dualsplit::ffi::*;
+use dualsplit::internals::ffi::*;
 use dualsplit::{ContactProblem, DualForm, Friction, Method, Options};
 
 fn block3d() -> Scene {

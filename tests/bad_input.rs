@@ -21,7 +21,7 @@ mod common;
 
 use common::{Mesh, Scene};
 use dualsplit::SYMMETRY_TOL;
-use dualsplit::ffi::*;
+use dualsplit::internals::ffi::*;
 use std::ffi::CStr;
 use std::ptr::{null, null_mut};
 

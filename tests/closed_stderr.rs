@@ -10,7 +10,7 @@
 mod common;
 
 use common::{Mesh, Owned, Scene};
-use dualsplit::ffi::{
+use dualsplit::internals::ffi::{
     DsProblem, DsReport, DsStatus, ds_problem_free, ds_problem_new, ds_problem_set_log, ds_solve,
 };
 

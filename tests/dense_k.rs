@@ -15,7 +15,7 @@
 mod common;
 
 use common::{Mesh, Scene, assert_close, assert_converged, dense, kkt_of, norm_inf, opts};
-use dualsplit::ffi::*;
+use dualsplit::internals::ffi::*;
 use dualsplit::{
     ContactProblem, Csc, DualForm, Format, Friction, Indices, MatrixView, Method, Options,
     Ordering, Solution, Storage,

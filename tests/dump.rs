@@ -5,7 +5,7 @@
 mod common;
 
 use common::{Mesh, Scene};
-use dualsplit::ffi::{
+use dualsplit::internals::ffi::{
     DsMatrix, DsOptions, DsStatus, ds_last_error_message, ds_problem_dump, ds_problem_free,
     ds_problem_new, ds_solve,
 };

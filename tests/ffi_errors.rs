@@ -12,7 +12,7 @@
 //! - DS_STATUS_OUT_OF_MEMORY is produced here with absurd dimensions (the core
 //!   reports failed allocations of caller-sized arrays instead of aborting).
 
-use dualsplit::ffi::*;
+use dualsplit::internals::ffi::*;
 use std::ffi::CStr;
 use std::ptr::{null, null_mut};
 

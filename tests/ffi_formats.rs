@@ -8,7 +8,7 @@
 //! e_x, loads that close most contacts, push them sideways (some stick, some slip)
 //! and leave one open.
 
-use dualsplit::ffi::*;
+use dualsplit::internals::ffi::*;
 use std::ffi::CStr;
 use std::ptr::null_mut;
 

@@ -134,7 +134,7 @@ fn compiler(var: &str, default: &str) -> Option<String> {
 /// the C compiler). Skipped when no compiler is found.
 #[test]
 fn header_compiles_and_matches_the_rust_layout() {
-    use dualsplit::ffi::*;
+    use dualsplit::internals::ffi::*;
     use std::mem::{offset_of, size_of};
     let mut src = String::from(
         "#include \"dualsplit.h\"\n#include <stddef.h>\n\

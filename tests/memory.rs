@@ -8,7 +8,7 @@
 mod common;
 
 use common::{Mesh, Scene};
-use dualsplit::ffi::*;
+use dualsplit::internals::ffi::*;
 use dualsplit::{ContactProblem, DualForm, ErrorKind, Friction, Method, Options};
 use std::alloc::{GlobalAlloc, Layout, System};
 use std::sync::Mutex;

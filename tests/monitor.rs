@@ -5,7 +5,7 @@
 mod common;
 
 use common::{Mesh, Scene, opts};
-use dualsplit::ffi::{
+use dualsplit::internals::ffi::{
     DsMatrix, DsProblem, DsProgress, DsReport, DsStatus, ds_problem_free, ds_problem_new,
     ds_problem_set_log, ds_problem_set_monitor, ds_solve, ds_step,
 };
@@ -155,7 +155,7 @@ fn stopping_after_k_iterations_stops_after_exactly_k() {
             unsafe { ds_problem_set_monitor(h.0, Some(stop_at), (&mut stop as *mut i64).cast()) };
         assert_eq!(s, DsStatus::Ok);
         // PGS: many iterations on this scene.
-        let opts = dualsplit::ffi::DsOptions {
+        let opts = dualsplit::internals::ffi::DsOptions {
             method: 2,
             ..Default::default()
         };

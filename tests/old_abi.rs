@@ -8,7 +8,7 @@
 mod ctools;
 
 use ctools::{SYSTEM_LIBS, c_compiler, out_dir, run_ok, static_lib, stdout_of};
-use dualsplit::ffi::DsReport;
+use dualsplit::internals::ffi::DsReport;
 use std::process::Command;
 
 /// The old program. OLD_OPTIONS_SIZE is 32 (0.1) or 40 (0.2, with dual_form).

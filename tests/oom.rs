@@ -4,7 +4,7 @@
 //! limit of 3 GiB (setrlimit), and hands ds_problem_new a K of 250 million rows
 //! with one entry: its first index array (2 GB) fits, a second one does not.
 
-use dualsplit::ffi::*;
+use dualsplit::internals::ffi::*;
 use std::process::Command;
 use std::ptr::null_mut;
 

@@ -12,7 +12,7 @@
 mod common;
 
 use common::{Mesh, Owned, Scene, kkt_of, max_diff, norm_inf};
-use dualsplit::ffi::*;
+use dualsplit::internals::ffi::*;
 use dualsplit::{ContactProblem, Friction, Method, Options, Ordering, Solution, SolveStatus};
 use std::ptr::{null, null_mut};
 

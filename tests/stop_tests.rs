@@ -5,7 +5,7 @@
 mod common;
 
 use common::{Mesh, Owned, Scene, kkt_of};
-use dualsplit::ffi::*;
+use dualsplit::internals::ffi::*;
 use dualsplit::{Friction, Method, Options, SolveStatus};
 
 /// A nearly incompressible 2D block (nu = 0.499) pressed onto a curved

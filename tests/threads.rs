@@ -11,7 +11,7 @@
 mod common;
 
 use common::{Mesh, Owned, Scene};
-use dualsplit::ffi::*;
+use dualsplit::internals::ffi::*;
 use std::ffi::CStr;
 use std::ptr::{null, null_mut};
 use std::sync::{Arc, Barrier};

@@ -17,6 +17,11 @@
 //! - array pointers may be NULL when the array has length 0;
 //! - caller memory is only borrowed for the duration of the call.
 
+// The re-exports below gather the C-facing items for the tests (through
+// `internals::ffi`, with the `internals` feature); without it nothing in the
+// crate reads them (the symbols are exported either way).
+#![cfg_attr(not(feature = "internals"), allow(unused_imports))]
+
 mod boundary;
 mod info;
 mod last_error;

@@ -13,7 +13,7 @@
 // Element and small dense kernels read best with explicit indices.
 #![allow(clippy::needless_range_loop)]
 
-use dualsplit::ffi::{DsFormat, DsIndexType, DsMatrix, DsStorage};
+use dualsplit::internals::ffi::{DsFormat, DsIndexType, DsMatrix, DsStorage};
 use dualsplit::{ContactProblem, Csc, Friction, Method, Options, Solution, SolveStatus};
 
 // ---------------------------------------------------------------------------------
