@@ -110,9 +110,6 @@ fn internal_form(
     Ok((k, n, t))
 }
 
-/// The dual of (N, T) on `factor` formed in the way `how`, holding the lumped
-/// preconditioner G = B K B^T when it is matrix-free: every dual a problem
-/// holds is formed here.
 /// Checks matrices a Rust caller gave in internal form: K square, symmetric
 /// and in the form's invariants, N and T in them (their shapes against K are
 /// checked with the route).
@@ -122,6 +119,9 @@ fn check_internal_form(k: &Csc, n: &Csc, t: &Csc) -> Result<()> {
     crate::sparse::check_internal(t, "T")
 }
 
+/// The dual of (N, T) on `factor` formed in the way `how`, holding the lumped
+/// preconditioner G = B K B^T when it is matrix-free: every dual a problem
+/// holds is formed here.
 fn form_dual(
     factor: &Arc<Factor>,
     k: &Csc,

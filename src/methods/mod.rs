@@ -8,7 +8,8 @@
 //! `driver` owns the outer loop and its stop tests; a method is an
 //! [`driver::OuterStep`] in a file of its own (`pgs`, `split`, `newton`,
 //! `whole` for MPRGP on the whole dual, `signorini` for frictionless increments),
-//! described by a [`MethodSpec`] in its file and listed in [`Method`]'s table (`Method::spec`). The sub-problems of the splittings are solved by a
+//! described by a [`MethodSpec`] in its file and listed in [`Method`]'s table
+//! (`Method::spec`). The sub-problems of the splittings are solved by a
 //! [`subproblem::SubSolver`]: projected Gauss-Seidel or MPRGP. Projections onto
 //! the friction sets and the small local problems live in `projection`.
 
