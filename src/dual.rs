@@ -377,6 +377,12 @@ impl Dual {
     /// unknowns alone.
     pub fn apply(&self, x: &[f64], y: &mut [f64]) {
         if let Some(f) = &self.free {
+            // A cold start's first gradient: a zero x needs no solve (the
+            // back substitution, unlike the forward one, skips nothing).
+            if x.iter().all(|&v| v == 0.0) {
+                y.fill(0.0);
+                return;
+            }
             f.apply(x, y);
             return;
         }
