@@ -1,5 +1,7 @@
 //! Solver options: which method, tolerances and iteration limits.
 
+use crate::error::{ErrorKind, Result, fail};
+
 /// The iterative method run on the condensed dual problem. Later versions
 /// may add methods (`#[non_exhaustive]`). The order is the C enum's
 /// (`DsMethod`); each variant's implementation is listed in
@@ -224,6 +226,57 @@ pub const STALL_WINDOW: usize = 100;
 /// column), hence a window of 100.
 pub const STALL_FACTOR: f64 = 0.9;
 
+/// The largest `Options::threads` accepted (a guard against garbage values).
+pub(crate) const MAX_THREADS: usize = 4096;
+
+impl Options {
+    /// Checks the values every entry point accepts; `prefix` is put before a
+    /// field's name in the message (the C layer's "opts.", nothing for Rust
+    /// callers). The C layer checks its own conversions (enum values, signed
+    /// counts) before this.
+    ///
+    /// Errors: `BadArgument`: tol not positive and finite, max_inner 0,
+    /// ordering `Dense` (reported, never chosen), max_seconds negative or not
+    /// finite, threads above 4096, stall_factor outside (0, 1].
+    pub(crate) fn check(&self, prefix: &str) -> Result<()> {
+        let bad = |msg: String| fail(ErrorKind::BadArgument, msg);
+        if !(self.tol.is_finite() && self.tol > 0.0) {
+            return bad(format!(
+                "{prefix}tol = {} must be positive and finite",
+                self.tol
+            ));
+        }
+        if self.max_inner == 0 {
+            return bad(format!("{prefix}max_inner = 0 must be at least 1"));
+        }
+        if self.ordering == Ordering::Dense {
+            return bad(format!(
+                "{prefix}ordering = dense is reported, not chosen: a K with every entry \
+                 stored (the dense format) is factored densely whatever the ordering option"
+            ));
+        }
+        if !(self.max_seconds.is_finite() && self.max_seconds >= 0.0) {
+            return bad(format!(
+                "{prefix}max_seconds = {} must be finite and >= 0 (0: no limit)",
+                self.max_seconds
+            ));
+        }
+        if self.threads > MAX_THREADS {
+            return bad(format!(
+                "{prefix}threads = {} is more than {MAX_THREADS} (0: all cores)",
+                self.threads
+            ));
+        }
+        if !(self.stall_factor > 0.0 && self.stall_factor <= 1.0) {
+            return bad(format!(
+                "{prefix}stall_factor = {} must be in (0, 1]",
+                self.stall_factor
+            ));
+        }
+        Ok(())
+    }
+}
+
 impl Default for Options {
     fn default() -> Self {
         Options {
@@ -238,6 +291,52 @@ impl Default for Options {
             ordering: Ordering::Auto,
             threads: 0,
             max_memory: 0,
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn every_bad_value_is_refused_with_the_field_named() {
+        let o = Options::default();
+        assert!(o.check("").is_ok());
+        let cases = [
+            (Options { tol: 0.0, ..o }, "tol = 0"),
+            (Options { tol: f64::NAN, ..o }, "tol = NaN"),
+            (Options { max_inner: 0, ..o }, "max_inner = 0"),
+            (
+                Options {
+                    ordering: Ordering::Dense,
+                    ..o
+                },
+                "ordering = dense",
+            ),
+            (
+                Options {
+                    max_seconds: f64::INFINITY,
+                    ..o
+                },
+                "max_seconds = inf",
+            ),
+            (Options { threads: 4097, ..o }, "threads = 4097"),
+            (
+                Options {
+                    stall_factor: 0.0,
+                    ..o
+                },
+                "stall_factor = 0",
+            ),
+        ];
+        for (bad, field) in cases {
+            for prefix in ["", "opts."] {
+                let e = bad.check(prefix).unwrap_err();
+                assert_eq!(e.kind, ErrorKind::BadArgument);
+                let want = format!("{prefix}{field}");
+                assert!(e.message.starts_with(&want), "{} lacks {want}", e.message);
+            }
         }
     }
 }

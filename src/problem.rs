@@ -62,9 +62,6 @@ struct Plan {
     form: DualForm,
 }
 
-/// The largest `Options::threads` accepted (a guard against garbage values).
-const MAX_THREADS: usize = 4096;
-
 /// Times the dual error is tightened when the error measured on the recovered u
 /// misses the tolerance although the dual one met it (rounding in A).
 const REFINEMENTS: usize = 3;
@@ -367,7 +364,7 @@ impl ContactProblem {
         opts: &Options,
     ) -> Result<(Factor, Plan, Option<usize>)> {
         check_d(d)?;
-        Self::check_options(opts)?;
+        opts.check("")?;
         if k.nrows != k.ncols {
             return fail(
                 ErrorKind::BadSize,
@@ -619,50 +616,6 @@ impl ContactProblem {
         self.factor.threads().count()
     }
 
-    fn check_options(opts: &Options) -> Result<()> {
-        if !(opts.tol.is_finite() && opts.tol > 0.0) {
-            return fail(
-                ErrorKind::BadArgument,
-                format!("tol = {} must be positive and finite", opts.tol),
-            );
-        }
-        if opts.max_inner == 0 {
-            return fail(ErrorKind::BadArgument, "max_inner must be at least 1");
-        }
-        if opts.ordering == crate::Ordering::Dense {
-            return fail(
-                ErrorKind::BadArgument,
-                "ordering = dense is reported, not chosen: a K with every entry stored \
-                 (the dense format) is factored densely whatever the ordering option",
-            );
-        }
-        if !(opts.max_seconds.is_finite() && opts.max_seconds >= 0.0) {
-            return fail(
-                ErrorKind::BadArgument,
-                format!(
-                    "max_seconds = {} must be finite and >= 0 (0: no limit)",
-                    opts.max_seconds
-                ),
-            );
-        }
-        if opts.threads > MAX_THREADS {
-            return fail(
-                ErrorKind::BadArgument,
-                format!(
-                    "threads = {} is more than {MAX_THREADS} (0: all cores)",
-                    opts.threads
-                ),
-            );
-        }
-        if !(opts.stall_factor > 0.0 && opts.stall_factor <= 1.0) {
-            return fail(
-                ErrorKind::BadArgument,
-                format!("stall_factor = {} must be in (0, 1]", opts.stall_factor),
-            );
-        }
-        Ok(())
-    }
-
     /// Solves one increment exactly as given (docs/design.md section 1): f (n), g (m),
     /// and the friction bound. Does not touch the history.
     ///
@@ -692,7 +645,7 @@ impl ContactProblem {
         check_vec("f", f, self.n_dofs())?;
         check_vec("g", g, self.n_contacts())?;
         self.check_friction(friction)?;
-        Self::check_options(opts)?;
+        opts.check("")?;
         let predicted = self.prepare_dual(opts)?;
         let mut lam = vec![0.0; self.dual.c];
         let (sol, _) = self.solve_from(f, g, friction, opts, &mut lam, None, monitor, predicted)?;
@@ -754,7 +707,7 @@ impl ContactProblem {
         check_vec("f", f, ndof)?;
         check_vec("g", g, m)?;
         self.check_friction(friction)?;
-        Self::check_options(opts)?;
+        opts.check("")?;
         // b = B K^-1 f - [g; 0], with the forward half y_f = L^-1 P f kept for the
         // recovery of u.
         let mut y_f = vec![0.0; ndof];
@@ -945,7 +898,7 @@ impl ContactProblem {
         check_vec("f_total", f_total, ndof)?;
         check_vec("g0", g0, m)?;
         self.check_friction(friction)?;
-        Self::check_options(opts)?;
+        opts.check("")?;
         let predicted = self.prepare_dual(opts)?;
         // The effective f and K u_k.
         let _vectors = self.factor.ledger().claim_f64(2 * ndof);

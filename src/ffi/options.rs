@@ -158,24 +158,6 @@ impl DsOptions {
         let method = DsMethod::parse(self.method, "opts.method")?;
         let dual_form = DsDualForm::parse(self.dual_form, "opts.dual_form")?;
         let ordering = DsOrdering::parse(self.ordering, "opts.ordering")?;
-        if !(self.tol.is_finite() && self.tol > 0.0) {
-            return Err(bad(format!(
-                "opts.tol = {} must be finite and positive",
-                self.tol
-            )));
-        }
-        if !(self.max_seconds.is_finite() && self.max_seconds >= 0.0) {
-            return Err(bad(format!(
-                "opts.max_seconds = {} must be finite and >= 0 (0: no limit)",
-                self.max_seconds
-            )));
-        }
-        if !(self.stall_factor > 0.0 && self.stall_factor <= 1.0) {
-            return Err(bad(format!(
-                "opts.stall_factor = {} must be in (0, 1]",
-                self.stall_factor
-            )));
-        }
         let count = |v: i64, name: &str, min: i64| {
             if v < min {
                 Err(bad(format!("opts.{name} = {v} must be at least {min}")))
@@ -183,7 +165,7 @@ impl DsOptions {
                 usize::try_from(v).map_err(|_| bad(format!("opts.{name} = {v} is too large")))
             }
         };
-        Ok(Options {
+        let opts = Options {
             method: method.into(),
             tol: self.tol,
             max_outer: count(self.max_outer, "max_outer", 0)?,
@@ -195,7 +177,9 @@ impl DsOptions {
             threads: count(i64::from(self.threads), "threads", 0)?,
             ordering: ordering.into(),
             max_memory: usize::try_from(self.max_memory).unwrap_or(usize::MAX),
-        })
+        };
+        opts.check("opts.")?;
+        Ok(opts)
     }
 
     /// The struct_size of the options at `ptr`, 0 for NULL. Call after
@@ -601,6 +585,8 @@ mod tests {
                 },
                 "opts.stall_factor = 1.5",
             ),
+            (DsOptions { threads: 5000, ..o }, "opts.threads = 5000"),
+            (DsOptions { ordering: 3, ..o }, "opts.ordering = dense"),
         ];
         for (bad, text) in cases {
             // SAFETY: bad is a valid DsOptions.
