@@ -51,6 +51,12 @@ pub struct Dual {
     pub(crate) ledger: Arc<Ledger>,
     /// The bytes of A (or of the matrix-free form) on that ledger.
     _claim: Claim,
+    /// The interface compliance's diagonal D (`compliance.rs`), length c, or
+    /// empty where every contact is rigid: the operator is A + D. On a dense
+    /// dual D is added to A's diagonal (entries read from `a` include it).
+    shift: Vec<f64>,
+    /// A's own diagonal while D is added to it (dense form; else empty).
+    rigid_diag: Vec<f64>,
 }
 
 /// How the condensed dual operator was formed.
@@ -192,6 +198,8 @@ impl Dual {
                 condensation: how,
                 trailing,
                 threads: factor.threads().clone(),
+                shift: Vec::new(),
+                rigid_diag: Vec::new(),
             });
         }
         let mut a = alloc_zeroed(c, c, "condensed dual")?;
@@ -223,7 +231,44 @@ impl Dual {
             condensation: how,
             trailing,
             threads: factor.threads().clone(),
+            shift: Vec::new(),
+            rigid_diag: Vec::new(),
         })
+    }
+
+    /// Makes the operator A + D for the compliance diagonal `shift` (length c;
+    /// empty: A itself, every contact rigid), replacing the last one, and
+    /// recomputes rho from the new diagonal. Exact: A's own diagonal is kept
+    /// while D is added to it, so an empty shift restores A bitwise.
+    pub(crate) fn set_shift(&mut self, shift: &[f64]) {
+        debug_assert!(shift.is_empty() || shift.len() == self.c);
+        if self.free.is_none() && !self.a.is_empty() {
+            let c = self.c;
+            if self.rigid_diag.is_empty() {
+                self.rigid_diag = (0..c).map(|j| self.a[j + j * c]).collect();
+            }
+            for j in 0..c {
+                self.a[j + j * c] = self.rigid_diag[j] + shift.get(j).copied().unwrap_or(0.0);
+            }
+            if shift.is_empty() {
+                self.rigid_diag = Vec::new();
+            }
+        }
+        self.shift = shift.to_vec();
+        self.rho = rho_of(self.m, self.d, |j| self.diag(j));
+    }
+
+    /// The compliance diagonal D of [`Dual::set_shift`] (empty: rigid).
+    pub(crate) fn shift(&self) -> &[f64] {
+        &self.shift
+    }
+
+    /// y += D x on the leading entries both reach (a matrix-free product's
+    /// compliance part; on a dense dual D is in A).
+    fn add_shift(&self, x: &[f64], y: &mut [f64]) {
+        for ((yi, xi), di) in y.iter_mut().zip(x).zip(&self.shift) {
+            *yi += di * xi;
+        }
     }
 
     /// Column (= row) j of A. Panics when matrix-free (the solver checks
@@ -233,20 +278,27 @@ impl Dual {
         &self.a[j * self.c..(j + 1) * self.c]
     }
 
-    /// A_jj.
+    /// (A + D)_jj (D the compliance diagonal, zero for rigid contacts).
     #[inline]
     pub fn diag(&self, j: usize) -> f64 {
         match &self.free {
-            Some(f) => f.diag[j],
+            Some(f) => f.diag[j] + self.shift.get(j).copied().unwrap_or(0.0),
             None => self.a[j + j * self.c],
         }
     }
 
-    /// Contact i's d x d diagonal block of A, row-major, when matrix-free (None
-    /// when A is assembled: read its entries).
-    pub(crate) fn contact_block(&self, i: usize) -> Option<&[f64]> {
-        let dd = self.d * self.d;
-        self.free.as_ref().map(|f| &f.blocks[i * dd..(i + 1) * dd])
+    /// Entry (la, lb) of contact i's d x d diagonal block of A + D (0 the
+    /// normal unknown, 1.. the tangential ones), when matrix-free (None when A
+    /// is assembled: read its entries).
+    pub(crate) fn block_entry(&self, i: usize, la: usize, lb: usize) -> Option<f64> {
+        let (d, m) = (self.d, self.m);
+        let f = self.free.as_ref()?;
+        let mut v = f.blocks[i * d * d + la * d + lb];
+        if la == lb && !self.shift.is_empty() {
+            let j = if la == 0 { i } else { m + (d - 1) * i + la - 1 };
+            v += self.shift[j];
+        }
+        Some(v)
     }
 
     /// Hands K over to a matrix-free dual, which forms G = B K B^T from it (the
@@ -356,7 +408,10 @@ impl Dual {
     /// [`Dual::apply`] / [`Dual::apply_rough`].
     pub(crate) fn apply_narrow(&self, x: &[f64], y: &mut [f64], rough: bool) {
         match &self.free {
-            Some(f) => f.apply_narrow(x, y, rough),
+            Some(f) => {
+                f.apply_narrow(x, y, rough);
+                self.add_shift(x, y);
+            }
             None => self.apply(x, y),
         }
     }
@@ -367,7 +422,10 @@ impl Dual {
     /// on a dense one.
     pub(crate) fn apply_rough(&self, x: &[f64], y: &mut [f64]) {
         match &self.free {
-            Some(f) => f.apply_single(x, y),
+            Some(f) => {
+                f.apply_single(x, y);
+                self.add_shift(x, y);
+            }
             None => self.apply(x, y),
         }
     }
@@ -384,6 +442,7 @@ impl Dual {
                 return;
             }
             f.apply(x, y);
+            self.add_shift(x, y);
             return;
         }
         leading_block_apply(&self.a, self.c, x, y, &self.threads);

@@ -46,6 +46,11 @@ pub(crate) struct History {
     /// lambda_k-1 and l_k - l_k-1, when the two last steps both converged on
     /// the same K, N and T.
     prev: Option<(Vec<f64>, Vec<f64>)>,
+    /// The tangential force the next step's return mapping starts from
+    /// (interface compliance, `compliance.rs`): lambda_T of the last converged
+    /// step ((d - 1) m), scaled where k_T changed since (`Compliance::carry`);
+    /// empty for zero (before the first step, after a reset or a change of m).
+    pub lt: Vec<f64>,
 }
 
 impl History {
@@ -56,6 +61,7 @@ impl History {
             lam: vec![0.0; c],
             load: None,
             prev: None,
+            lt: Vec::new(),
         }
     }
 
@@ -63,6 +69,7 @@ impl History {
     pub fn reset(&mut self) {
         self.u.iter_mut().for_each(|v| *v = 0.0);
         self.lam.iter_mut().for_each(|v| *v = 0.0);
+        self.lt.clear();
         self.forget_loads();
     }
 
@@ -78,6 +85,7 @@ impl History {
     pub fn new_contacts(&mut self, c: usize) {
         if self.lam.len() != c {
             self.lam = vec![0.0; c];
+            self.lt.clear();
         }
         self.forget_loads();
     }

@@ -6,6 +6,7 @@
 //! is the compressive normal force; the friction force on the body, -T^T lambda_T,
 //! opposes the slip T u.
 
+mod compliance;
 mod contact_blocks;
 mod contact_rows;
 mod dense;

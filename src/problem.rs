@@ -2,6 +2,7 @@
 //! dual, and the history of a quasistatic simulation. This is the safe Rust API that
 //! the C boundary wraps.
 
+use crate::compliance::Compliance;
 use crate::contact_rows::{check_shapes, contact_dofs, stack_rows};
 use crate::dual::{BLOCK, Condensation, Dual};
 use crate::error::{ErrorKind, Result, fail};
@@ -53,6 +54,8 @@ pub struct ContactProblem {
     /// The history: u_k, the last converged multipliers and the predictor's
     /// loads.
     history: History,
+    /// The interface law of each contact (rigid unless set).
+    compliance: Compliance,
 }
 
 /// The route of a new problem, decided after K's analysis.
@@ -117,18 +120,22 @@ fn check_internal_form(k: &Csc, n: &Csc, t: &Csc) -> Result<()> {
 }
 
 /// The dual of (N, T) on `factor` formed in the way `how`, holding the lumped
-/// preconditioner G = B K B^T when it is matrix-free: every dual a problem
-/// holds is formed here.
+/// preconditioner G = B K B^T when it is matrix-free, its operator A + D for
+/// the compliance diagonal `shift` (empty: rigid): every dual a problem holds
+/// is formed here.
 fn form_dual(
     factor: &Arc<Factor>,
     k: &Csc,
-    n: &Csc,
-    t: &Csc,
+    (n, t): (&Csc, &Csc),
     d: usize,
     how: Condensation,
+    shift: &[f64],
 ) -> Result<Dual> {
     let mut dual = Dual::build_with(factor, n, t, d, how)?;
     dual.set_lumped(k);
+    if !shift.is_empty() {
+        dual.set_shift(shift);
+    }
     Ok(dual)
 }
 
@@ -193,9 +200,10 @@ impl ContactProblem {
         factor.refactor(&k)?;
         let factor = Arc::new(factor);
         let how = Dual::condensation_for(&factor, &n, &t, d, plan.form);
-        let dual = form_dual(&factor, &k, &n, &t, d, how)?;
+        let dual = form_dual(&factor, &k, (&n, &t), d, how, &[])?;
         let ndof = k.nrows;
         let c = dual.c;
+        let m = n.nrows;
         Ok(ContactProblem {
             d,
             k,
@@ -207,6 +215,7 @@ impl ContactProblem {
             inputs,
             max_memory: opts.max_memory,
             history: History::new(ndof, c),
+            compliance: Compliance::rigid(m),
         })
     }
 
@@ -483,7 +492,8 @@ impl ContactProblem {
         fresh.refactor(&k)?;
         let fresh = Arc::new(fresh);
         let how = Dual::condensation_for(&fresh, &self.n, &self.t, self.d, self.current_form());
-        self.dual = form_dual(&fresh, &k, &self.n, &self.t, self.d, how)?;
+        let shift = self.compliance.shift(self.d);
+        self.dual = form_dual(&fresh, &k, (&self.n, &self.t), self.d, how, &shift)?;
         self.factor = fresh;
         self.k = k;
         self.history.forget_loads();
@@ -520,14 +530,78 @@ impl ContactProblem {
             "replacing N and T (the new dual is formed beside the old one)",
             "the problem's max_memory (set at creation) must allow for it",
         )?;
-        let dual = form_dual(&self.factor, &self.k, &n, &t, self.d, how)?;
+        // Per-contact interface data follow the contacts when m is unchanged;
+        // a new m makes every contact rigid.
+        let m = n.nrows;
+        let compliance = if m == self.n_contacts() {
+            self.compliance.clone()
+        } else {
+            Compliance::rigid(m)
+        };
+        let dual = form_dual(
+            &self.factor,
+            &self.k,
+            (&n, &t),
+            self.d,
+            how,
+            &compliance.shift(self.d),
+        )?;
         self.history.new_contacts(dual.c);
+        self.compliance = compliance;
         self.sizes = next;
         self.inputs.resize(self.sizes.inputs);
         self.dual = dual;
         self.n = n;
         self.t = t;
         Ok(())
+    }
+
+    /// Sets the interface law of every contact (docs/design.md section 8),
+    /// kept on the handle until changed (a change of m by `set_contacts`
+    /// makes every contact rigid again). Per contact i, each array of length m
+    /// or None for its default:
+    ///
+    /// - `cn`: normal compliance c_N,i > 0, lambda_N,i = c_N,i (N u - g)_i+
+    ///   (force / length; the caller folds the nodal area in, as for every
+    ///   nodal force); +inf (the default) is Signorini's rigid law;
+    /// - `mn`: its exponent m_N,i >= 1 (default 1); only m_N = 1 is
+    ///   supported on a compliant contact in this version;
+    /// - `kt`: tangential stiffness k_T,i > 0 (force / length), the elastic
+    ///   slip of penalty codes: lambda_T,i is the projection onto the friction
+    ///   disc of lambda_T,prev + k_T,i T u, lambda_T,prev zero in a single
+    ///   solve and the last step's force in a history; +inf (the default) is
+    ///   rigid stick.
+    ///
+    /// In a history what carries over is the elastic slip lambda_T / k_T:
+    /// where k_T,i changes the next step starts from the force scaled by
+    /// k_T,new / k_T,old (from zero where either is +inf). Mixing rigid and
+    /// compliant contacts is allowed. Every method solves the compliant law
+    /// (its dual operator is A + D, `compliance.rs`).
+    ///
+    /// Errors (the handle keeps its previous law): `BadSize` (a length is not
+    /// m), `NotFinite` (NaN, -inf, an infinite m_N), `BadArgument` (c_N <= 0,
+    /// m_N < 1, k_T <= 0, m_N != 1 on a compliant contact).
+    pub fn set_compliance(
+        &mut self,
+        cn: Option<&[f64]>,
+        mn: Option<&[f64]>,
+        kt: Option<&[f64]>,
+    ) -> Result<()> {
+        let law = Compliance::of(self.n_contacts(), cn, mn, kt)?;
+        if !self.history.lt.is_empty() {
+            self.compliance.carry(&law, &mut self.history.lt, self.d);
+        }
+        self.dual.set_shift(&law.shift(self.d));
+        self.compliance = law;
+        Ok(())
+    }
+
+    /// The number of contacts with a compliant law (finite c_N or k_T).
+    pub fn compliant_contacts(&self) -> usize {
+        let law = &self.compliance;
+        (0..law.cn.len())
+            .filter(|&i| law.cn[i].is_finite() || law.kt[i].is_finite())
+            .count()
     }
 
     fn check_friction(&self, friction: Friction<'_>) -> Result<()> {
@@ -605,7 +679,9 @@ impl ContactProblem {
         )?;
         self.factor.ledger().reset_peak();
         if next != now {
-            self.dual = form_dual(&self.factor, &self.k, &self.n, &self.t, self.d, next)?;
+            let shift = self.compliance.shift(self.d);
+            let nt = (&self.n, &self.t);
+            self.dual = form_dual(&self.factor, &self.k, nt, self.d, next, &shift)?;
         }
         Ok(need)
     }
@@ -739,6 +815,16 @@ impl ContactProblem {
             extrapolated = h.start(&load, friction, self.d, lam) > 0.0;
             load
         });
+        // The compliance's tangential term is centred at the force the return
+        // mapping starts from: b += D_T lambda_T,prev (a history's last force;
+        // zero in a single solve).
+        let shift = self.dual.shift();
+        let lt_prev = history.map_or(&[][..], |h| &h.lt[..]);
+        if !shift.is_empty() {
+            for ((bj, dj), lj) in b[m..].iter_mut().zip(&shift[m..]).zip(lt_prev) {
+                *bj += dj * lj;
+            }
+        }
         // The monitor sees iteration numbers and times of the whole solve.
         let base = std::cell::Cell::new(0usize);
         let mut relay = |p: &Progress| -> bool {
@@ -790,6 +876,15 @@ impl ContactProblem {
             self.dual.rows.mul_vec(&u, &mut v);
             for i in 0..m {
                 v[i] -= g[i];
+            }
+            // The compliance's part of the gap: v := v - D (lambda - [0; lt_prev]).
+            if !shift.is_empty() {
+                for ((vj, dj), lj) in v.iter_mut().zip(shift).zip(lam.iter()) {
+                    *vj -= dj * lj;
+                }
+                for ((vj, dj), lj) in v[m..].iter_mut().zip(&shift[m..]).zip(lt_prev) {
+                    *vj += dj * lj;
+                }
             }
             friction.bounds(&lam[..m], &mut p);
             err = natural_map_error(lam, &v, &self.dual.rho, &b, &p, self.d);
@@ -861,6 +956,7 @@ impl ContactProblem {
                 analyse_seconds: self.factor.analyse_seconds,
                 memory_predicted: predicted,
                 memory_peak: self.factor.ledger().peak(),
+                compliant_contacts: self.compliant_contacts(),
             },
         };
         Ok((sol, load))
@@ -919,6 +1015,7 @@ impl ContactProblem {
         if sol.report.status == SolveStatus::Converged {
             let load = load.expect("a step's load");
             self.history.advance(&sol.u, &lam, load);
+            self.history.lt = lam[m..].to_vec();
         }
         Ok(sol)
     }

@@ -113,6 +113,11 @@ pub struct Report {
     /// The measured peak of the same allocations during this solve, bytes
     /// (counted as they are made, not read from the operating system).
     pub memory_peak: usize,
+    /// The law solved: the number of contacts with a compliant interface
+    /// (finite c_N or k_T, `ContactProblem::set_compliance`); 0 for the rigid
+    /// Signorini-Coulomb (or Tresca) law. Where it is not 0, err is the natural
+    /// map of the regularised conditions (docs/design.md section 8).
+    pub compliant_contacts: usize,
 }
 
 /// The natural-map error of docs/design.md section 5 for the dual unknowns

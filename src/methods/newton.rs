@@ -405,8 +405,8 @@ fn block_entry(problem: &DualProblem<'_>, ja: usize, jb: usize) -> f64 {
         }
     };
     let ((ia, la), (ib, lb)) = (at(ja), at(jb));
-    match dual.contact_block(ia) {
-        Some(block) if ia == ib => block[la * d + lb],
+    match dual.block_entry(ia, la, lb) {
+        Some(v) if ia == ib => v,
         _ => 0.0,
     }
 }
