@@ -7,8 +7,8 @@
 !>      -lm -lpthread -ldl -o minimal_f
 !>
 !> Prints lambda_N = 8, lambda_T = 0.4 (slip), u = (0.3, -0.5), the log lines and
-!> monitor calls of the solve, and the message of a rejected matrix; exit status 0
-!> when all are as expected.
+!> monitor calls of the solve, the same node on a compliant interface, and the
+!> message of a rejected matrix; exit status 0 when all are as expected.
 
 !> The callbacks: BIND(C) procedures of a module.
 module minimal_callbacks
@@ -54,6 +54,8 @@ program minimal_f
    integer, target :: tia(2) = [1, 2], tja(1) = [1]   ! T = [1  0]
    real(8), target :: ta(1) = [1.0d0]
    integer, target :: bad_ja(2) = [1, 3]              ! column 3 of a 2 x 2 matrix
+   ! a compliant interface: c_N = 4, elastic slip k_T = 0.5; and a bad c_N
+   real(8), target :: cn(1) = [4.0d0], kt(1) = [0.5d0], cn_bad(1) = [0.0d0]
 
    type(DsMatrix) :: k, n, t, kbad
    type(DsOptions) :: opts
@@ -132,6 +134,25 @@ program minimal_f
    st = ds_solve(pb, friction=DS_FRICTION_TRESCA, f=f, g=g, bound=p, u=u, lambda_n=ln, &
                  lambda_t=lt)
    ok = ok .and. st == DS_STATUS_OK .and. abs(u(1) - 0.3d0) <= 1.0d-9
+
+   ! a compliant interface: lambda_N = c_N (-u_y - g)+ = 4, and the node sticks
+   ! elastically, lambda_T = k_T u_x = 0.2 < p, u = (0.4, -1.5); a bad c_N is
+   ! refused and the law kept; absent arrays make the contact rigid again
+   st = ds_problem_set_compliance(pb, c_n=cn, k_t=kt)
+   ok = ok .and. st == DS_STATUS_OK
+   st = ds_problem_set_compliance(pb, c_n=cn_bad)
+   print '(a,1x,i0,1x,a)', 'COMPLIANCE', st, ds_last_error_message()
+   ok = ok .and. st == DS_STATUS_BAD_ARGUMENT
+   st = ds_solve(pb, friction=DS_FRICTION_TRESCA, f=f, g=g, bound=p, u=u, lambda_n=ln, &
+                 lambda_t=lt)
+   print '(a,4(1x,es23.15e3))', 'COMPLIANT', ln(1), lt(1), u(1), u(2)
+   ok = ok .and. st == DS_STATUS_OK .and. abs(ln(1) - 4.0d0) <= 1.0d-9 .and. &
+        abs(lt(1) - 0.2d0) <= 1.0d-9 .and. abs(u(1) - 0.4d0) <= 1.0d-9 .and. &
+        abs(u(2) + 1.5d0) <= 1.0d-9
+   st = ds_problem_set_compliance(pb)
+   if (st == DS_STATUS_OK) st = ds_solve(pb, friction=DS_FRICTION_TRESCA, f=f, g=g, &
+                                         bound=p, u=u, lambda_n=ln, lambda_t=lt)
+   ok = ok .and. st == DS_STATUS_OK .and. abs(ln(1) - 8.0d0) <= 1.0d-9
 
    ! an error: the status, its description and the message, as Fortran strings
    kbad = ds_matrix_csr(2, 2, kia, bad_ja, ka)

@@ -257,7 +257,7 @@ module dualsplit
    public :: ds_last_error_message, ds_status_string, ds_options_default, ds_options_init
    public :: ds_version
    public :: ds_problem_new, ds_problem_new_opts, ds_problem_free, ds_problem_refactor, ds_problem_set_contacts
-   public :: ds_problem_sizes, ds_solve, ds_step, ds_history_reset
+   public :: ds_problem_sizes, ds_solve, ds_step, ds_history_reset, ds_problem_set_compliance
    public :: ds_analyse, ds_problem_info, ds_info_init
    public :: ds_problem_set_monitor, ds_problem_set_log, ds_problem_dump, ds_string_from_c
    public :: ds_matrix_csr, ds_matrix_csc, ds_matrix_coo, ds_matrix_dense
@@ -441,6 +441,15 @@ module dualsplit
          type(c_ptr), value :: report
          integer(c_int) :: status
       end function c_ds_step
+
+      ! enum DsStatus ds_problem_set_compliance(struct DsProblem *problem,
+      !     const double *c_n, const double *m_n, const double *k_t);
+      function c_ds_problem_set_compliance(problem, c_n, m_n, k_t) result(status) &
+         bind(C, name="ds_problem_set_compliance")
+         import :: c_int, c_ptr
+         type(c_ptr), value :: problem, c_n, m_n, k_t
+         integer(c_int) :: status
+      end function c_ds_problem_set_compliance
 
       ! enum DsStatus ds_history_reset(struct DsProblem *problem);
       function c_ds_history_reset(problem) result(status) bind(C, name="ds_history_reset")
@@ -736,6 +745,25 @@ contains
       status = int(c_ds_step(problem, popts, friction, f_total, g0, bound, &
                              u, lambda_n, lambda_t, prep), c_int32_t)
    end function ds_step
+
+   !> Sets the interface law of every contact (see ds_problem_set_compliance in
+   !> dualsplit.h): c_n (normal compliance, > 0, IEEE infinity rigid), m_n (its
+   !> exponent, 1 only on a compliant contact), k_t (elastic slip stiffness, > 0,
+   !> infinity rigid stick), each m values (m >= 1), optional (absent: the
+   !> default).
+   function ds_problem_set_compliance(problem, c_n, m_n, k_t) result(status)
+      type(c_ptr), intent(in) :: problem
+      real(c_double), intent(in), optional, target :: c_n(*), m_n(*), k_t(*)
+      integer(c_int32_t) :: status
+      type(c_ptr) :: pc, pm, pk
+      pc = c_null_ptr
+      pm = c_null_ptr
+      pk = c_null_ptr
+      if (present(c_n)) pc = c_loc(c_n(1))
+      if (present(m_n)) pm = c_loc(m_n(1))
+      if (present(k_t)) pk = c_loc(k_t(1))
+      status = int(c_ds_problem_set_compliance(problem, pc, pm, pk), c_int32_t)
+   end function ds_problem_set_compliance
 
    !> Forgets the history of ds_step (u_0 = 0, no warm start).
    function ds_history_reset(problem) result(status)

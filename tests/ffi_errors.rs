@@ -1379,3 +1379,73 @@ fn io_error_from_a_dump_into_a_folder_that_cannot_exist() {
     std::fs::remove_file(&base).ok();
     free(h);
 }
+
+#[test]
+fn set_compliance_checks_its_arrays_and_keeps_the_law_on_error() {
+    let h = new_problem();
+    let cn = [50.0, f64::INFINITY];
+    type Case = ([f64; M], [f64; M], [f64; M], DsStatus, &'static str);
+    let bad_cases: [Case; 5] = [
+        ([0.0, 1.0], [1.0; M], [1.0; M], DsStatus::BadArgument, "c_N"),
+        (
+            [f64::NAN, 1.0],
+            [1.0; M],
+            [1.0; M],
+            DsStatus::NotFinite,
+            "c_N",
+        ),
+        ([1.0; M], [0.5, 1.0], [1.0; M], DsStatus::BadArgument, "m_N"),
+        ([1.0; M], [2.0, 1.0], [1.0; M], DsStatus::BadArgument, "m_N"),
+        (
+            [1.0; M],
+            [1.0; M],
+            [1.0, -2.0],
+            DsStatus::BadArgument,
+            "k_T",
+        ),
+    ];
+    // SAFETY: NULL handle; the arrays hold m values.
+    let s = unsafe { ds_problem_set_compliance(null_mut(), cn.as_ptr(), null(), null()) };
+    expect_error(s, DsStatus::NullPointer, &["problem"]);
+    for (c, e, k, status, name) in &bad_cases {
+        // SAFETY: a live handle; each array holds m values.
+        let s = unsafe { ds_problem_set_compliance(h, c.as_ptr(), e.as_ptr(), k.as_ptr()) };
+        expect_error(s, *status, &[name]);
+        // Still rigid: the Signorini answer.
+        assert_usable(h);
+    }
+    // Contact 0 compliant, 1 rigid: lambda_N,0 = c_N (N u - g)_0+ with N u = -u_1.
+    // SAFETY: a live handle; c_n holds m values, the others are NULL.
+    expect_ok(unsafe { ds_problem_set_compliance(h, cn.as_ptr(), null(), null()) });
+    let mut soft = Outputs::small();
+    expect_ok(solve_small(h, &F, &G, &P, &mut soft));
+    assert!(soft.report.err <= 1e-10, "err = {}", soft.report.err);
+    let pen = -soft.u[1] - G[0];
+    assert!(pen > 0.0, "the compliant contact penetrates");
+    let want = cn[0] * pen;
+    assert!(
+        (soft.lambda_n[0] - want).abs() <= 1e-9 * want,
+        "lambda_N = {} against c_N (N u - g)+ = {want}",
+        soft.lambda_n[0]
+    );
+    assert!(
+        -soft.u[3] <= G[1] + 1e-12,
+        "the rigid contact does not penetrate"
+    );
+    for (c, e, k, status, name) in &bad_cases {
+        // SAFETY: as above.
+        let s = unsafe { ds_problem_set_compliance(h, c.as_ptr(), e.as_ptr(), k.as_ptr()) };
+        expect_error(s, *status, &[name]);
+        let mut again = Outputs::small();
+        expect_ok(solve_small(h, &F, &G, &P, &mut again));
+        assert_eq!(
+            again.lambda_n, soft.lambda_n,
+            "the law changed after an error"
+        );
+    }
+    // All NULL: rigid again.
+    // SAFETY: a live handle; NULL arrays mean the defaults.
+    expect_ok(unsafe { ds_problem_set_compliance(h, null(), null(), null()) });
+    assert_usable(h);
+    free(h);
+}

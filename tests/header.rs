@@ -108,6 +108,7 @@ fn header_has_the_spec_names() {
         "ds_problem_new",
         "ds_problem_refactor",
         "ds_problem_set_contacts",
+        "ds_problem_set_compliance",
         "ds_problem_sizes",
         "ds_solve",
         "ds_step",
@@ -236,12 +237,13 @@ fn header_compiles_and_matches_the_rust_layout() {
          DsStatus (*m)(DsProblem *, DsMonitorFn, void *) = ds_problem_set_monitor;\n\
          DsStatus (*n)(DsProblem *, int32_t, DsLogFn, void *) = ds_problem_set_log;\n\
          DsStatus (*o)(const DsProblem *, const char *, int32_t, const double *, const double *, const double *) = ds_problem_dump;\n\
+         DsStatus (*t)(DsProblem *, const double *, const double *, const double *) = ds_problem_set_compliance;\n\
          const char *(*p)(void) = ds_version;\n\
          int32_t (*q)(const DsProgress *, void *) = (DsMonitorFn)0;\n\
          void (*r)(int32_t, const char *, void *) = (DsLogFn)0;\n\
          DsOptions opts; DsStatus s = ds_options_default(&opts);\n\
          (void)a; (void)b; (void)c; (void)d; (void)e; (void)f; (void)g; (void)h; (void)i;\n\
-         (void)j; (void)k; (void)l; (void)m; (void)n; (void)o; (void)p; (void)q; (void)r; (void)s;\n}\n\
+         (void)j; (void)k; (void)l; (void)m; (void)n; (void)o; (void)p; (void)q; (void)r; (void)s; (void)t;\n}\n\
          int main(void) { signatures(); return 0; }\n",
     );
     let dir = PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join("header_check");

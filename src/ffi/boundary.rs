@@ -105,6 +105,23 @@ pub(crate) unsafe fn slice_in<'a, T>(ptr: *const T, len: usize, what: &str) -> R
     Ok(unsafe { std::slice::from_raw_parts(ptr, len) })
 }
 
+/// As [`slice_in`] for an optional input array: NULL is None (the caller's
+/// "use the default"), else `len` values.
+///
+/// # Safety
+/// As [`slice_in`].
+pub(crate) unsafe fn optional_in<'a, T>(
+    ptr: *const T,
+    len: usize,
+    what: &str,
+) -> Result<Option<&'a [T]>> {
+    if ptr.is_null() {
+        return Ok(None);
+    }
+    // SAFETY: non-NULL; validity for `len` reads is the caller's contract.
+    unsafe { slice_in(ptr, len, what) }.map(Some)
+}
+
 /// A checked, caller-owned output array, written only by [`OutArray::write`].
 /// Holding the raw pointer (instead of a `&mut [T]`) allows outputs to alias inputs
 /// that are no longer read when the outputs are written.

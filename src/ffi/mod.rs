@@ -42,8 +42,8 @@ pub use monitor::{DsLogFn, DsMonitorFn, DsProgress};
 pub use options::{DsOptions, ds_options_default, ds_options_init};
 pub use problem::{
     DsProblem, ds_history_reset, ds_problem_dump, ds_problem_free, ds_problem_new,
-    ds_problem_new_opts, ds_problem_refactor, ds_problem_set_contacts, ds_problem_set_log,
-    ds_problem_set_monitor, ds_problem_sizes,
+    ds_problem_new_opts, ds_problem_refactor, ds_problem_set_compliance, ds_problem_set_contacts,
+    ds_problem_set_log, ds_problem_set_monitor, ds_problem_sizes,
 };
 pub use report::DsReport;
 pub use solve::{ds_solve, ds_step};

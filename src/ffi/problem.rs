@@ -4,7 +4,7 @@
 //! N u <= g; lambda_N >= 0 is the compressive normal force; the friction force on
 //! the body, -T^T lambda_T, opposes the slip T u.
 
-use super::boundary::{OutArray, entry, ref_in, ref_mut, slice_in};
+use super::boundary::{OutArray, entry, optional_in, ref_in, ref_mut, slice_in};
 use super::matrix::DsMatrix;
 use super::monitor::{DsLogFn, DsMonitorFn, LOG_ITERATIONS, LOG_SILENT, Watch};
 use super::options::DsOptions;
@@ -246,6 +246,59 @@ pub unsafe extern "C" fn ds_problem_sizes(
             d.write(&[dim])?;
         }
         Ok(())
+    })
+}
+
+/// Sets the interface law of every contact (docs/design.md section 8), kept on
+/// the handle until changed; each array holds m values (one per contact), NULL
+/// for its default:
+///
+/// - c_n: normal compliance c_N,i > 0, lambda_N,i = c_N,i (N u - g)_i+
+///   (force / length; fold the nodal area in, as for every nodal force);
+///   INFINITY (the default) is Signorini's rigid contact;
+/// - m_n: its exponent m_N,i >= 1 (default 1); only m_N = 1 on a compliant
+///   contact in this version;
+/// - k_t: tangential stiffness k_T,i > 0 (force / length), the elastic slip
+///   ("stick slope") of penalty codes: lambda_T,i is the projection onto the
+///   friction disc of lambda_T,prev + k_T,i T u, lambda_T,prev zero in ds_solve
+///   and the last step's force in a ds_step history (u then the increment);
+///   INFINITY (the default) is rigid stick.
+///
+/// Rigid and compliant contacts mix. In a history the elastic slip
+/// lambda_T / k_T carries over: where k_T,i changes, the next step starts from
+/// the force scaled by k_T,new / k_T,old (zero where either is INFINITY).
+/// ds_problem_set_contacts with another m makes every contact rigid. All
+/// three NULL: every contact rigid. The report's err is then the natural map
+/// of the regularised conditions.
+///
+/// Returns DS_STATUS_OK, DS_STATUS_NULL_POINTER (problem), DS_STATUS_NOT_FINITE
+/// (NaN, -INFINITY, an infinite m_N), DS_STATUS_BAD_ARGUMENT (c_N <= 0, m_N < 1,
+/// k_T <= 0, m_N != 1 on a compliant contact). On error the handle keeps its
+/// previous law.
+///
+/// # Safety
+/// `problem` must be NULL or a live handle; each array NULL or valid for m
+/// reads.
+#[unsafe(no_mangle)]
+pub unsafe extern "C" fn ds_problem_set_compliance(
+    problem: *mut DsProblem,
+    c_n: *const f64,
+    m_n: *const f64,
+    k_t: *const f64,
+) -> DsStatus {
+    entry("ds_problem_set_compliance", || {
+        // SAFETY: NULL is rejected; otherwise a live handle (contract).
+        let problem = unsafe { ref_mut(problem, "problem")? };
+        let m = problem.inner.n_contacts();
+        // SAFETY: each array is NULL or holds m values (contract).
+        let (cn, mn, kt) = unsafe {
+            (
+                optional_in(c_n, m, "c_n")?,
+                optional_in(m_n, m, "m_n")?,
+                optional_in(k_t, m, "k_t")?,
+            )
+        };
+        problem.inner.set_compliance(cn, mn, kt)
     })
 }
 
