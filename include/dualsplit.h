@@ -1034,6 +1034,9 @@ enum DsStatus ds_problem_set_log(struct DsProblem *problem,
  `dualsplit solve DIR --out OUT`. The folder is created if needed; existing files
  of those names are replaced. For a ds_step history, pass the increment's data
  (f_total - K u_k and g0 - N u_k), or the step's totals after ds_history_reset.
+ A compliant interface (ds_problem_set_compliance) is written too: cn.txt,
+ mn.txt, kt.txt, and in a history lt_prev.txt, the tangential force the next
+ step's return mapping starts from; a rigid one removes those files.
 
  - dir: a NUL-terminated path (UTF-8).
  - friction, f (n), g (m), bound (m): as ds_solve.

@@ -718,13 +718,47 @@ impl ContactProblem {
         opts: &Options,
         monitor: Option<Monitor<'_>>,
     ) -> Result<Solution> {
-        check_vec("f", f, self.n_dofs())?;
-        check_vec("g", g, self.n_contacts())?;
+        self.solve_from_force(f, g, friction, None, opts, monitor)
+    }
+
+    /// As [`ContactProblem::solve_monitored`], with the tangential force the
+    /// return mapping of the elastic slip starts from (`lt_prev`, (d - 1) m,
+    /// one value per row of T; None for zero, as in a single solve): replays
+    /// one increment of a compliant history on its own (docs/design.md
+    /// section 8; a problem folder's `lt_prev.txt`). It acts only on contacts
+    /// with a finite k_T ([`ContactProblem::set_compliance`]).
+    ///
+    /// Errors: those of `solve`, and `BadSize` / `NotFinite` for `lt_prev`.
+    pub fn solve_from_force(
+        &mut self,
+        f: &[f64],
+        g: &[f64],
+        friction: Friction<'_>,
+        lt_prev: Option<&[f64]>,
+        opts: &Options,
+        monitor: Option<Monitor<'_>>,
+    ) -> Result<Solution> {
+        let (ndof, m) = (self.n_dofs(), self.n_contacts());
+        check_vec("f", f, ndof)?;
+        check_vec("g", g, m)?;
         self.check_friction(friction)?;
+        if let Some(lt) = lt_prev {
+            check_vec("lt_prev", lt, (self.d - 1) * m)?;
+        }
         opts.check("")?;
         let predicted = self.prepare_dual(opts)?;
         let mut lam = vec![0.0; self.dual.c];
-        let (sol, _) = self.solve_from(f, g, friction, opts, &mut lam, None, monitor, predicted)?;
+        let lt = lt_prev.unwrap_or(&[]);
+        let (sol, _) = self.solve_from(
+            f,
+            g,
+            friction,
+            opts,
+            &mut lam,
+            (None, lt),
+            monitor,
+            predicted,
+        )?;
         Ok(sol)
     }
 
@@ -762,7 +796,8 @@ impl ContactProblem {
 
     /// The increment solve, starting from the multipliers in `lam`, or, for a
     /// step of `history`, from the history's prediction (then the step's
-    /// contact-space load is returned too, for the history); `predicted` is the
+    /// contact-space load is returned too, for the history), the elastic
+    /// slip's return mapping from `lt_prev` (empty: zero); `predicted` is the
     /// solve's memory prediction (from `prepare_dual`), for the report.
     #[allow(clippy::too_many_arguments)]
     fn solve_from(
@@ -772,7 +807,7 @@ impl ContactProblem {
         friction: Friction<'_>,
         opts: &Options,
         lam: &mut [f64],
-        history: Option<&History>,
+        (history, lt_prev): (Option<&History>, &[f64]),
         mut monitor: Option<Monitor<'_>>,
         predicted: usize,
     ) -> Result<(Solution, Option<Vec<f64>>)> {
@@ -819,7 +854,6 @@ impl ContactProblem {
         // mapping starts from: b += D_T lambda_T,prev (a history's last force;
         // zero in a single solve).
         let shift = self.dual.shift();
-        let lt_prev = history.map_or(&[][..], |h| &h.lt[..]);
         if !shift.is_empty() {
             for ((bj, dj), lj) in b[m..].iter_mut().zip(&shift[m..]).zip(lt_prev) {
                 *bj += dj * lj;
@@ -1006,7 +1040,7 @@ impl ContactProblem {
         self.n.mul_vec(u_k, &mut nu);
         let g: Vec<f64> = (0..m).map(|i| g0[i] - nu[i]).collect();
         let mut lam = vec![0.0; self.dual.c];
-        let hist = Some(&self.history);
+        let hist = (Some(&self.history), &self.history.lt[..]);
         let (mut sol, load) =
             self.solve_from(&f, &g, friction, opts, &mut lam, hist, monitor, predicted)?;
         for (ui, uh) in sol.u.iter_mut().zip(u_k) {
@@ -1044,7 +1078,11 @@ impl ContactProblem {
     /// problem folder `dir` (created if needed; see [`crate::mtx`]), so that the
     /// increment can be replayed with the `dualsplit` command line. For a history
     /// step, pass the increment's effective data (f_total - K u_k, g0 - N u_k); the
-    /// warm start is not part of a folder.
+    /// warm start is not part of a folder. A compliant law
+    /// ([`ContactProblem::set_compliance`]) is: `cn.txt`, `mn.txt`, `kt.txt`,
+    /// and in a history the force the next step's return mapping starts from,
+    /// `lt_prev.txt` (replayed by [`ContactProblem::solve_from_force`]); a
+    /// rigid one removes those files.
     ///
     /// Errors: `BadSize`, `NotFinite`, `NegativeFriction` (checked as in
     /// [`ContactProblem::solve`]), `Io` (the folder cannot be written).
@@ -1058,7 +1096,26 @@ impl ContactProblem {
         check_vec("f", f, self.n_dofs())?;
         check_vec("g", g, self.n_contacts())?;
         self.check_friction(friction)?;
-        crate::mtx::write_problem(dir, self.d, &self.k, &self.n, &self.t, f, g, friction)
+        crate::mtx::write_problem(dir, self.d, &self.k, &self.n, &self.t, f, g, friction)?;
+        crate::mtx::write_interface(dir, &self.interface())
+    }
+
+    /// The handle's interface law as a problem folder holds it (None for
+    /// every array when all contacts are rigid), with the force the next
+    /// step's return mapping starts from (`lt_prev`) where a compliant
+    /// history has one.
+    pub(crate) fn interface(&self) -> crate::mtx::Interface {
+        let law = &self.compliance;
+        if law.is_rigid() {
+            return crate::mtx::Interface::default();
+        }
+        let lt = &self.history.lt;
+        crate::mtx::Interface {
+            cn: Some(law.cn.clone()),
+            mn: Some(law.mn.clone()),
+            kt: Some(law.kt.clone()),
+            lt_prev: (!lt.is_empty() && lt.iter().any(|&v| v != 0.0)).then(|| lt.clone()),
+        }
     }
 
     /// Number of dual unknowns c = d m: the size of the condensed dual operator

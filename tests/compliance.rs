@@ -507,3 +507,108 @@ fn a_compliant_history_meets_the_incremental_law_at_every_step() {
         );
     }
 }
+
+#[test]
+fn a_compliant_increment_replays_from_its_folder() {
+    // Two steps of a compliant history; the third step's increment written
+    // to a problem folder (cn.txt, mn.txt, kt.txt and the history's
+    // lt_prev.txt beside K, N, T, f, g, mu) and replayed through the Rust
+    // reader and the command line: the same forces and displacement
+    // increment as the step on the handle.
+    let sc = scene(2);
+    let m = sc.m();
+    let mu = vec![0.3; m];
+    let friction = Friction::Coulomb(&mu);
+    let cn: Vec<f64> = (0..m)
+        .map(|i| if i % 2 == 0 { 300.0 } else { INF })
+        .collect();
+    let kt: Vec<f64> = (0..m)
+        .map(|i| if i % 3 == 0 { INF } else { 150.0 })
+        .collect();
+    let mut pb = sc.problem();
+    pb.set_compliance(Some(&cn), None, Some(&kt)).unwrap();
+    let o = Options::default();
+    let load = |a: f64| -> Vec<f64> { sc.f.iter().map(|v| a * v).collect() };
+    let mut u = vec![0.0; sc.f.len()];
+    for a in [0.4, 0.8] {
+        u = pb.step(&load(a), &sc.g, friction, &o).unwrap().u;
+    }
+    let f3 = load(0.6);
+    let ku = mul(&sc.k, &u);
+    let nu = mul(&sc.n, &u);
+    let f_inc: Vec<f64> = f3.iter().zip(&ku).map(|(a, b)| a - b).collect();
+    let g_inc: Vec<f64> = sc.g.iter().zip(&nu).map(|(a, b)| a - b).collect();
+    let dir = std::path::PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join("compliant_increment");
+    let _ = std::fs::remove_dir_all(&dir);
+    pb.write_folder(&dir, &f_inc, &g_inc, friction).unwrap();
+    for file in ["cn.txt", "mn.txt", "kt.txt", "lt_prev.txt"] {
+        assert!(dir.join(file).is_file(), "{file} not written");
+    }
+    let step = pb.step(&f3, &sc.g, friction, &o).unwrap();
+    converged("step 3", &step);
+    let du: Vec<f64> = step.u.iter().zip(&u).map(|(a, b)| a - b).collect();
+
+    let folder = dualsplit::mtx::read_problem(&dir).unwrap();
+    let law = &folder.interface;
+    assert_eq!(
+        law.cn.as_deref(),
+        Some(&cn[..]),
+        "cn.txt with inf round trip"
+    );
+    let mut replay = ContactProblem::from_csc(2, folder.k, folder.n, folder.t).unwrap();
+    replay
+        .set_compliance(law.cn.as_deref(), law.mn.as_deref(), law.kt.as_deref())
+        .unwrap();
+    let fric = folder.friction.as_friction();
+    let lt = law.lt_prev.as_deref();
+    let sol = replay
+        .solve_from_force(&folder.f, &folder.g, fric, lt, &o, None)
+        .unwrap();
+    converged("replay", &sol);
+    let scale = norm_inf(&step.lambda_n);
+    assert!(max_diff(&sol.lambda_n, &step.lambda_n) <= 1e-8 * scale);
+    assert!(max_diff(&sol.lambda_t, &step.lambda_t) <= 1e-8 * scale);
+    assert!(max_diff(&sol.u, &du) <= 1e-8 * norm_inf(&du));
+    // Without lt_prev the increment is another problem (the history matters).
+    let plain = replay.solve(&folder.f, &folder.g, fric, &o).unwrap();
+    assert!(max_diff(&plain.lambda_t, &step.lambda_t) > 1e-4 * scale);
+
+    // The command line reads the same folder.
+    let out = dir.join("out");
+    let run = std::process::Command::new(env!("CARGO_BIN_EXE_dualsplit"))
+        .args([
+            "solve",
+            dir.to_str().unwrap(),
+            "--out",
+            out.to_str().unwrap(),
+            "--quiet",
+        ])
+        .output()
+        .unwrap();
+    assert!(
+        run.status.success(),
+        "{}",
+        String::from_utf8_lossy(&run.stderr)
+    );
+    let lt_cli = dualsplit::mtx::read_vector(&out.join("lambda_t.txt")).unwrap();
+    assert!(max_diff(&lt_cli, &step.lambda_t) <= 1e-8 * scale);
+
+    // A short kt.txt, a NaN in cn.txt and -inf are refused by the reader.
+    std::fs::write(dir.join("kt.txt"), "1\n2\n").unwrap();
+    let e = dualsplit::mtx::read_problem(&dir).unwrap_err();
+    assert_eq!(e.kind, ErrorKind::BadSize, "{}", e.message);
+    assert!(e.message.contains("kt.txt"), "{}", e.message);
+    std::fs::remove_file(dir.join("kt.txt")).unwrap();
+    for bad in ["nan", "-inf"] {
+        let text = format!("{bad}\n{}", "1\n".repeat(m - 1));
+        std::fs::write(dir.join("cn.txt"), text).unwrap();
+        let e = dualsplit::mtx::read_problem(&dir).unwrap_err();
+        assert_eq!(e.kind, ErrorKind::Io, "{}", e.message);
+        assert!(e.message.contains("cn.txt"), "{}", e.message);
+    }
+
+    // A rigid handle's dump removes the interface files.
+    pb.set_compliance(None, None, None).unwrap();
+    pb.write_folder(&dir, &f_inc, &g_inc, friction).unwrap();
+    assert!(!dir.join("cn.txt").exists() && !dir.join("lt_prev.txt").exists());
+}

@@ -640,6 +640,7 @@ fn solve(args: &SolveArgs) -> ExitCode {
         f,
         g,
         friction,
+        interface,
         ..
     } = pf;
     let t1 = Instant::now();
@@ -660,7 +661,13 @@ fn solve(args: &SolveArgs) -> ExitCode {
         true
     };
     let monitor: Option<dualsplit::Monitor<'_>> = if args.quiet { None } else { Some(&mut show) };
-    let result = problem.solve_monitored(&f, &g, friction.as_friction(), &args.opts, monitor);
+    let law = &interface;
+    let result = problem
+        .set_compliance(law.cn.as_deref(), law.mn.as_deref(), law.kt.as_deref())
+        .and_then(|()| {
+            let lt = law.lt_prev.as_deref();
+            problem.solve_from_force(&f, &g, friction.as_friction(), lt, &args.opts, monitor)
+        });
     progress.finish();
     let sol = match result {
         Ok(s) => s,

@@ -4,7 +4,7 @@
 
 use super::matrix::*;
 use super::text::*;
-use super::{FrictionData, ProblemFolder};
+use super::{FrictionData, Interface, ProblemFolder};
 use crate::error::{Error, ErrorKind, Result};
 use crate::friction::Friction;
 use crate::sparse::{Csc, Format, Indices, MatrixView, Storage};
@@ -119,6 +119,99 @@ pub fn write_problem(
         ))),
         _ => Ok(()),
     }
+}
+
+/// The interface files of the folder's module docs and [`Interface`], with
+/// the length each must have in contacts (1) or rows of T (0: d - 1 per
+/// contact), and whether `inf` is allowed.
+const INTERFACE_FILES: [(&str, bool, bool); 4] = [
+    ("cn.txt", true, true),
+    ("mn.txt", true, false),
+    ("kt.txt", true, true),
+    ("lt_prev.txt", false, false),
+];
+
+/// The arrays of `interface` in the order of [`INTERFACE_FILES`].
+fn interface_arrays(interface: &Interface) -> [Option<&Vec<f64>>; 4] {
+    [
+        interface.cn.as_ref(),
+        interface.mn.as_ref(),
+        interface.kt.as_ref(),
+        interface.lt_prev.as_ref(),
+    ]
+}
+
+/// Writes the interface files of `interface` into the problem folder `dir`
+/// (written by [`write_problem`] first): each present array to its file, and
+/// the file of each absent one removed, so that the folder describes exactly
+/// this law (a folder with none of them is rigid). `inf` is written as `inf`.
+///
+/// Errors: `NotFinite` (a NaN, or an infinity where the file cannot hold one:
+/// `mn.txt`, `lt_prev.txt`), `Io` (a file cannot be written or removed).
+pub fn write_interface(dir: &Path, interface: &Interface) -> Result<()> {
+    for ((file, _, inf_ok), x) in INTERFACE_FILES.iter().zip(interface_arrays(interface)) {
+        let path = dir.join(file);
+        match x {
+            Some(x) => {
+                if let Some(i) = x
+                    .iter()
+                    .position(|v| v.is_nan() || (v.is_infinite() && !inf_ok))
+                {
+                    return Err(Error::new(
+                        ErrorKind::NotFinite,
+                        format!("{file}[{i}] = {}: the folder cannot hold it", x[i]),
+                    ));
+                }
+                write_vector(&path, x)?;
+            }
+            None => match fs::remove_file(&path) {
+                Err(e) if e.kind() != std::io::ErrorKind::NotFound => {
+                    return Err(io_err(format!(
+                        "cannot remove {} (the law written has none): {e}",
+                        path.display()
+                    )));
+                }
+                _ => {}
+            },
+        }
+    }
+    Ok(())
+}
+
+/// Reads the interface files present in `dir` for m contacts of dimension d.
+fn read_interface(dir: &Path, m: usize, d: usize) -> Result<Interface> {
+    let mut out = [None, None, None, None];
+    for (slot, (file, per_contact, inf_ok)) in out.iter_mut().zip(INTERFACE_FILES) {
+        let Some(path) = existing(dir, file) else {
+            continue;
+        };
+        let v = if inf_ok {
+            parse_vector_with_inf(&read_text(&path)?, &path)?
+        } else {
+            read_vector(&path)?
+        };
+        let len = if per_contact { m } else { (d - 1) * m };
+        if v.len() != len {
+            return Err(bad_size(format!(
+                "{} has {} values, expected {len} ({})",
+                path.display(),
+                v.len(),
+                if per_contact {
+                    "one per contact"
+                } else {
+                    "one per row of T"
+                }
+            )));
+        }
+        *slot = Some(v);
+    }
+    let [cn, mn, kt, lt_prev] = out;
+    Ok(Interface {
+        cn,
+        mn,
+        kt,
+        lt_prev,
+    })
 }
 
 /// A file of the folder that may be missing.
@@ -277,6 +370,7 @@ pub fn read_problem(dir: &Path) -> Result<ProblemFolder> {
             )));
         }
     };
+    let interface = read_interface(dir, m, d)?;
     // Every size is now confirmed by the vectors: read the entries, one file at a
     // time (each text is freed once parsed).
     let kpath = kfile.path.clone();
@@ -291,6 +385,7 @@ pub fn read_problem(dir: &Path) -> Result<ProblemFolder> {
         f,
         g,
         friction,
+        interface,
     })
 }
 

@@ -405,6 +405,26 @@ pub fn parse_vector(text: &str, path: &Path) -> Result<Vec<f64>> {
     Ok(v)
 }
 
+/// As [`parse_vector`], with `inf` (or `+inf`, `infinity`, any case) read as
+/// +infinity: the interface files, where it means a rigid contact.
+pub(super) fn parse_vector_with_inf(text: &str, path: &Path) -> Result<Vec<f64>> {
+    let mut v = Vec::new();
+    for (line, l) in numbered(text) {
+        let t = l.trim();
+        if t.is_empty() || t.starts_with('%') || t.starts_with('#') {
+            continue;
+        }
+        let word = t.trim_start_matches('+').to_ascii_lowercase();
+        let x = if word == "inf" || word == "infinity" {
+            f64::INFINITY
+        } else {
+            parse_real(t, path, line, "value")?
+        };
+        try_push(&mut v, x, path, "values")?;
+    }
+    Ok(v)
+}
+
 /// Reads a vector file (one number per line).
 ///
 /// Errors: `Io` for a missing or malformed file, with the file name and the line;

@@ -76,7 +76,7 @@ mod folder;
 mod matrix;
 mod text;
 
-pub use folder::{read_problem, write_problem};
+pub use folder::{read_problem, write_interface, write_problem};
 pub use matrix::{
     MAX_UNCONFIRMED_DIM, format_matrix, format_vector, parse_matrix, parse_vector, read_matrix,
     read_vector, write_matrix, write_vector,
@@ -121,6 +121,31 @@ impl FrictionData {
     }
 }
 
+/// The optional interface files of a problem folder (docs/design.md section
+/// 8), each None where its file is absent: `cn.txt` (c_N per contact, `inf`
+/// for rigid), `mn.txt` (m_N, default 1), `kt.txt` (k_T, `inf` for rigid
+/// stick), `lt_prev.txt` (the tangential force the return mapping starts
+/// from, one value per row of T; default zero). Lengths are checked by
+/// [`read_problem`]; the values by `ContactProblem::set_compliance`.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Interface {
+    /// `cn.txt`, length m.
+    pub cn: Option<Vec<f64>>,
+    /// `mn.txt`, length m.
+    pub mn: Option<Vec<f64>>,
+    /// `kt.txt`, length m.
+    pub kt: Option<Vec<f64>>,
+    /// `lt_prev.txt`, length (d - 1) m.
+    pub lt_prev: Option<Vec<f64>>,
+}
+
+impl Interface {
+    /// True when no interface file is present (every contact rigid).
+    pub fn is_empty(&self) -> bool {
+        self == &Interface::default()
+    }
+}
+
 /// One problem read from a folder by [`read_problem`].
 #[derive(Clone, Debug, PartialEq)]
 pub struct ProblemFolder {
@@ -139,6 +164,8 @@ pub struct ProblemFolder {
     pub g: Vec<f64>,
     /// mu (Coulomb) or p (Tresca), length m.
     pub friction: FrictionData,
+    /// The interface law, where the folder holds one.
+    pub interface: Interface,
 }
 
 impl ProblemFolder {
