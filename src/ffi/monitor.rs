@@ -143,7 +143,7 @@ impl Watch {
                 LOG_SUMMARY,
                 &format!(
                     "{}: {status}, err {:.3e}, {} outer / {} inner iterations, open {} stick {} slip {}, \
-                     equilibrium {:.1e}, solve {:.3e} s",
+                     equilibrium {:.1e}, solve {:.3e} s{}",
                     r.method.name(),
                     r.err,
                     r.outer_iterations,
@@ -152,7 +152,12 @@ impl Watch {
                     r.n_stick,
                     r.n_slip,
                     r.equilibrium_residual,
-                    r.solve_seconds
+                    r.solve_seconds,
+                    if r.compliant_contacts > 0 {
+                        format!(", compliant interface on {} contacts", r.compliant_contacts)
+                    } else {
+                        String::new()
+                    }
                 ),
             );
         }

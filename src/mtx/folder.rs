@@ -1,6 +1,7 @@
-//! Problem folders: K.mtx, N.mtx, T.mtx, f.txt, g.txt and mu.txt or p.txt, written
-//! from a problem and read back with every size checked against the others before
-//! any entry is read.
+//! Problem folders: K.mtx, N.mtx, T.mtx, f.txt, g.txt and mu.txt or p.txt, and
+//! optionally the interface law (cn.txt, mn.txt, kt.txt, lt_prev.txt: see
+//! [`Interface`]), written from a problem and read back with every size checked
+//! against the others before any entry is read.
 
 use super::matrix::*;
 use super::text::*;

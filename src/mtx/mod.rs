@@ -12,7 +12,13 @@
 //! | `f.txt` | f, n numbers |
 //! | `g.txt` | g, m numbers |
 //! | `mu.txt` *or* `p.txt` | Coulomb coefficients or Tresca bounds, m numbers |
+//! | `cn.txt` (optional) | normal compliance c_N per contact, m numbers, `inf` rigid |
+//! | `mn.txt` (optional) | its exponent m_N, m numbers (default 1) |
+//! | `kt.txt` (optional) | tangential stiffness k_T, m numbers, `inf` rigid stick |
+//! | `lt_prev.txt` (optional) | the tangential force the return mapping starts from, (d-1) m numbers (default 0) |
 //!
+//! The last four are the interface law of docs/design.md section 8 (all absent:
+//! rigid contacts).
 //! Exactly one of `mu.txt` and `p.txt` must be present. Any other file in the
 //! folder is ignored. d is inferred from rows(T) = (d-1) rows(N); with no contacts
 //! (m = 0) it cannot be, and d = 2 is taken (the solution, u = K^-1 f, does not
