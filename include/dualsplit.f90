@@ -748,7 +748,7 @@ contains
 
    !> Sets the interface law of every contact (see ds_problem_set_compliance in
    !> dualsplit.h): c_n (normal compliance, > 0, IEEE infinity rigid), m_n (its
-   !> exponent, 1 only on a compliant contact), k_t (elastic slip stiffness, > 0,
+   !> exponent, in [1, 10]), k_t (elastic slip stiffness, > 0,
    !> infinity rigid stick), each m values (m >= 1), optional (absent: the
    !> default).
    function ds_problem_set_compliance(problem, c_n, m_n, k_t) result(status)

@@ -9,6 +9,10 @@
 
 use crate::error::{ErrorKind, Result, fail};
 
+/// The largest normal compliance exponent m_N accepted (the power law of
+/// rough surfaces and coatings lies between 1 and 3.5).
+pub const MAX_EXPONENT: f64 = 10.0;
+
 /// The interface data of m contacts, all of length m; +inf means rigid.
 #[derive(Clone, Debug, PartialEq)]
 pub(crate) struct Compliance {
@@ -65,8 +69,8 @@ impl Compliance {
     /// default (c_N and k_T +inf: rigid; m_N 1).
     ///
     /// Errors: `BadSize` (a length is not m), `NotFinite` (NaN, or an infinite
-    /// m_N or -inf), `BadArgument` (c_N <= 0, m_N < 1, k_T <= 0, or
-    /// m_N != 1 on a compliant contact: the nonlinear law is not supported yet).
+    /// m_N or -inf), `BadArgument` (c_N <= 0, m_N < 1 or above
+    /// [`MAX_EXPONENT`], k_T <= 0).
     pub fn of(
         m: usize,
         cn: Option<&[f64]>,
@@ -91,8 +95,8 @@ impl Compliance {
                 mn,
                 m,
                 false,
-                |v| v >= 1.0,
-                "the normal compliance exponent must be finite and >= 1",
+                |v| (1.0..=MAX_EXPONENT).contains(&v),
+                "the normal compliance exponent must be in [1, 10]",
             )?;
             law.mn.copy_from_slice(mn);
         }
@@ -107,17 +111,64 @@ impl Compliance {
             )?;
             law.kt.copy_from_slice(kt);
         }
-        if let Some(i) = (0..m).find(|&i| law.mn[i] != 1.0 && law.cn[i].is_finite()) {
-            return fail(
-                ErrorKind::BadArgument,
-                format!(
-                    "m_N[{i}] = {}: only the linear normal compliance law (m_N = 1) is \
-                     supported in this version",
-                    law.mn[i]
-                ),
-            );
-        }
         Ok(law)
+    }
+
+    /// The contacts whose normal law is nonlinear (finite c_N, m_N != 1),
+    /// ascending.
+    pub fn nonlinear(&self) -> Vec<usize> {
+        (0..self.cn.len())
+            .filter(|&i| self.cn[i].is_finite() && self.mn[i] != 1.0)
+            .collect()
+    }
+
+    /// The penetration (N u - g)_i at which contact i's normal law carries the
+    /// force `lambda` >= 0: (lambda / c_N)^(1 / m_N).
+    pub fn penetration(&self, i: usize, lambda: f64) -> f64 {
+        if lambda > 0.0 && self.cn[i].is_finite() {
+            (lambda / self.cn[i]).powf(1.0 / self.mn[i])
+        } else {
+            0.0
+        }
+    }
+
+    /// The force contact i's normal law gives at penetration `delta`:
+    /// c_N delta_+^m_N.
+    #[cfg(test)]
+    pub fn force(&self, i: usize, delta: f64) -> f64 {
+        self.cn[i] * delta.max(0.0).powf(self.mn[i])
+    }
+
+    /// The tangent of the nonlinear normal laws at the penetrations `delta`
+    /// (m), for Newton on the law (docs/design.md section 8): per nonlinear
+    /// contact i the linear law lambda = c_t (N u - g - s)_+ with
+    /// c_t = m c delta^(m - 1) and s = delta (1 - 1 / m), which touches
+    /// c delta_+^m at delta. Returns the dual's diagonal ([`Compliance::shift`]
+    /// with 1 / c_t at those contacts, at most `d_max[i]`: where
+    /// delta <= 0 the tangent carries nothing, and d_max stands for that) and
+    /// s (m, zero elsewhere).
+    pub fn linearised(&self, d: usize, delta: &[f64], d_max: &[f64]) -> (Vec<f64>, Vec<f64>) {
+        let m = self.cn.len();
+        let mut shift = self.shift(d);
+        if shift.is_empty() {
+            shift = vec![0.0; d * m];
+        }
+        let mut s = vec![0.0; m];
+        for i in self.nonlinear() {
+            let (c, e, x) = (self.cn[i], self.mn[i], delta[i]);
+            let ct = if x > 0.0 {
+                e * c * x.powf(e - 1.0)
+            } else {
+                0.0
+            };
+            shift[i] = if ct > 0.0 {
+                (1.0 / ct).min(d_max[i])
+            } else {
+                d_max[i]
+            };
+            s[i] = x.max(0.0) * (1.0 - 1.0 / e);
+        }
+        (shift, s)
     }
 
     /// True when every contact is rigid (D = 0).
@@ -125,7 +176,9 @@ impl Compliance {
         self.cn.iter().chain(&self.kt).all(|v| v.is_infinite())
     }
 
-    /// D of the module docs for contact dimension d: length d m (1 / c_N,i
+    /// D of the module docs for contact dimension d (a nonlinear normal law
+    /// counts as linear here; a solve replaces its entry by the tangent's,
+    /// [`Compliance::linearised`]): length d m (1 / c_N,i
     /// for the normal unknowns, 1 / k_T,i for contact i's d - 1 tangential
     /// ones; units length / force); empty where every contact is rigid.
     pub fn shift(&self, d: usize) -> Vec<f64> {
@@ -180,7 +233,14 @@ mod tests {
     #[test]
     fn bad_values_name_the_array_and_entry() {
         type Data<'a> = Option<&'a [f64]>;
-        let cases: [(Data<'_>, Data<'_>, Data<'_>, ErrorKind, &str); 8] = [
+        let cases: [(Data<'_>, Data<'_>, Data<'_>, ErrorKind, &str); 9] = [
+            (
+                None,
+                Some(&[11.0, 1.0]),
+                None,
+                ErrorKind::BadArgument,
+                "m_N[0]",
+            ),
             (
                 Some(&[1.0, 0.0]),
                 None,
@@ -246,12 +306,21 @@ mod tests {
     }
 
     #[test]
-    fn a_nonlinear_law_is_refused_where_it_would_act() {
-        let e = Compliance::of(1, Some(&[1.0]), Some(&[2.0]), None).unwrap_err();
-        assert_eq!(e.kind, ErrorKind::BadArgument);
-        assert!(e.message.contains("m_N = 1"), "{}", e.message);
-        // On a rigid contact the exponent does not act.
-        assert!(Compliance::of(1, None, Some(&[2.0]), None).is_ok());
+    fn the_tangent_law_touches_the_power_law() {
+        let law = Compliance::of(2, Some(&[3.0, 3.0]), Some(&[2.5, 1.0]), None).unwrap();
+        assert_eq!(law.nonlinear(), vec![0]);
+        let x = 0.4;
+        let (shift, s) = law.linearised(2, &[x, 0.7], &[1e9, 1e9]);
+        let ct = 1.0 / shift[0];
+        // Equal value and slope at x: c_t (x - s) = c x^m, c_t = m c x^(m-1).
+        assert!((ct * (x - s[0]) - law.force(0, x)).abs() < 1e-14);
+        assert!((ct - 2.5 * 3.0 * x.powf(1.5)).abs() < 1e-14);
+        // The linear contact keeps 1 / c_N and no offset.
+        assert_eq!((shift[1], s[1]), (1.0 / 3.0, 0.0));
+        // Open: the tangent carries nothing, d_max stands for it.
+        let (shift, s) = law.linearised(2, &[-0.1, 0.0], &[7.0, 7.0]);
+        assert_eq!((shift[0], s[0]), (7.0, 0.0));
+        assert!((law.penetration(0, law.force(0, x)) - x).abs() < 1e-15);
     }
 
     #[test]

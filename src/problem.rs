@@ -69,6 +69,11 @@ struct Plan {
 /// misses the tolerance although the dual one met it (rounding in A).
 const REFINEMENTS: usize = 3;
 
+/// Rounds of Newton on a nonlinear normal compliance law (m_N != 1) before a
+/// solve ends `NotConverged`: each round is one solve of the linear law of
+/// the tangent (docs/design.md section 8).
+const LAW_ROUNDS: usize = 30;
+
 fn check_d(d: usize) -> Result<()> {
     if d == 2 || d == 3 {
         Ok(())
@@ -564,8 +569,10 @@ impl ContactProblem {
     /// - `cn`: normal compliance c_N,i > 0, lambda_N,i = c_N,i (N u - g)_i+
     ///   (force / length; the caller folds the nodal area in, as for every
     ///   nodal force); +inf (the default) is Signorini's rigid law;
-    /// - `mn`: its exponent m_N,i >= 1 (default 1); only m_N = 1 is
-    ///   supported on a compliant contact in this version;
+    /// - `mn`: its exponent, 1 <= m_N,i <= 10 (default 1): lambda_N,i =
+    ///   c_N,i (N u - g)_i+^m_N,i (c_N in force / length^m_N); above 1 a solve
+    ///   runs Newton on the law, each round a solve of its tangent's linear
+    ///   law, until the nonlinear law's err meets the tolerance;
     /// - `kt`: tangential stiffness k_T,i > 0 (force / length), the elastic
     ///   slip of penalty codes: lambda_T,i is the projection onto the friction
     ///   disc of lambda_T,prev + k_T,i T u, lambda_T,prev zero in a single
@@ -580,7 +587,7 @@ impl ContactProblem {
     ///
     /// Errors (the handle keeps its previous law): `BadSize` (a length is not
     /// m), `NotFinite` (NaN, -inf, an infinite m_N), `BadArgument` (c_N <= 0,
-    /// m_N < 1, k_T <= 0, m_N != 1 on a compliant contact).
+    /// m_N outside [1, 10], k_T <= 0).
     pub fn set_compliance(
         &mut self,
         cn: Option<&[f64]>,
@@ -801,7 +808,7 @@ impl ContactProblem {
     /// solve's memory prediction (from `prepare_dual`), for the report.
     #[allow(clippy::too_many_arguments)]
     fn solve_from(
-        &self,
+        &mut self,
         f: &[f64],
         g: &[f64],
         friction: Friction<'_>,
@@ -859,6 +866,28 @@ impl ContactProblem {
                 *bj += dj * lj;
             }
         }
+        // A nonlinear normal law (m_N != 1) is solved by Newton on the law
+        // (docs/design.md section 8): each round solves the linear law of its
+        // tangent at the last penetrations delta, from the last multipliers,
+        // until the error of the nonlinear law meets the tolerance. The first
+        // tangent is taken where the start's forces put the contacts.
+        let nonlinear = self.compliance.nonlinear();
+        let (mut delta, mut d_max) = (vec![0.0; m], vec![0.0; m]);
+        for &i in &nonlinear {
+            delta[i] = self.compliance.penetration(i, lam[i]);
+            // An open tangent carries nothing: 1e4 times A_ii's compliance.
+            d_max[i] = 1e4 * (self.dual.diag(i) - self.dual.shift()[i]);
+        }
+        let mut offset = vec![0.0; m];
+        let mut b_round = b.clone();
+        let mut rounds = 0;
+        // A round's tolerance: the solve's, or for Newton on a nonlinear law
+        // a hundredth of the law's last error (inexact Newton), not below it.
+        let mut round_tol = if nonlinear.is_empty() {
+            opts.tol
+        } else {
+            opts.tol.max(1e-6)
+        };
         // The monitor sees iteration numbers and times of the whole solve.
         let base = std::cell::Cell::new(0usize);
         let mut relay = |p: &Progress| -> bool {
@@ -871,16 +900,9 @@ impl ContactProblem {
                 None => true,
             }
         };
-        let problem = DualProblem {
-            dual: &self.dual,
-            b: &b,
-            law: friction,
-            monitor: Some(std::cell::RefCell::new(&mut relay)),
-            deadline: (opts.max_seconds > 0.0)
-                .then(|| start + Duration::from_secs_f64(opts.max_seconds)),
-            predicted: extrapolated,
-        };
-        let mut target = opts.tol;
+        let deadline =
+            (opts.max_seconds > 0.0).then(|| start + Duration::from_secs_f64(opts.max_seconds));
+        let mut target = round_tol;
         let mut end = End::Converged;
         let mut outer = 0;
         let mut inner = 0;
@@ -891,55 +913,103 @@ impl ContactProblem {
         let mut v = vec![0.0; c];
         let mut p = vec![0.0; m];
         let mut err = f64::INFINITY;
-        for _ in 0..=REFINEMENTS {
-            let local = Options {
-                max_outer: opts.max_outer.saturating_sub(outer),
-                ..*opts
+        loop {
+            if !nonlinear.is_empty() {
+                let (shift, s) = self.compliance.linearised(self.d, &delta, &d_max);
+                self.dual.set_shift(&shift);
+                b_round.copy_from_slice(&b);
+                for &i in &nonlinear {
+                    b_round[i] -= s[i];
+                }
+                offset = s;
+                target = round_tol;
+            }
+            let problem = DualProblem {
+                dual: &self.dual,
+                b: &b_round,
+                law: friction,
+                monitor: Some(std::cell::RefCell::new(&mut relay)),
+                deadline,
+                predicted: extrapolated && rounds == 0,
             };
-            let o = methods::run(&problem, lam, &local, target);
-            outer += o.outer;
-            inner += o.inner;
-            unknowns = o.unknowns;
-            method = o.method.unwrap_or(method);
-            choice = o.choice;
-            base.set(outer);
-            end = o.end;
-            // u = K^-1 (f - B^T lambda), and the error measured on it.
-            self.dual.rows.mul_t_vec(lam, &mut bt_lam);
-            self.recover_u(f, &y_f, &bt_lam, &mut u);
-            self.dual.rows.mul_vec(&u, &mut v);
-            for i in 0..m {
-                v[i] -= g[i];
-            }
-            // The compliance's part of the gap: v := v - D (lambda - [0; lt_prev]).
-            if !shift.is_empty() {
-                for ((vj, dj), lj) in v.iter_mut().zip(shift).zip(lam.iter()) {
-                    *vj -= dj * lj;
+            let shift = self.dual.shift();
+            for _ in 0..=REFINEMENTS {
+                let local = Options {
+                    max_outer: opts.max_outer.saturating_sub(outer),
+                    ..*opts
+                };
+                let o = methods::run(&problem, lam, &local, target);
+                outer += o.outer;
+                inner += o.inner;
+                unknowns = o.unknowns;
+                method = o.method.unwrap_or(method);
+                choice = o.choice;
+                base.set(outer);
+                end = o.end;
+                // u = K^-1 (f - B^T lambda), and the error measured on it.
+                self.dual.rows.mul_t_vec(lam, &mut bt_lam);
+                self.recover_u(f, &y_f, &bt_lam, &mut u);
+                self.dual.rows.mul_vec(&u, &mut v);
+                for i in 0..m {
+                    v[i] -= g[i];
                 }
-                for ((vj, dj), lj) in v[m..].iter_mut().zip(&shift[m..]).zip(lt_prev) {
-                    *vj += dj * lj;
+                // The compliance's part of the gap: v := v - D (lambda - [0; lt_prev]).
+                if !shift.is_empty() {
+                    for ((vj, dj), lj) in v.iter_mut().zip(shift).zip(lam.iter()) {
+                        *vj -= dj * lj;
+                    }
+                    for ((vj, dj), lj) in v[m..].iter_mut().zip(&shift[m..]).zip(lt_prev) {
+                        *vj += dj * lj;
+                    }
                 }
+                for &i in &nonlinear {
+                    v[i] -= offset[i];
+                }
+                friction.bounds(&lam[..m], &mut p);
+                err = natural_map_error(lam, &v, &self.dual.rho, &b_round, &p, self.d);
+                if end == End::Infeasible {
+                    // No u satisfies N u <= g: no error can be small (report.rs).
+                    err = f64::INFINITY;
+                    break;
+                }
+                // Tighten the dual target only when the dual run met it but the error
+                // on the recovered u missed the tolerance (rounding in A).
+                if end != End::Converged || err <= round_tol || outer >= opts.max_outer {
+                    if end == End::Converged && err > round_tol {
+                        end = End::Limit;
+                    }
+                    break;
+                }
+                if problem.deadline.is_some_and(|d| Instant::now() >= d) {
+                    end = End::TimeLimit;
+                    break;
+                }
+                target *= 0.1;
             }
-            friction.bounds(&lam[..m], &mut p);
+            if nonlinear.is_empty() || end != End::Converged {
+                break;
+            }
+            // The error of the nonlinear law: v_N,i = N u - g - (lambda_N,i / c_N)^(1/m),
+            // and the penetrations the next tangent is taken at.
+            for &i in &nonlinear {
+                let raw = v[i] + offset[i] + shift[i] * lam[i];
+                delta[i] = raw;
+                v[i] = raw - self.compliance.penetration(i, lam[i]);
+            }
             err = natural_map_error(lam, &v, &self.dual.rho, &b, &p, self.d);
-            if end == End::Infeasible {
-                // No u satisfies N u <= g: no error can be small (report.rs).
-                err = f64::INFINITY;
+            rounds += 1;
+            if err <= opts.tol {
                 break;
             }
-            // Tighten the dual target only when the dual run met it but the error
-            // on the recovered u missed the tolerance (rounding in A).
-            if end != End::Converged || err <= opts.tol || outer >= opts.max_outer {
-                if end == End::Converged && err > opts.tol {
-                    end = End::Limit;
-                }
+            round_tol = (0.01 * err).max(opts.tol);
+            if rounds >= LAW_ROUNDS || outer >= opts.max_outer {
+                end = End::Limit;
                 break;
             }
-            if problem.deadline.is_some_and(|d| Instant::now() >= d) {
+            if deadline.is_some_and(|d| Instant::now() >= d) {
                 end = End::TimeLimit;
                 break;
             }
-            target *= 0.1;
         }
         // Equilibrium residual |K u - f + B^T lambda| / |f|.
         let mut ku = vec![0.0; ndof];
@@ -1033,17 +1103,20 @@ impl ContactProblem {
         // The effective f and K u_k.
         let _vectors = self.factor.ledger().claim_f64(2 * ndof);
         let mut ku = vec![0.0; ndof];
-        let u_k = &self.history.u;
-        self.k.mul_vec(u_k, &mut ku);
+        self.k.mul_vec(&self.history.u, &mut ku);
         let f: Vec<f64> = (0..ndof).map(|i| f_total[i] - ku[i]).collect();
         let mut nu = vec![0.0; m];
-        self.n.mul_vec(u_k, &mut nu);
+        self.n.mul_vec(&self.history.u, &mut nu);
         let g: Vec<f64> = (0..m).map(|i| g0[i] - nu[i]).collect();
         let mut lam = vec![0.0; self.dual.c];
-        let hist = (Some(&self.history), &self.history.lt[..]);
-        let (mut sol, load) =
-            self.solve_from(&f, &g, friction, opts, &mut lam, hist, monitor, predicted)?;
-        for (ui, uh) in sol.u.iter_mut().zip(u_k) {
+        // The history is lent to the solve (which needs the handle mutable:
+        // a nonlinear law changes the dual's diagonal) and put back after.
+        let history = std::mem::replace(&mut self.history, History::new(0, 0));
+        let hist = (Some(&history), &history.lt[..]);
+        let solved = self.solve_from(&f, &g, friction, opts, &mut lam, hist, monitor, predicted);
+        self.history = history;
+        let (mut sol, load) = solved?;
+        for (ui, uh) in sol.u.iter_mut().zip(&self.history.u) {
             *ui += uh;
         }
         if sol.report.status == SolveStatus::Converged {

@@ -214,6 +214,7 @@ fn a_history_carries_the_elastic_slip() {
 /// increment started, u_prev (n) and lambda_T,prev ((d - 1) m).
 struct Law<'a> {
     cn: &'a [f64],
+    mn: Option<&'a [f64]>,
     kt: &'a [f64],
     u_prev: &'a [f64],
     lt_prev: &'a [f64],
@@ -249,7 +250,8 @@ fn regularised_kkt(
         let v = nu[i] - sc.g[i];
         let l = sol.lambda_n[i];
         let e = if cn[i].is_finite() {
-            (l - cn[i] * v.max(0.0)).abs() / ls
+            let e = law.mn.map_or(1.0, |mn| mn[i]);
+            (l - cn[i] * v.max(0.0).powf(e)).abs() / ls
         } else {
             (v.max(0.0) / us)
                 .max((-l).max(0.0) / ls)
@@ -301,10 +303,19 @@ fn scene(d: usize) -> Scene {
 /// with compliant normals on even contacts and elastic slip on contacts
 /// i % 3 != 0 (the rest rigid): each converges, passes the regularised KKT
 /// check and agrees with the others.
-fn every_method(sc: &Scene, friction: Friction<'_>, stiffness: f64) {
+fn every_method(sc: &Scene, friction: Friction<'_>, stiffness: f64, exponent: f64) {
     let m = sc.m();
+    // Contacts i % 4 == 0 follow the power law lambda = c delta^exponent, its
+    // c set so that it carries about what the linear law does at a
+    // penetration of 0.01 (the scenes' scale).
+    let mn: Vec<f64> = (0..m)
+        .map(|i| if i % 4 == 0 { exponent } else { 1.0 })
+        .collect();
     let cn: Vec<f64> = (0..m)
-        .map(|i| if i % 2 == 0 { stiffness } else { INF })
+        .map(|i| match i % 2 {
+            0 => stiffness / 0.01f64.powf(mn[i] - 1.0),
+            _ => INF,
+        })
         .collect();
     let kt: Vec<f64> = (0..m)
         .map(|i| if i % 3 != 0 { 0.5 * stiffness } else { INF })
@@ -317,7 +328,7 @@ fn every_method(sc: &Scene, friction: Friction<'_>, stiffness: f64) {
             }
             let what = format!("d = {} {} {form:?}", sc.d, method.name());
             let mut pb = sc.problem();
-            pb.set_compliance(Some(&cn), None, Some(&kt)).unwrap();
+            pb.set_compliance(Some(&cn), Some(&mn), Some(&kt)).unwrap();
             let o = Options {
                 dual_form: form,
                 ..opts(method)
@@ -332,6 +343,7 @@ fn every_method(sc: &Scene, friction: Friction<'_>, stiffness: f64) {
             let (u0, l0) = (vec![0.0; sc.f.len()], vec![0.0; (sc.d - 1) * m]);
             let law = Law {
                 cn: &cn,
+                mn: Some(&mn),
                 kt: &kt,
                 u_prev: &u0,
                 lt_prev: &l0,
@@ -371,16 +383,19 @@ fn every_method(sc: &Scene, friction: Friction<'_>, stiffness: f64) {
 fn every_method_solves_the_regularised_law_2d() {
     let sc = scene(2);
     let mu = vec![0.3; sc.m()];
-    every_method(&sc, Friction::Coulomb(&mu), 200.0);
+    every_method(&sc, Friction::Coulomb(&mu), 200.0, 1.0);
+    every_method(&sc, Friction::Coulomb(&mu), 200.0, 2.0);
 }
 
 #[test]
 fn every_method_solves_the_regularised_law_3d() {
     let sc = scene(3);
     let p = vec![0.05; sc.m()];
-    every_method(&sc, Friction::Tresca(&p), 200.0);
+    every_method(&sc, Friction::Tresca(&p), 200.0, 1.0);
+    every_method(&sc, Friction::Tresca(&p), 200.0, 3.5);
     let mu = vec![0.3; sc.m()];
-    every_method(&sc, Friction::Coulomb(&mu), 200.0);
+    every_method(&sc, Friction::Coulomb(&mu), 200.0, 1.0);
+    every_method(&sc, Friction::Coulomb(&mu), 200.0, 1.5);
 }
 
 #[test]
@@ -439,7 +454,12 @@ fn bad_interface_data_is_refused_and_the_law_kept() {
         (Some(&nan), None, None, ErrorKind::NotFinite),
         (Some(&cn[1..]), None, None, ErrorKind::BadSize),
         (None, Some(&vec![0.5; m]), None, ErrorKind::BadArgument),
-        (Some(&cn), Some(&vec![2.0; m]), None, ErrorKind::BadArgument),
+        (
+            Some(&cn),
+            Some(&vec![11.0; m]),
+            None,
+            ErrorKind::BadArgument,
+        ),
         (None, None, Some(&vec![-1.0; m]), ErrorKind::BadArgument),
     ];
     for (c, e, k, kind) in cases {
@@ -459,13 +479,18 @@ fn bad_interface_data_is_refused_and_the_law_kept() {
 fn a_compliant_history_meets_the_incremental_law_at_every_step() {
     // The 3D scene's load raised in four steps, then lowered in two (the
     // contacts stick on the way back): every step's answer meets the return
-    // mapping from the last step's force, dense and matrix-free alike.
+    // mapping from the last step's force, dense and matrix-free alike; a
+    // quarter of the contacts on the power law m_N = 2.
     let sc = scene(3);
     let m = sc.m();
     let mu = vec![0.3; m];
     let friction = Friction::Coulomb(&mu);
+    let mn: Vec<f64> = (0..m).map(|i| if i % 4 == 0 { 2.0 } else { 1.0 }).collect();
     let cn: Vec<f64> = (0..m)
-        .map(|i| if i % 2 == 0 { 300.0 } else { INF })
+        .map(|i| match i % 2 {
+            0 => 300.0 / 0.01f64.powf(mn[i] - 1.0),
+            _ => INF,
+        })
         .collect();
     let kt = vec![150.0; m];
     let loads: Vec<Vec<f64>> = [0.25, 0.5, 0.75, 1.0, 0.8, 0.6]
@@ -475,7 +500,7 @@ fn a_compliant_history_meets_the_incremental_law_at_every_step() {
     let mut answers: Vec<Vec<Vec<f64>>> = Vec::new();
     for form in [DualForm::Dense, DualForm::MatrixFree] {
         let mut pb = sc.problem();
-        pb.set_compliance(Some(&cn), None, Some(&kt)).unwrap();
+        pb.set_compliance(Some(&cn), Some(&mn), Some(&kt)).unwrap();
         let o = Options {
             dual_form: form,
             ..Options::default()
@@ -488,6 +513,7 @@ fn a_compliant_history_meets_the_incremental_law_at_every_step() {
             converged(&what, &sol);
             let law = Law {
                 cn: &cn,
+                mn: Some(&mn),
                 kt: &kt,
                 u_prev: &u_prev,
                 lt_prev: &lt_prev,
@@ -611,4 +637,62 @@ fn a_compliant_increment_replays_from_its_folder() {
     pb.set_compliance(None, None, None).unwrap();
     pb.write_folder(&dir, &f_inc, &g_inc, friction).unwrap();
     assert!(!dir.join("cn.txt").exists() && !dir.join("lt_prev.txt").exists());
+}
+
+#[test]
+fn one_node_on_a_power_law_foundation() {
+    // lambda_N = c delta^m with k u_z = -F + lambda_N, delta = -u_z - g:
+    // c delta^m + k delta = F - k g, solved here by bisection (the left side
+    // increases): the independent truth for every method, cold and along a
+    // history of growing loads (each step warm).
+    let (k, g) = (10.0, 0.1);
+    let root = |c: f64, e: f64, rhs: f64| {
+        let (mut lo, mut hi) = (0.0f64, rhs / k);
+        for _ in 0..200 {
+            let mid = 0.5 * (lo + hi);
+            if c * mid.powf(e) + k * mid > rhs {
+                hi = mid;
+            } else {
+                lo = mid;
+            }
+        }
+        0.5 * (lo + hi)
+    };
+    for (d, c, e) in [(2, 400.0, 2.0), (3, 5e3, 3.0), (3, 40.0, 1.5)] {
+        for method in [
+            Method::Auto,
+            Method::Newton,
+            Method::Pgs,
+            Method::Split,
+            Method::Mprgp,
+        ] {
+            let mut pb = one_node(d, k);
+            pb.set_compliance(Some(&[c]), Some(&[e]), None).unwrap();
+            for f in [20.0, 5.0, 30.0] {
+                let mut load = vec![0.0; d];
+                load[d - 1] = -f;
+                let what = format!("d = {d}, m = {e}, {} F = {f}", method.name());
+                let sol = pb
+                    .solve(&load, &[g], Friction::Tresca(&[0.0]), &opts(method))
+                    .unwrap();
+                converged(&what, &sol);
+                let delta = root(c, e, f - k * g);
+                close(&what, sol.lambda_n[0], c * delta.powf(e));
+                close(&what, sol.u[d - 1], -delta - g);
+            }
+            let mut pb = one_node(d, k);
+            pb.set_compliance(Some(&[c]), Some(&[e]), None).unwrap();
+            for f in [5.0, 10.0, 20.0, 40.0] {
+                let mut load = vec![0.0; d];
+                load[d - 1] = -f;
+                let what = format!("history d = {d}, m = {e}, {} F = {f}", method.name());
+                let sol = pb
+                    .step(&load, &[g], Friction::Tresca(&[0.0]), &opts(method))
+                    .unwrap();
+                converged(&what, &sol);
+                let delta = root(c, e, f - k * g);
+                close(&what, sol.lambda_n[0], c * delta.powf(e));
+            }
+        }
+    }
 }

@@ -1395,7 +1395,13 @@ fn set_compliance_checks_its_arrays_and_keeps_the_law_on_error() {
             "c_N",
         ),
         ([1.0; M], [0.5, 1.0], [1.0; M], DsStatus::BadArgument, "m_N"),
-        ([1.0; M], [2.0, 1.0], [1.0; M], DsStatus::BadArgument, "m_N"),
+        (
+            [1.0; M],
+            [11.0, 1.0],
+            [1.0; M],
+            DsStatus::BadArgument,
+            "m_N",
+        ),
         (
             [1.0; M],
             [1.0; M],

@@ -253,11 +253,11 @@ pub unsafe extern "C" fn ds_problem_sizes(
 /// the handle until changed; each array holds m values (one per contact), NULL
 /// for its default:
 ///
-/// - c_n: normal compliance c_N,i > 0, lambda_N,i = c_N,i (N u - g)_i+
-///   (force / length; fold the nodal area in, as for every nodal force);
+/// - c_n: normal compliance c_N,i > 0, lambda_N,i = c_N,i (N u - g)_i+^m_N,i
+///   (force / length^m_N; fold the nodal area in, as for every nodal force);
 ///   INFINITY (the default) is Signorini's rigid contact;
-/// - m_n: its exponent m_N,i >= 1 (default 1); only m_N = 1 on a compliant
-///   contact in this version;
+/// - m_n: its exponent 1 <= m_N,i <= 10 (default 1; above 1 the law is
+///   solved by Newton on the law, a few solves of its tangent);
 /// - k_t: tangential stiffness k_T,i > 0 (force / length), the elastic slip
 ///   ("stick slope") of penalty codes: lambda_T,i is the projection onto the
 ///   friction disc of lambda_T,prev + k_T,i T u, lambda_T,prev zero in ds_solve
@@ -272,9 +272,8 @@ pub unsafe extern "C" fn ds_problem_sizes(
 /// of the regularised conditions.
 ///
 /// Returns DS_STATUS_OK, DS_STATUS_NULL_POINTER (problem), DS_STATUS_NOT_FINITE
-/// (NaN, -INFINITY, an infinite m_N), DS_STATUS_BAD_ARGUMENT (c_N <= 0, m_N < 1,
-/// k_T <= 0, m_N != 1 on a compliant contact). On error the handle keeps its
-/// previous law.
+/// (NaN, -INFINITY, an infinite m_N), DS_STATUS_BAD_ARGUMENT (c_N <= 0, m_N
+/// outside [1, 10], k_T <= 0). On error the handle keeps its previous law.
 ///
 /// # Safety
 /// `problem` must be NULL or a live handle; each array NULL or valid for m
