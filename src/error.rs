@@ -3,13 +3,14 @@
 
 use std::fmt;
 
-/// What went wrong. Each kind maps onto one C status code (see `ffi::status`).
-/// Later versions may add kinds (`#[non_exhaustive]`).
+/// What went wrong. Each kind maps onto one C status code (see `ffi::status`;
+/// the C API has statuses of its own besides: a NULL pointer, a caught panic).
+/// A solve that does not converge is not an error: it is
+/// [`crate::SolveStatus`] in the report. Later versions may add kinds
+/// (`#[non_exhaustive]`).
 #[derive(Copy, Clone, Debug, PartialEq, Eq)]
 #[non_exhaustive]
 pub enum ErrorKind {
-    /// A required pointer was NULL (C boundary only).
-    NullPointer,
     /// An array length or matrix dimension is inconsistent.
     BadSize,
     /// A sparse index is out of range or a pointer array is not monotone.
@@ -22,22 +23,12 @@ pub enum ErrorKind {
     NotPositiveDefinite,
     /// A Tresca bound p or a Coulomb coefficient mu is negative.
     NegativeFriction,
-    /// The iteration stopped at its limit without reaching the tolerance.
-    NotConverged,
     /// An allocation failed.
     OutOfMemory,
     /// An argument has an invalid value (unknown enum, d not 2 or 3, bad option).
     BadArgument,
     /// A file could not be read or written, or is malformed.
     Io,
-    /// A panic was caught at the C boundary (a bug in the library).
-    Panic,
-    /// The monitor callback asked to stop the solve.
-    Stopped,
-    /// The solve stopped making progress (the stagnation test).
-    Stalled,
-    /// The solve ran out of its wall-clock budget.
-    TimeLimit,
 }
 
 /// An error with a message that says which argument and which entry is at fault.

@@ -5,14 +5,14 @@
 //! helpers turn raw C pointers into borrowed Rust references after checking them for
 //! NULL (allowed for empty arrays only), alignment and size.
 
+use super::error::{CError as Error, CResult as Result};
 use super::last_error;
 use super::status::DsStatus;
-use crate::error::{Error, ErrorKind, Result};
 use std::any::Any;
 use std::panic::{AssertUnwindSafe, catch_unwind};
 
 /// Runs the body of the entry point `name` with the boundary rules: clears the last
-/// error, catches panics (-> `DsStatus::Panic`), maps `Err(e)` to `DsStatus::from(e.kind)`
+/// error, catches panics (-> `DsStatus::Panic`), maps `Err(e)` to its status `e.status`
 /// and records "name: message" as the last error.
 pub(crate) fn entry(name: &str, body: impl FnOnce() -> Result<()>) -> DsStatus {
     last_error::clear();
@@ -22,7 +22,7 @@ pub(crate) fn entry(name: &str, body: impl FnOnce() -> Result<()>) -> DsStatus {
         Ok(Ok(())) => DsStatus::Ok,
         Ok(Err(e)) => {
             last_error::set(&format!("{name}: {}", e.message));
-            DsStatus::from(e.kind)
+            e.status
         }
         Err(payload) => {
             let what = panic_message(&payload);
@@ -56,7 +56,7 @@ pub(crate) fn drop_payload(payload: Box<dyn Any + Send>) {
 /// `Err(NullPointer)` naming the argument.
 fn null(what: &str, len: usize) -> Error {
     Error::new(
-        ErrorKind::NullPointer,
+        DsStatus::NullPointer,
         format!("argument {what} is NULL but must point to {len} values"),
     )
 }
@@ -65,7 +65,7 @@ fn null(what: &str, len: usize) -> Error {
 fn check_ptr<T>(ptr: *const T, len: usize, what: &str) -> Result<()> {
     if !ptr.is_aligned() {
         return Err(Error::new(
-            ErrorKind::BadArgument,
+            DsStatus::BadArgument,
             format!(
                 "argument {what} = {ptr:p} is not aligned to {} bytes",
                 std::mem::align_of::<T>()
@@ -77,7 +77,7 @@ fn check_ptr<T>(ptr: *const T, len: usize, what: &str) -> Result<()> {
         .is_none_or(|bytes| bytes > isize::MAX as usize);
     if too_big {
         return Err(Error::new(
-            ErrorKind::BadSize,
+            DsStatus::BadSize,
             format!("argument {what}: {len} values do not fit in memory"),
         ));
     }
@@ -154,7 +154,7 @@ impl<T: Copy> OutArray<T> {
             Ok(())
         } else {
             Err(Error::new(
-                ErrorKind::Panic,
+                DsStatus::Panic,
                 format!(
                     "internal error: {} has {} values, expected {}",
                     self.what,
@@ -212,7 +212,7 @@ impl<T: Copy> OutArray<T> {
 pub(crate) unsafe fn ref_in<'a, T>(ptr: *const T, what: &str) -> Result<&'a T> {
     if ptr.is_null() {
         return Err(Error::new(
-            ErrorKind::NullPointer,
+            DsStatus::NullPointer,
             format!("argument {what} is NULL"),
         ));
     }
@@ -230,7 +230,7 @@ pub(crate) unsafe fn ref_in<'a, T>(ptr: *const T, what: &str) -> Result<&'a T> {
 pub(crate) unsafe fn ref_mut<'a, T>(ptr: *mut T, what: &str) -> Result<&'a mut T> {
     if ptr.is_null() {
         return Err(Error::new(
-            ErrorKind::NullPointer,
+            DsStatus::NullPointer,
             format!("argument {what} is NULL"),
         ));
     }
@@ -257,7 +257,7 @@ mod tests {
     #[test]
     fn error_becomes_status() {
         let status = entry("ds_test", || {
-            Err(Error::new(ErrorKind::NotFinite, "f[3] is NaN"))
+            Err(Error::new(DsStatus::NotFinite, "f[3] is NaN"))
         });
         assert_eq!(status, DsStatus::NotFinite);
         assert_eq!(last_error::get(), "ds_test: f[3] is NaN");
@@ -275,25 +275,25 @@ mod tests {
                     .is_empty()
             );
             let e = slice_in::<f64>(std::ptr::null(), 3, "v").unwrap_err();
-            assert_eq!(e.kind, ErrorKind::NullPointer);
+            assert_eq!(e.status, DsStatus::NullPointer);
             assert!(e.message.contains("argument v "));
             let bytes = [0u8; 16];
             let odd = bytes.as_ptr().add(1).cast::<f64>();
             assert_eq!(
-                slice_in(odd, 1, "v").unwrap_err().kind,
-                ErrorKind::BadArgument
+                slice_in(odd, 1, "v").unwrap_err().status,
+                DsStatus::BadArgument
             );
             let e = slice_in(v.as_ptr(), usize::MAX / 4, "v").unwrap_err();
-            assert_eq!(e.kind, ErrorKind::BadSize);
+            assert_eq!(e.status, DsStatus::BadSize);
         }
         assert!(OutArray::<f64>::new(std::ptr::null_mut(), 0, "u").is_ok());
         let e = OutArray::<f64>::new(std::ptr::null_mut(), 1, "u")
             .err()
             .unwrap();
-        assert_eq!(e.kind, ErrorKind::NullPointer);
+        assert_eq!(e.status, DsStatus::NullPointer);
         let mut out = [0.0f64; 2];
         let o = OutArray::new(out.as_mut_ptr(), 2, "u").unwrap();
-        assert_eq!(o.check_len(&[1.0]).unwrap_err().kind, ErrorKind::Panic);
+        assert_eq!(o.check_len(&[1.0]).unwrap_err().status, DsStatus::Panic);
         // SAFETY: out is valid for 2 writes and not borrowed.
         unsafe { o.write(&[3.0, 4.0]).unwrap() };
         assert_eq!(out, [3.0, 4.0]);

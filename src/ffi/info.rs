@@ -1,12 +1,12 @@
 //! The analysis report of the C API: DsInfo, ds_analyse and ds_problem_info.
 
 use super::boundary::{entry, ref_in};
+use super::error::{CError as Error, CResult as Result};
 use super::matrix::DsMatrix;
 use super::options::DsOptions;
 use super::problem::{DsProblem, dimension};
 use super::status::DsStatus;
 use super::types::{DsDualForm, DsMethod, DsOrdering};
-use crate::error::{Error, ErrorKind, Result};
 use crate::info::Info;
 use crate::problem::ContactProblem;
 
@@ -112,11 +112,11 @@ impl From<&Info> for DsInfo {
 /// `out` must be NULL or point to a writable DsInfo prefix of struct_size bytes.
 unsafe fn write_info(out: *mut DsInfo, info: &Info) -> Result<()> {
     if out.is_null() {
-        return Err(Error::new(ErrorKind::NullPointer, "argument info is NULL"));
+        return Err(Error::new(DsStatus::NullPointer, "argument info is NULL"));
     }
     if !out.is_aligned() {
         return Err(Error::new(
-            ErrorKind::BadArgument,
+            DsStatus::BadArgument,
             format!("argument info = {out:p} is not aligned"),
         ));
     }
@@ -125,7 +125,7 @@ unsafe fn write_info(out: *mut DsInfo, info: &Info) -> Result<()> {
     let size = struct_size as usize;
     if size < 8 {
         return Err(Error::new(
-            ErrorKind::BadArgument,
+            DsStatus::BadArgument,
             format!("info->struct_size = {size}: set it to sizeof(DsInfo) before the call"),
         ));
     }
@@ -175,7 +175,7 @@ pub unsafe extern "C" fn ds_analyse(
         // SAFETY: pointer validity is this function's contract; NULL is rejected.
         let (k, n, t) = unsafe { (ref_in(k, "k")?, ref_in(n, "n")?, ref_in(t, "t")?) };
         if info.is_null() {
-            return Err(Error::new(ErrorKind::NullPointer, "argument info is NULL"));
+            return Err(Error::new(DsStatus::NullPointer, "argument info is NULL"));
         }
         // SAFETY: opts is NULL or a readable DsOptions prefix (contract).
         let opts = unsafe { DsOptions::read(opts)? };

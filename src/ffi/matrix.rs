@@ -2,8 +2,9 @@
 //! [`MatrixView`] (no copy: the view borrows the caller's arrays).
 
 use super::boundary::slice_in;
+use super::error::{CError as Error, CResult as Result};
+use super::status::DsStatus;
 use super::types::{CEnum, DsFormat, DsIndexType, DsStorage};
-use crate::error::{Error, ErrorKind, Result};
 use crate::sparse::{Format, Indices, MatrixView};
 use std::ffi::c_void;
 
@@ -55,7 +56,7 @@ pub struct DsMatrix {
 fn size(value: i64, what: &str, field: &str) -> Result<usize> {
     usize::try_from(value).map_err(|_| {
         Error::new(
-            ErrorKind::BadSize,
+            DsStatus::BadSize,
             format!("{what}: {field} = {value} is negative"),
         )
     })
@@ -117,7 +118,7 @@ impl DsMatrix {
                     (ncols, "ncols")
                 };
                 let plen = outer.checked_add(1).ok_or_else(|| {
-                    Error::new(ErrorKind::BadSize, format!("{what}: {name} is too large"))
+                    Error::new(DsStatus::BadSize, format!("{what}: {name} is too large"))
                 })?;
                 let p_name = format!("{what}.p");
                 // SAFETY: the caller guarantees p holds outer+1 pointers.
@@ -131,7 +132,7 @@ impl DsMatrix {
                     .and_then(|n| usize::try_from(n).ok())
                     .ok_or_else(|| {
                         Error::new(
-                            ErrorKind::BadIndex,
+                            DsStatus::BadIndex,
                             format!(
                                 "{what}: p[{outer}] = {last} is below base {base} \
                                  (it must be base + the number of entries)"
@@ -172,7 +173,7 @@ impl DsMatrix {
             0 => Ok(0),
             1 => Ok(1),
             b => Err(Error::new(
-                ErrorKind::BadArgument,
+                DsStatus::BadArgument,
                 format!("{what}: base = {b} is not 0 or 1"),
             )),
         }
@@ -241,10 +242,10 @@ mod tests {
         let (p, i, x) = ([0i64, 1, 3], [0i64, 0, 1], [1.0, 2.0, 3.0]);
         let good = csc(&p, &i, &x, 0);
         let zeros = [0i64; 3];
-        let cases: Vec<(DsMatrix, ErrorKind, &str)> = vec![
+        let cases: Vec<(DsMatrix, DsStatus, &str)> = vec![
             (
                 DsMatrix { format: 4, ..good },
-                ErrorKind::BadArgument,
+                DsStatus::BadArgument,
                 "K.format = 4",
             ),
             (
@@ -252,58 +253,46 @@ mod tests {
                     index_type: -1,
                     ..good
                 },
-                ErrorKind::BadArgument,
+                DsStatus::BadArgument,
                 "K.index_type",
             ),
             (
                 DsMatrix { storage: 9, ..good },
-                ErrorKind::BadArgument,
+                DsStatus::BadArgument,
                 "K.storage",
             ),
             (
                 DsMatrix { base: 2, ..good },
-                ErrorKind::BadArgument,
+                DsStatus::BadArgument,
                 "base = 2",
             ),
             (
                 DsMatrix { nrows: -1, ..good },
-                ErrorKind::BadSize,
+                DsStatus::BadSize,
                 "nrows = -1",
             ),
             (
                 DsMatrix { ncols: -2, ..good },
-                ErrorKind::BadSize,
+                DsStatus::BadSize,
                 "ncols = -2",
             ),
-            (
-                DsMatrix { p: null(), ..good },
-                ErrorKind::NullPointer,
-                "K.p",
-            ),
-            (
-                DsMatrix { i: null(), ..good },
-                ErrorKind::NullPointer,
-                "K.i",
-            ),
-            (
-                DsMatrix { x: null(), ..good },
-                ErrorKind::NullPointer,
-                "K.x",
-            ),
+            (DsMatrix { p: null(), ..good }, DsStatus::NullPointer, "K.p"),
+            (DsMatrix { i: null(), ..good }, DsStatus::NullPointer, "K.i"),
+            (DsMatrix { x: null(), ..good }, DsStatus::NullPointer, "K.x"),
             (
                 DsMatrix {
                     base: 1,
                     p: zeros.as_ptr().cast(),
                     ..good
                 },
-                ErrorKind::BadIndex,
+                DsStatus::BadIndex,
                 "p[2] = 0 is below base 1",
             ),
         ];
         for (m, kind, text) in cases {
             // SAFETY: arrays valid for the lengths the fields give (or rejected first).
             let e = unsafe { m.view("K") }.unwrap_err();
-            assert_eq!(e.kind, kind, "{}", e.message);
+            assert_eq!(e.status, kind, "{}", e.message);
             assert!(e.message.contains(text), "{} lacks {text}", e.message);
         }
     }
@@ -327,9 +316,9 @@ mod tests {
         assert_eq!((v.nrows, v.ncols, v.x.len()), (0, 5, 0));
         // SAFETY: a negative nnz is rejected before any read.
         let e = unsafe { DsMatrix { nnz: -1, ..m }.view("N") }.unwrap_err();
-        assert_eq!(e.kind, ErrorKind::BadSize);
+        assert_eq!(e.status, DsStatus::BadSize);
         // SAFETY: nnz = 1 with NULL arrays is rejected before any read.
         let e = unsafe { DsMatrix { nnz: 1, ..m }.view("N") }.unwrap_err();
-        assert_eq!(e.kind, ErrorKind::NullPointer);
+        assert_eq!(e.status, DsStatus::NullPointer);
     }
 }

@@ -23,6 +23,7 @@
 #![cfg_attr(not(feature = "internals"), allow(unused_imports))]
 
 mod boundary;
+mod error;
 mod info;
 mod last_error;
 mod matrix;

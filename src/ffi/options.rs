@@ -2,9 +2,9 @@
 //! [`Options`].
 
 use super::boundary::entry;
+use super::error::{CError as Error, CResult as Result};
 use super::status::DsStatus;
 use super::types::{CEnum, DsDualForm, DsMethod, DsOrdering};
-use crate::error::{Error, ErrorKind, Result};
 use crate::options::Options;
 use std::panic::{AssertUnwindSafe, catch_unwind};
 
@@ -154,7 +154,7 @@ impl DsOptions {
     ///
     /// Errors: `BadArgument` (see [`DsOptions`]).
     pub(crate) fn to_options(self) -> Result<Options> {
-        let bad = |msg: String| Error::new(ErrorKind::BadArgument, msg);
+        let bad = |msg: String| Error::new(DsStatus::BadArgument, msg);
         let method = DsMethod::parse(self.method, "opts.method")?;
         let dual_form = DsDualForm::parse(self.dual_form, "opts.dual_form")?;
         let ordering = DsOrdering::parse(self.ordering, "opts.ordering")?;
@@ -210,7 +210,7 @@ impl DsOptions {
         }
         if !ptr.is_aligned() {
             return Err(Error::new(
-                ErrorKind::BadArgument,
+                DsStatus::BadArgument,
                 format!("argument opts = {ptr:p} is not aligned"),
             ));
         }
@@ -219,7 +219,7 @@ impl DsOptions {
         let size = unsafe { std::ptr::addr_of!((*ptr).struct_size).read() } as usize;
         if !SIZES.contains(&size) {
             return Err(Error::new(
-                ErrorKind::BadArgument,
+                DsStatus::BadArgument,
                 format!(
                     "opts.struct_size = {size} is not the size of a DsOptions of any version \
                      ({V01_SIZE}, {V02_SIZE}, {V03_SIZE}, {V04_SIZE} or {SIZE}): initialise \
@@ -272,17 +272,17 @@ impl Default for DsOptions {
 pub unsafe extern "C" fn ds_options_init(opts: *mut DsOptions, size: usize) -> DsStatus {
     entry("ds_options_init", || {
         if opts.is_null() {
-            return Err(Error::new(ErrorKind::NullPointer, "argument opts is NULL"));
+            return Err(Error::new(DsStatus::NullPointer, "argument opts is NULL"));
         }
         if !opts.is_aligned() {
             return Err(Error::new(
-                ErrorKind::BadArgument,
+                DsStatus::BadArgument,
                 format!("argument opts = {opts:p} is not aligned"),
             ));
         }
         if !SIZES.contains(&size) {
             return Err(Error::new(
-                ErrorKind::BadArgument,
+                DsStatus::BadArgument,
                 format!(
                     "size = {size} is not the size of a DsOptions of any version \
                      ({V01_SIZE}, {V02_SIZE}, {V03_SIZE}, {V04_SIZE} or {SIZE})"
@@ -591,7 +591,7 @@ mod tests {
         for (bad, text) in cases {
             // SAFETY: bad is a valid DsOptions.
             let e = unsafe { DsOptions::read(&bad) }.unwrap_err();
-            assert_eq!(e.kind, ErrorKind::BadArgument);
+            assert_eq!(e.status, DsStatus::BadArgument);
             assert!(e.message.contains(text), "{} lacks {text}", e.message);
         }
     }

@@ -5,12 +5,12 @@
 //! the body, -T^T lambda_T, opposes the slip T u.
 
 use super::boundary::{OutArray, entry, optional_in, ref_in, ref_mut, slice_in};
+use super::error::{CError as Error, CResult as Result};
 use super::matrix::DsMatrix;
 use super::monitor::{DsLogFn, DsMonitorFn, LOG_ITERATIONS, LOG_SILENT, Watch};
 use super::options::DsOptions;
 use super::status::DsStatus;
 use super::types::{CEnum, DsFriction};
-use crate::error::{Error, ErrorKind, Result};
 use crate::friction::Friction;
 use crate::problem::ContactProblem;
 use std::panic::{AssertUnwindSafe, catch_unwind};
@@ -32,7 +32,7 @@ pub(super) fn dimension(d: i32) -> Result<usize> {
         2 => Ok(2),
         3 => Ok(3),
         _ => Err(Error::new(
-            ErrorKind::BadArgument,
+            DsStatus::BadArgument,
             format!("d = {d} is not 2 or 3 (the contact dimension)"),
         )),
     }
@@ -175,7 +175,7 @@ pub unsafe extern "C" fn ds_problem_refactor(
         let (problem, k) = unsafe { (ref_mut(problem, "problem")?, ref_in(k, "k")?) };
         // SAFETY: K's arrays match its fields (contract).
         let kv = unsafe { k.view("K")? };
-        problem.inner.refactor(&kv)
+        Ok(problem.inner.refactor(&kv)?)
     })
 }
 
@@ -203,7 +203,7 @@ pub unsafe extern "C" fn ds_problem_set_contacts(
         };
         // SAFETY: the matrices' arrays match their fields (contract).
         let (nv, tv) = unsafe { (n.view("N")?, t.view("T")?) };
-        problem.inner.set_contacts(&nv, &tv)
+        Ok(problem.inner.set_contacts(&nv, &tv)?)
     })
 }
 
@@ -232,7 +232,7 @@ pub unsafe extern "C" fn ds_problem_sizes(
         let n_contacts = OutArray::new(n_contacts, 1, "n_contacts")?;
         let d = OutArray::new(d, 1, "d")?;
         let p = &problem.inner;
-        let too_big = |_| Error::new(ErrorKind::BadSize, "size does not fit in int64_t");
+        let too_big = |_| Error::new(DsStatus::BadSize, "size does not fit in int64_t");
         let (nd, nc) = (
             i64::try_from(p.n_dofs()).map_err(too_big)?,
             i64::try_from(p.n_contacts()).map_err(too_big)?,
@@ -297,7 +297,7 @@ pub unsafe extern "C" fn ds_problem_set_compliance(
                 optional_in(k_t, m, "k_t")?,
             )
         };
-        problem.inner.set_compliance(cn, mn, kt)
+        Ok(problem.inner.set_compliance(cn, mn, kt)?)
     })
 }
 
@@ -367,7 +367,7 @@ pub unsafe extern "C" fn ds_problem_set_log(
         let problem = unsafe { ref_mut(problem, "problem")? };
         if !(LOG_SILENT..=LOG_ITERATIONS).contains(&level) {
             return Err(Error::new(
-                ErrorKind::BadArgument,
+                DsStatus::BadArgument,
                 format!("level = {level}: the log level must be 0, 1 or 2"),
             ));
         }
@@ -412,12 +412,12 @@ pub unsafe extern "C" fn ds_problem_dump(
         // SAFETY: NULL is rejected; otherwise a live handle (contract).
         let problem = unsafe { ref_in(problem, "problem")? };
         if dir.is_null() {
-            return Err(Error::new(ErrorKind::NullPointer, "dir is NULL"));
+            return Err(Error::new(DsStatus::NullPointer, "dir is NULL"));
         }
         // SAFETY: dir is a NUL-terminated string (contract).
         let dir = unsafe { std::ffi::CStr::from_ptr(dir) }
             .to_str()
-            .map_err(|_| Error::new(ErrorKind::BadArgument, "dir is not valid UTF-8"))?;
+            .map_err(|_| Error::new(DsStatus::BadArgument, "dir is not valid UTF-8"))?;
         let law = DsFriction::parse(friction, "friction")?;
         let (n, m) = (problem.inner.n_dofs(), problem.inner.n_contacts());
         // SAFETY: the arrays hold n, m, m values (contract); NULL only if empty.
@@ -432,8 +432,7 @@ pub unsafe extern "C" fn ds_problem_dump(
             DsFriction::Tresca => Friction::Tresca(bound),
             DsFriction::Coulomb => Friction::Coulomb(bound),
         };
-        problem
-            .inner
-            .write_folder(std::path::Path::new(dir), f, g, law)
+        let dir = std::path::Path::new(dir);
+        Ok(problem.inner.write_folder(dir, f, g, law)?)
     })
 }

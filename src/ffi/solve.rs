@@ -2,13 +2,13 @@
 //! solve, and the outputs written per status after it returned.
 
 use super::boundary::{OutArray, entry, ref_mut, slice_in};
+use super::error::{CError as Error, CResult as Result};
 use super::monitor::LOG_ITERATIONS;
 use super::options::DsOptions;
 use super::problem::DsProblem;
 use super::report::DsReport;
 use super::status::DsStatus;
 use super::types::{CEnum, DsFriction};
-use crate::error::{Error, ErrorKind, Result};
 use crate::friction::Friction;
 use crate::problem::Solution;
 use crate::report::SolveStatus;
@@ -119,14 +119,14 @@ unsafe fn solve_impl(
     let message = match status {
         SolveStatus::Converged => return Ok(()),
         SolveStatus::Stopped => (
-            ErrorKind::Stopped,
+            DsStatus::Stopped,
             format!(
                 "{name} stopped by the monitor callback after {outer} outer iterations \
                  (err = {err:.3e}); the last iterate was written"
             ),
         ),
         SolveStatus::Stalled => (
-            ErrorKind::Stalled,
+            DsStatus::Stalled,
             format!(
                 "{name} stalled: err = {err:.3e} > tol = {:.3e} after {outer} outer \
                  iterations, the best err not lowered by the factor {} over the last {} \
@@ -135,7 +135,7 @@ unsafe fn solve_impl(
             ),
         ),
         SolveStatus::TimeLimit => (
-            ErrorKind::TimeLimit,
+            DsStatus::TimeLimit,
             format!(
                 "{name} reached max_seconds = {} with err = {err:.3e} > tol = {:.3e} after \
                  {outer} outer iterations; the iterate with the lowest err was written",
@@ -143,7 +143,7 @@ unsafe fn solve_impl(
             ),
         ),
         SolveStatus::NotConverged => (
-            ErrorKind::NotConverged,
+            DsStatus::NotConverged,
             format!(
                 "{name} did not converge: err = {err:.3e} > tol = {:.3e} after {outer} outer \
                  iterations (max_outer = {}, max_inner = {}); outputs not written",

@@ -3,7 +3,8 @@
 //! `DS_STATUS_BAD_ARGUMENT` for an unknown value. The enums are force-exported to the
 //! header (cbindgen.toml `[export] include`).
 
-use crate::error::{Error, ErrorKind, Result};
+use super::error::{CError as Error, CResult as Result};
+use super::status::DsStatus;
 use crate::options::{DualForm, Method, Ordering};
 use crate::sparse::Storage;
 
@@ -162,7 +163,7 @@ pub(crate) trait CEnum: Copy + 'static {
                 .map(|(i, (_, name))| format!("{name} = {i}"))
                 .collect();
             Error::new(
-                ErrorKind::BadArgument,
+                DsStatus::BadArgument,
                 format!(
                     "{what} = {v} is not a valid {} ({})",
                     Self::NAME,
@@ -321,7 +322,7 @@ mod tests {
         assert_eq!(E::from_i32(-1), None);
         assert_eq!(E::from_i32(E::ALL.len() as i32), None);
         let e = E::parse(77, "K.format").unwrap_err();
-        assert_eq!(e.kind, ErrorKind::BadArgument);
+        assert_eq!(e.status, DsStatus::BadArgument);
         assert!(e.message.contains("K.format = 77"), "{}", e.message);
     }
 
