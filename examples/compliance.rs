@@ -7,7 +7,10 @@
 //! k_T,i = s / A_tt for its tangential rows; s = 0.1 (soft: the interface
 //! carries most of the compliance), 10 (the penalty a commercial code would
 //! use: an overclosure of a tenth of the body's deflection) and 1e4 (very
-//! stiff, near the rigid limit). Per law: the cold solve's seconds (median of
+//! stiff, near the rigid limit), and the power law m_N = 2 with
+//! c_N,i = 10 / (A_ii delta_ref), delta_ref the largest penetration of the
+//! penalty row (the same force there; Newton on the law, docs/design.md
+//! section 8). Per law: the cold solve's seconds (median of
 //! `--reps`) over the baseline, Newton steps (outer), products or sweeps
 //! (inner), open / stick / slip, err; the history's mean step over the
 //! baseline and its Newton steps.
@@ -93,15 +96,23 @@ fn main() {
             } else {
                 Friction::Coulomb(&sc.mu)
             };
-            for (label, s) in [
-                ("rigid", f64::INFINITY),
-                ("soft 0.1", 0.1),
-                ("penalty 10", 10.0),
-                ("stiff 1e4", 1e4),
+            let mut delta_ref = 0.0f64;
+            for (label, s, e) in [
+                ("rigid", f64::INFINITY, 1.0),
+                ("soft 0.1", 0.1, 1.0),
+                ("penalty 10", 10.0, 1.0),
+                ("stiff 1e4", 1e4, 1.0),
+                ("power m = 2", 10.0, 2.0),
             ] {
-                let cn: Vec<f64> = a_nn.iter().map(|a| s / a).collect();
+                let scale = if e == 1.0 {
+                    1.0
+                } else {
+                    delta_ref.powf(e - 1.0)
+                };
+                let cn: Vec<f64> = a_nn.iter().map(|a| s / a / scale).collect();
                 let kt: Vec<f64> = a_tt.iter().map(|a| s / a).collect();
-                pb.set_compliance(Some(&cn), None, Some(&kt))
+                let mn = vec![e; m];
+                pb.set_compliance(Some(&cn), Some(&mn), Some(&kt))
                     .expect("valid stiffnesses");
                 let mut times = Vec::new();
                 let mut last: Option<Solution> = None;
@@ -112,6 +123,11 @@ fn main() {
                     last = Some(sol);
                 }
                 let sol = last.expect("one solve");
+                if label == "penalty 10" {
+                    let mut nu = vec![0.0; m];
+                    sc.n.mul_vec(&sol.u, &mut nu);
+                    delta_ref = (0..m).map(|i| nu[i] - sc.g[i]).fold(0.0, f64::max);
+                }
                 let r = &sol.report;
                 assert_eq!(r.status, SolveStatus::Converged, "{r:?}");
                 // The history: press in STEPS / 2, then shear.

@@ -878,6 +878,7 @@ impl ContactProblem {
             // An open tangent carries nothing: 1e4 times A_ii's compliance.
             d_max[i] = 1e4 * (self.dual.diag(i) - self.dual.shift()[i]);
         }
+        let cold = nonlinear.iter().all(|&i| lam[i] == 0.0);
         let mut offset = vec![0.0; m];
         let mut b_round = b.clone();
         let mut rounds = 0;
@@ -915,7 +916,11 @@ impl ContactProblem {
         let mut err = f64::INFINITY;
         loop {
             if !nonlinear.is_empty() {
-                let (shift, s) = self.compliance.linearised(self.d, &delta, &d_max);
+                // A cold start's first round is rigid at the nonlinear
+                // contacts (D = 0); its forces give the first tangent.
+                let rigid = vec![0.0; m];
+                let cap = if rounds == 0 && cold { &rigid } else { &d_max };
+                let (shift, s) = self.compliance.linearised(self.d, &delta, cap);
                 self.dual.set_shift(&shift);
                 b_round.copy_from_slice(&b);
                 for &i in &nonlinear {
@@ -931,6 +936,7 @@ impl ContactProblem {
                 monitor: Some(std::cell::RefCell::new(&mut relay)),
                 deadline,
                 predicted: extrapolated && rounds == 0,
+                near: rounds > 0,
             };
             let shift = self.dual.shift();
             for _ in 0..=REFINEMENTS {
@@ -993,7 +999,11 @@ impl ContactProblem {
             // and the penetrations the next tangent is taken at.
             for &i in &nonlinear {
                 let raw = v[i] + offset[i] + shift[i] * lam[i];
-                delta[i] = raw;
+                delta[i] = if rounds == 0 && cold {
+                    self.compliance.penetration(i, lam[i])
+                } else {
+                    raw
+                };
                 v[i] = raw - self.compliance.penetration(i, lam[i]);
             }
             err = natural_map_error(lam, &v, &self.dual.rho, &b, &p, self.d);

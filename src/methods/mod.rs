@@ -73,6 +73,11 @@ pub struct DualProblem<'a> {
     /// the load increment is already in them, so the natural map at them sorts
     /// the contacts (a plain warm start's is sorted by the multipliers alone).
     pub predicted: bool,
+    /// The starting multipliers are the answer of a neighbouring problem (a
+    /// round of Newton on a nonlinear compliance law, docs/design.md section
+    /// 8): Newton takes no warm-up sweeps and sorts the contacts by the
+    /// natural map at the start, as for a prediction.
+    pub near: bool,
 }
 
 impl DualProblem<'_> {

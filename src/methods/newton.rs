@@ -961,7 +961,8 @@ impl OuterStep for Newton {
         }
         // A warm start's first step takes its active set from the multipliers
         // (see WARM_C); every later step from the natural map.
-        let cscale = if self.warm && self.warm_sort && !problem.predicted && k == 0 {
+        let cscale = if self.warm && self.warm_sort && !problem.predicted && !problem.near && k == 0
+        {
             WARM_C
         } else {
             1.0
@@ -1307,6 +1308,7 @@ mod tests {
             monitor: None,
             deadline: None,
             predicted: false,
+            near: false,
         };
         let c = problem.dual.c;
         let (mut lam_exact, mut w_exact) = (vec![0.0; c], vec![0.0; c]);
@@ -1520,6 +1522,7 @@ mod tests {
             monitor: None,
             deadline: None,
             predicted: false,
+            near: false,
         };
         let mut newton = Newton::new(&problem, 1e-12);
         setup(&mut newton);
