@@ -149,6 +149,10 @@ program minimal_f
    ok = ok .and. st == DS_STATUS_OK .and. abs(ln(1) - 4.0d0) <= 1.0d-9 .and. &
         abs(lt(1) - 0.2d0) <= 1.0d-9 .and. abs(u(1) - 0.4d0) <= 1.0d-9 .and. &
         abs(u(2) + 1.5d0) <= 1.0d-9
+   call ds_info_init(info)
+   st = ds_problem_info(pb, opts, info)
+   ok = ok .and. st == DS_STATUS_OK .and. info%compliant_contacts == 1 .and. &
+        info%power_law_contacts == 0
    st = ds_problem_set_compliance(pb)
    if (st == DS_STATUS_OK) st = ds_solve(pb, friction=DS_FRICTION_TRESCA, f=f, g=g, &
                                          bound=p, u=u, lambda_n=ln, lambda_t=lt)

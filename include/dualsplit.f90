@@ -201,10 +201,12 @@ module dualsplit
       integer(c_int64_t) :: refactor_bytes !< predicted peak bytes of ds_problem_refactor
       integer(c_int64_t) :: memory_limit  !< the limit checked against, bytes (0: unknown)
       real(c_double)     :: analyse_seconds
+      integer(c_int64_t) :: compliant_contacts !< contacts with finite c_N or k_T (0.8)
+      integer(c_int64_t) :: power_law_contacts !< of those, m_N /= 1 (0.8)
    end type DsInfo
 
    !> sizeof(DsInfo) in C (tests/fortran.rs checks it).
-   integer(c_size_t), parameter, public :: DS_INFO_SIZE = 120
+   integer(c_size_t), parameter, public :: DS_INFO_SIZE = 136
 
    !> What the monitor callback receives after every outer iteration.
    type, bind(C), public :: DsProgress
@@ -606,7 +608,7 @@ contains
       type(DsInfo), intent(out) :: info
       info = DsInfo(int(DS_INFO_SIZE, c_int32_t), 0, 0_c_int64_t, 0_c_int64_t, 0_c_int64_t, &
          0_c_int64_t, 0_c_int64_t, 0.0_c_double, 0, 0, 0, 0, 0_c_int64_t, 0_c_int64_t, &
-         0_c_int64_t, 0_c_int64_t, 0_c_int64_t, 0.0_c_double)
+         0_c_int64_t, 0_c_int64_t, 0_c_int64_t, 0.0_c_double, 0_c_int64_t, 0_c_int64_t)
    end subroutine ds_info_init
 
    !> The analysis alone (no handle, nothing factored): sizes, the factor's size

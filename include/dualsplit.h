@@ -501,7 +501,7 @@ typedef struct DsOptions {
  Set struct_size = sizeof(DsInfo) before the call: the struct grows at its end
  from version to version, and the library writes no byte past struct_size
  (fields a newer library has and the caller's struct lacks are left out).
- Added in version 0.5 (120 bytes).
+ Added in version 0.5 (120 bytes); 136 bytes from version 0.8.
  */
 typedef struct DsInfo {
   /*
@@ -583,6 +583,18 @@ typedef struct DsInfo {
    Seconds of the ordering and the symbolic factorisation.
    */
   double analyse_seconds;
+  /*
+   Contacts with a compliant interface law (finite c_N or k_T, see
+   ds_problem_set_compliance); 0 from ds_analyse and where every contact is
+   rigid. Added in version 0.8 (136 bytes).
+   */
+  int64_t compliant_contacts;
+  /*
+   Of those, the contacts whose normal law is a power law with m_N != 1
+   (solved by Newton on the law: several dual solves per ds_solve). Added in
+   version 0.8.
+   */
+  int64_t power_law_contacts;
 } DsInfo;
 
 /*
@@ -964,7 +976,9 @@ enum DsStatus ds_problem_sizes(const struct DsProblem *problem,
  the force scaled by k_T,new / k_T,old (zero where either is INFINITY).
  ds_problem_set_contacts with another m makes every contact rigid. All
  three NULL: every contact rigid. The report's err is then the natural map
- of the regularised conditions.
+ of the regularised conditions; ds_problem_info counts the compliant
+ contacts (DsInfo.compliant_contacts, power_law_contacts). Added in version
+ 0.8.
 
  Returns DS_STATUS_OK, DS_STATUS_NULL_POINTER (problem), DS_STATUS_NOT_FINITE
  (NaN, -INFINITY, an infinite m_N), DS_STATUS_BAD_ARGUMENT (c_N <= 0, m_N
@@ -1149,7 +1163,7 @@ const char *ds_version(void);
 /* The version of dualsplit this header belongs to (ds_version() gives the one a
  * program runs against; tests/header.rs checks these against Cargo.toml). */
 #define DS_VERSION_MAJOR 0
-#define DS_VERSION_MINOR 7
+#define DS_VERSION_MINOR 8
 #define DS_VERSION_PATCH 0
 
 #ifndef DS_NO_OPTIONS_DEFAULT_MACRO

@@ -52,4 +52,11 @@ pub struct Info {
     pub memory_limit: usize,
     /// Seconds of the ordering and the symbolic factorisation.
     pub analyse_seconds: f64,
+    /// Contacts with a compliant interface law (finite c_N or k_T, see
+    /// [`crate::ContactProblem::set_compliance`]); 0 for an analysis without a
+    /// problem, and where every contact is rigid (Signorini, rigid stick).
+    pub compliant_contacts: usize,
+    /// Of those, the contacts whose normal law is a power law with m_N != 1
+    /// (solved by Newton on the law: several dual solves per solve).
+    pub power_law_contacts: usize,
 }

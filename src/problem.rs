@@ -278,17 +278,21 @@ impl ContactProblem {
         let limit = memory::limit(opts.max_memory);
         let now = self.dual.condensation;
         let trailing = Dual::trailing_available(&self.factor, &self.n, &self.t);
-        Self::info_of(
-            self.d,
-            &self.k,
-            &self.n,
-            &self.factor,
-            &self.sizes,
-            now,
-            trailing,
-            opts,
-            limit,
-        )
+        Info {
+            compliant_contacts: self.compliant_contacts(),
+            power_law_contacts: self.compliance.nonlinear().len(),
+            ..Self::info_of(
+                self.d,
+                &self.k,
+                &self.n,
+                &self.factor,
+                &self.sizes,
+                now,
+                trailing,
+                opts,
+                limit,
+            )
+        }
     }
 
     #[allow(clippy::too_many_arguments)]
@@ -332,6 +336,8 @@ impl ContactProblem {
             ),
             memory_limit: limit.unwrap_or(0),
             analyse_seconds: factor.analyse_seconds,
+            compliant_contacts: 0,
+            power_law_contacts: 0,
         }
     }
 

@@ -634,6 +634,22 @@ fn a_compliant_increment_replays_from_its_folder() {
     );
     let lt_cli = dualsplit::mtx::read_vector(&out.join("lambda_t.txt")).unwrap();
     assert!(max_diff(&lt_cli, &step.lambda_t) <= 1e-8 * scale);
+    let compliant = (0..m).filter(|&i| i % 2 == 0 || i % 3 != 0).count();
+    assert_eq!(pb.info(&o).compliant_contacts, compliant);
+    let json = std::fs::read_to_string(out.join("report.json")).unwrap();
+    assert!(
+        json.contains(&format!("\"compliant_contacts\": {compliant}")),
+        "{json}"
+    );
+    let info = std::process::Command::new(env!("CARGO_BIN_EXE_dualsplit"))
+        .args(["info", dir.to_str().unwrap()])
+        .output()
+        .unwrap();
+    let said = String::from_utf8_lossy(&info.stdout);
+    assert!(
+        said.contains(&format!("compliant on {compliant} contacts")),
+        "{said}"
+    );
 
     // A short kt.txt, a NaN in cn.txt and -inf are refused by the reader.
     std::fs::write(dir.join("kt.txt"), "1\n2\n").unwrap();

@@ -1449,9 +1449,38 @@ fn set_compliance_checks_its_arrays_and_keeps_the_law_on_error() {
             "the law changed after an error"
         );
     }
+    assert_eq!(compliant_counts(h), (1, 0), "c_N on contact 0, m_N = 1");
+    let mn = [2.0, 1.0];
+    // SAFETY: a live handle; c_n and m_n hold m values, k_t is NULL.
+    expect_ok(unsafe { ds_problem_set_compliance(h, cn.as_ptr(), mn.as_ptr(), null()) });
+    assert_eq!(compliant_counts(h), (1, 1), "a power law on contact 0");
+    let kt = [f64::INFINITY, 30.0];
+    // SAFETY: a live handle; k_t holds m values.
+    expect_ok(unsafe { ds_problem_set_compliance(h, null(), null(), kt.as_ptr()) });
+    assert_eq!(compliant_counts(h), (1, 0), "k_T alone on contact 1");
     // All NULL: rigid again.
     // SAFETY: a live handle; NULL arrays mean the defaults.
     expect_ok(unsafe { ds_problem_set_compliance(h, null(), null(), null()) });
+    assert_eq!(compliant_counts(h), (0, 0), "every contact rigid");
     assert_usable(h);
     free(h);
+}
+
+/// DsInfo.compliant_contacts and power_law_contacts of a live handle; a DsInfo
+/// of version 0.5 (120 bytes) gets nothing past its end.
+fn compliant_counts(h: *mut DsProblem) -> (i64, i64) {
+    // SAFETY: DsInfo is plain old data; zero is a value.
+    let mut info: DsInfo = unsafe { std::mem::zeroed() };
+    info.struct_size = std::mem::size_of::<DsInfo>() as u32;
+    // SAFETY: a live handle, default options, a whole DsInfo.
+    expect_ok(unsafe { ds_problem_info(h, null(), &mut info) });
+    let mut old: DsInfo = unsafe { std::mem::zeroed() };
+    old.struct_size = 120;
+    old.compliant_contacts = -7;
+    old.power_law_contacts = -7;
+    // SAFETY: as above; the library writes at most 120 bytes.
+    expect_ok(unsafe { ds_problem_info(h, null(), &mut old) });
+    assert_eq!(old.m, info.m);
+    assert_eq!((old.compliant_contacts, old.power_law_contacts), (-7, -7));
+    (info.compliant_contacts, info.power_law_contacts)
 }

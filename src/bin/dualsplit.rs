@@ -123,6 +123,8 @@ OUTPUT (OUTDIR):
         memory_predicted, memory_peak
                             the solve's predicted and counted peak bytes of the
                             library's large allocations
+        compliant_contacts  contacts with a compliant law (cn.txt or kt.txt
+                            finite there; 0: the rigid problem was solved)
     Numbers are written with full precision (shortest round-trip form). The four
     files left in OUTDIR by an earlier run are removed first; on an error only
     report.json is written (when OUTDIR can be written).
@@ -551,6 +553,7 @@ fn success_report(args: &SolveArgs, pf: &Sizes, r: &Report, read_s: f64) -> Stri
     j.string("choice", &r.choice);
     j.integer("memory_predicted", r.memory_predicted);
     j.integer("memory_peak", r.memory_peak);
+    j.integer("compliant_contacts", r.compliant_contacts);
     j.finish()
 }
 
@@ -713,10 +716,20 @@ fn info(args: &SolveArgs) -> ExitCode {
     };
     let mb = |b: usize| format!("{:.1} MB", b as f64 / 1e6);
     println!("{}", args.dir.display());
+    let law = &pf.interface;
+    let compliant = (0..i.m)
+        .filter(|&c| {
+            let finite = |v: &Option<Vec<f64>>| v.as_ref().is_some_and(|v| v[c].is_finite());
+            finite(&law.cn) || finite(&law.kt)
+        })
+        .count();
     println!(
         "  n = {}, m = {}, d = {}, c = {} dual unknowns, nnz(K) = {}",
         i.n, i.m, i.d, i.c, i.nnz_k
     );
+    if compliant > 0 {
+        println!("  interface: compliant on {compliant} contacts (cn.txt, kt.txt)");
+    }
     println!(
         "  ordering {}: nnz(L) = {}, {:.3e} flops per factorisation (analysed in {:.3} s)",
         i.ordering.name(),

@@ -18,7 +18,7 @@ use crate::problem::ContactProblem;
 /// Set struct_size = sizeof(DsInfo) before the call: the struct grows at its end
 /// from version to version, and the library writes no byte past struct_size
 /// (fields a newer library has and the caller's struct lacks are left out).
-/// Added in version 0.5 (120 bytes).
+/// Added in version 0.5 (120 bytes); 136 bytes from version 0.8.
 #[repr(C)]
 #[derive(Copy, Clone, Debug, PartialEq)]
 pub struct DsInfo {
@@ -65,6 +65,14 @@ pub struct DsInfo {
     pub memory_limit: u64,
     /// Seconds of the ordering and the symbolic factorisation.
     pub analyse_seconds: f64,
+    /// Contacts with a compliant interface law (finite c_N or k_T, see
+    /// ds_problem_set_compliance); 0 from ds_analyse and where every contact is
+    /// rigid. Added in version 0.8 (136 bytes).
+    pub compliant_contacts: i64,
+    /// Of those, the contacts whose normal law is a power law with m_N != 1
+    /// (solved by Newton on the law: several dual solves per ds_solve). Added in
+    /// version 0.8.
+    pub power_law_contacts: i64,
 }
 
 /// A count or size as the C field (saturating; never reached in practice).
@@ -97,6 +105,8 @@ impl From<&Info> for DsInfo {
             refactor_bytes: u64_of(i.refactor_bytes),
             memory_limit: u64_of(i.memory_limit),
             analyse_seconds: i.analyse_seconds,
+            compliant_contacts: i64_of(i.compliant_contacts),
+            power_law_contacts: i64_of(i.power_law_contacts),
         }
     }
 }
@@ -221,12 +231,14 @@ mod tests {
     use std::mem::{offset_of, size_of};
 
     #[test]
-    fn layout_of_version_0_5() {
-        assert_eq!(size_of::<DsInfo>(), 120);
+    fn layout_of_version_0_8() {
+        assert_eq!(size_of::<DsInfo>(), 136);
         assert_eq!(offset_of!(DsInfo, n), 8);
         assert_eq!(offset_of!(DsInfo, ordering), 56);
         assert_eq!(offset_of!(DsInfo, setup_bytes), 72);
         assert_eq!(offset_of!(DsInfo, refactor_bytes), 96);
         assert_eq!(offset_of!(DsInfo, analyse_seconds), 112);
+        assert_eq!(offset_of!(DsInfo, compliant_contacts), 120);
+        assert_eq!(offset_of!(DsInfo, power_law_contacts), 128);
     }
 }

@@ -269,7 +269,9 @@ pub unsafe extern "C" fn ds_problem_sizes(
 /// the force scaled by k_T,new / k_T,old (zero where either is INFINITY).
 /// ds_problem_set_contacts with another m makes every contact rigid. All
 /// three NULL: every contact rigid. The report's err is then the natural map
-/// of the regularised conditions.
+/// of the regularised conditions; ds_problem_info counts the compliant
+/// contacts (DsInfo.compliant_contacts, power_law_contacts). Added in version
+/// 0.8.
 ///
 /// Returns DS_STATUS_OK, DS_STATUS_NULL_POINTER (problem), DS_STATUS_NOT_FINITE
 /// (NaN, -INFINITY, an infinite m_N), DS_STATUS_BAD_ARGUMENT (c_N <= 0, m_N
