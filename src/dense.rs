@@ -1,6 +1,12 @@
 //! Dense factorisations with an explicit parallelism (faer's low-level calls), so
 //! that they run on the problem's threads and never on rayon's global pool.
 
+//!
+//! Their dense copies and work space are allocated fallibly: where the
+//! allocator refuses one, the call answers None (as for a matrix that is not
+//! positive definite) and the caller takes its fallback.
+
+use crate::memory::{try_mat, try_scratch};
 use faer::dyn_stack::{MemBuffer, MemStack};
 use faer::linalg::cholesky::llt;
 use faer::linalg::lu::partial_pivoting as lu;
@@ -13,11 +19,8 @@ fn cholesky_in_place<T: faer::traits::ComplexField>(
     l: faer::MatMut<'_, T>,
     par: Par,
 ) -> Option<()> {
-    let mut mem = MemBuffer::new(llt::factor::cholesky_in_place_scratch::<T>(
-        l.nrows(),
-        par,
-        Default::default(),
-    ));
+    let req = llt::factor::cholesky_in_place_scratch::<T>(l.nrows(), par, Default::default());
+    let mut mem = try_scratch(req, "").ok()?;
     llt::factor::cholesky_in_place(
         l,
         Default::default(),
@@ -33,10 +36,11 @@ fn cholesky_in_place<T: faer::traits::ComplexField>(
 /// is read); None when M is not numerically positive definite.
 pub(crate) fn llt_solve(m: MatRef<'_, f64>, r: MatRef<'_, f64>, par: Par) -> Option<Mat<f64>> {
     let n = m.nrows();
-    let mut l = m.to_owned();
+    let mut l = copy(m)?;
     cholesky_in_place(l.as_mut(), par)?;
     let mut x = r.to_owned();
-    let mut mem = MemBuffer::new(llt::solve::solve_in_place_scratch::<f64>(n, r.ncols(), par));
+    let req = llt::solve::solve_in_place_scratch::<f64>(n, r.ncols(), par);
+    let mut mem = try_scratch(req, "").ok()?;
     llt::solve::solve_in_place_with_conj(
         l.as_ref(),
         Conj::No,
@@ -45,6 +49,13 @@ pub(crate) fn llt_solve(m: MatRef<'_, f64>, r: MatRef<'_, f64>, par: Par) -> Opt
         MemStack::new(&mut mem),
     );
     Some(x)
+}
+
+/// A copy of m, or None where the allocator refuses it.
+fn copy(m: MatRef<'_, f64>) -> Option<Mat<f64>> {
+    let mut a = try_mat::<f64>(m.nrows(), m.ncols(), "").ok()?;
+    a.copy_from(m);
+    Some(a)
 }
 
 /// Rounds of iterative refinement [`llt_solve_mixed`] takes at most.
@@ -62,7 +73,12 @@ impl LltF32 {
     /// definite in single precision.
     pub fn of(m: MatRef<'_, f64>, par: Par) -> Option<LltF32> {
         let n = m.nrows();
-        let mut l = Mat::<f32>::from_fn(n, n, |i, j| if i >= j { m[(i, j)] as f32 } else { 0.0 });
+        let mut l = try_mat::<f32>(n, n, "").ok()?;
+        for j in 0..n {
+            for i in j..n {
+                l[(i, j)] = m[(i, j)] as f32;
+            }
+        }
         cholesky_in_place(l.as_mut(), par)?;
         Some(LltF32 { l })
     }
@@ -323,16 +339,16 @@ fn symmetric_times_into(m: MatRef<'_, f64>, x: &[f64], y: &mut [f64], par: Par) 
 }
 
 /// X = M^-1 R by LU with partial pivoting of the square M (the result may be
-/// infinite or NaN when M is singular).
-pub(crate) fn lu_solve(m: MatRef<'_, f64>, r: MatRef<'_, f64>, par: Par) -> Mat<f64> {
+/// infinite or NaN when M is singular); None where the copy of M cannot be
+/// allocated.
+pub(crate) fn lu_solve(m: MatRef<'_, f64>, r: MatRef<'_, f64>, par: Par) -> Option<Mat<f64>> {
     let n = m.nrows();
-    let mut a = m.to_owned();
+    let mut a = copy(m)?;
     let (mut perm, mut perm_inv) = (vec![0usize; n], vec![0usize; n]);
-    let mut mem = MemBuffer::new(
-        lu::factor::lu_in_place_scratch::<usize, f64>(n, n, par, Default::default()).or(
-            lu::solve::solve_in_place_scratch::<usize, f64>(n, r.ncols(), par),
-        ),
+    let req = lu::factor::lu_in_place_scratch::<usize, f64>(n, n, par, Default::default()).or(
+        lu::solve::solve_in_place_scratch::<usize, f64>(n, r.ncols(), par),
     );
+    let mut mem = try_scratch(req, "").ok()?;
     let (_, p) = lu::factor::lu_in_place(
         a.as_mut(),
         &mut perm,
@@ -350,23 +366,21 @@ pub(crate) fn lu_solve(m: MatRef<'_, f64>, r: MatRef<'_, f64>, par: Par) -> Mat<
         par,
         MemStack::new(&mut mem),
     );
-    x
+    Some(x)
 }
 
 /// The thin SVD M = U diag(s) V^T of the square M: (U, s, V); None when it does
-/// not converge.
+/// not converge or its factors cannot be allocated.
 pub(crate) fn thin_svd(m: MatRef<'_, f64>, par: Par) -> Option<(Mat<f64>, Vec<f64>, Mat<f64>)> {
     let n = m.nrows();
-    let (mut u, mut v) = (Mat::<f64>::zeros(n, n), Mat::<f64>::zeros(n, n));
+    let (mut u, mut v) = (
+        try_mat::<f64>(n, n, "").ok()?,
+        try_mat::<f64>(n, n, "").ok()?,
+    );
     let mut s = faer::diag::Diag::<f64>::zeros(n);
-    let mut mem = MemBuffer::new(svd::svd_scratch::<f64>(
-        n,
-        n,
-        ComputeSvdVectors::Thin,
-        ComputeSvdVectors::Thin,
-        par,
-        Default::default(),
-    ));
+    let thin = ComputeSvdVectors::Thin;
+    let req = svd::svd_scratch::<f64>(n, n, thin, thin, par, Default::default());
+    let mut mem = try_scratch(req, "").ok()?;
     svd::svd(
         m,
         s.as_mut(),
@@ -408,7 +422,7 @@ mod tests {
         let (m, r, x) = case();
         let y = llt_solve(m.as_ref(), r.as_ref(), Par::Seq).unwrap();
         assert!(max_diff(&y, &x) < 1e-14);
-        let y = lu_solve(m.as_ref(), r.as_ref(), Par::Seq);
+        let y = lu_solve(m.as_ref(), r.as_ref(), Par::Seq).unwrap();
         assert!(max_diff(&y, &x) < 1e-14);
         // Not positive definite: no Cholesky.
         let neg = faer::mat![[1.0, 2.0], [2.0, 1.0]];

@@ -187,7 +187,8 @@ impl Plan {
 
     /// Factors K_II and keeps what the application reads in single precision;
     /// None where the factorisation fails (it cannot, K_II being a principal
-    /// block of an SPD K, but rounding may say otherwise).
+    /// block of an SPD K, but rounding may say otherwise) or the allocator
+    /// refuses its copy (the products then go without this preconditioner).
     pub(crate) fn form(mut self, ledger: &Arc<Ledger>) -> Option<Dirichlet> {
         self.factor.refactor(&self.k_ii).ok()?;
         let (nf, nl) = (self.nf, self.global.len());
@@ -196,11 +197,13 @@ impl Plan {
         // the face's rows (K_FI).
         let face_cols = Block::of(k, 0..nf, nl);
         let layer_cols = Block::of(k, nf..nl, nf);
-        let l_ii = self.factor.single_values();
+        let l_ii = self.factor.single_values().ok()?;
         let claim =
             ledger.claim(face_cols.bytes() + layer_cols.bytes() + l_ii.len() * 4 + 2 * nl * 4);
         Some(Dirichlet {
-            mem: RefCell::new(MemBuffer::new(self.factor.solve_scratch_single())),
+            mem: RefCell::new(
+                crate::memory::try_scratch(self.factor.solve_scratch_single(), "").ok()?,
+            ),
             work: RefCell::new((vec![0.0; nl], vec![0.0; nl])),
             face: self.global[..nf].to_vec(),
             nl,

@@ -4,15 +4,15 @@
 //! contact by contact).
 
 use crate::contact_rows::{check_shapes, contact_dofs, stack_rows};
-use crate::error::{ErrorKind, Result};
+use crate::error::Result;
 use crate::factor::Factor;
-use crate::memory::{Claim, F64, Ledger};
+use crate::memory::{Claim, F64, Ledger, try_mat, try_scratch, try_zeros};
 use crate::options::{DENSE_MAX, DualForm};
 use crate::sparse::Csc;
 use crate::threads::{PARALLEL_MIN_ENTRIES, Threads};
+use faer::MatMut;
 use faer::dyn_stack::{MemBuffer, MemStack};
 use faer::linalg::cholesky::llt::inverse as llt_inverse;
-use faer::{Mat, MatMut};
 use std::sync::Arc;
 use std::time::Instant;
 
@@ -182,7 +182,7 @@ impl Dual {
         let trailing = Self::trailing_of(factor, &b);
         let ledger = factor.ledger();
         if how == Condensation::MatrixFree {
-            let free = Operator::new(factor, &b, m, d);
+            let free = Operator::new(factor, &b, m, d)?;
             let rho = rho_of(m, d, |j| free.diag[j]);
             return Ok(Dual {
                 _claim: ledger.claim_f64(d * c),
@@ -205,8 +205,8 @@ impl Dual {
         let mut a = alloc_zeroed(c, c, "condensed dual")?;
         let claim = ledger.claim_f64(c * c);
         match how {
-            Condensation::Solves => a_by_solves(factor, &b, &mut a),
-            Condensation::TrailingBlock => a_from_trailing_block(factor, &b, &mut a),
+            Condensation::Solves => a_by_solves(factor, &b, &mut a)?,
+            Condensation::TrailingBlock => a_from_trailing_block(factor, &b, &mut a)?,
             Condensation::MatrixFree => unreachable!("returned above"),
         }
         for j in 0..c {
@@ -498,17 +498,7 @@ fn rho_of(m: usize, d: usize, diag: impl Fn(usize) -> f64) -> Vec<f64> {
 
 /// A zeroed rows x cols column-major array, or `OutOfMemory` naming `what`.
 fn alloc_zeroed(rows: usize, cols: usize, what: &str) -> Result<Vec<f64>> {
-    let oom = || {
-        crate::Error::new(
-            ErrorKind::OutOfMemory,
-            format!("{what}: a {rows} x {cols} dense matrix does not fit in memory"),
-        )
-    };
-    let len = rows.checked_mul(cols).ok_or_else(oom)?;
-    let mut v = Vec::new();
-    v.try_reserve_exact(len).map_err(|_| oom())?;
-    v.resize(len, 0.0);
-    Ok(v)
+    crate::memory::try_zeros(rows.saturating_mul(cols), what)
 }
 
 /// The matrix-free form of A = B K^-1 B^T: each product is one solve with K's
@@ -622,7 +612,9 @@ pub(crate) fn own_solves_bytes(factor: &Factor, b: &Csc) -> usize {
 }
 
 impl Operator {
-    fn new(factor: &Arc<Factor>, b: &Csc, m: usize, d: usize) -> Operator {
+    /// Errors: `OutOfMemory` when the allocator refuses its work space or the
+    /// single-precision copy of the factor.
+    fn new(factor: &Arc<Factor>, b: &Csc, m: usize, d: usize) -> Result<Operator> {
         let blocks = crate::contact_blocks::contact_blocks(factor, b, m, d);
         let mut diag = vec![0.0; b.nrows];
         for i in 0..m {
@@ -631,16 +623,17 @@ impl Operator {
                 diag[m + (d - 1) * i + s] = blocks[i * d * d + (s + 1) * (d + 1)];
             }
         }
-        let single = factor.single_values();
+        let single = factor.single_values()?;
         let own = OwnSolves::of(factor, b);
-        Operator {
+        let what = "the matrix-free dual's work space";
+        Ok(Operator {
             factor: factor.clone(),
             bt: b.transpose(),
             diag,
             blocks,
             work: std::cell::RefCell::new((
-                vec![0.0; factor.n()],
-                MemBuffer::new(factor.solve_scratch(1)),
+                try_zeros(factor.n(), what)?,
+                try_scratch(factor.solve_scratch(1), what)?,
             )),
             _single_claim: factor.ledger().claim(single.len() * 4),
             lumped: None,
@@ -649,10 +642,10 @@ impl Operator {
             narrow: std::cell::RefCell::new(Narrow::default()),
             single,
             work_single: std::cell::RefCell::new((
-                vec![0.0; factor.n()],
-                MemBuffer::new(factor.solve_scratch_single()),
+                try_zeros(factor.n(), what)?,
+                try_scratch(factor.solve_scratch_single(), what)?,
             )),
-        }
+        })
     }
 
     /// y ~= A x with the solve in single precision (the products with B in
@@ -834,15 +827,17 @@ impl Operator {
 }
 
 /// A := B K^-1 B^T by blocks of solves with K's factor (c x c, column-major).
-fn a_by_solves(factor: &Factor, b: &Csc, a: &mut [f64]) {
+/// Errors: `OutOfMemory` when the block of right-hand sides cannot be allocated.
+fn a_by_solves(factor: &Factor, b: &Csc, a: &mut [f64]) -> Result<()> {
     let (ndof, c) = (factor.n(), b.nrows);
     let bt = b.transpose();
     let width = BLOCK.min(c.max(1));
     let _work = factor
         .ledger()
         .claim(ndof * width * F64 + factor.solve_scratch(width).size_bytes());
-    let mut rhs = faer::Mat::<f64>::zeros(ndof, width);
-    let mut mem = MemBuffer::new(factor.solve_scratch(width));
+    let what = "the block of solves forming A";
+    let mut rhs = try_mat(ndof, width, what)?;
+    let mut mem = try_scratch(factor.solve_scratch(width), what)?;
     let mut col = vec![0.0; c];
     let mut j0 = 0;
     while j0 < c {
@@ -866,6 +861,7 @@ fn a_by_solves(factor: &Factor, b: &Csc, a: &mut [f64]) {
         }
         j0 += w;
     }
+    Ok(())
 }
 
 /// A := B_C S_CC^-1 B_C^T, with S_CC = L_CC L_CC^T the Schur complement of K onto
@@ -875,7 +871,9 @@ fn a_by_solves(factor: &Factor, b: &Csc, a: &mut [f64]) {
 /// a triangular product, faer's `llt::inverse`); the sandwich with the sparse B_C
 /// then costs O(nc c r) with r the nonzeros per row of B (1 to d). Forming
 /// W = L_CC^-1 B_C^T and W^T W instead costs about nc c^2 + c^2 nc flops.
-fn a_from_trailing_block(factor: &Factor, b: &Csc, a: &mut [f64]) {
+///
+/// Errors: `OutOfMemory` when the nc x nc blocks cannot be allocated.
+fn a_from_trailing_block(factor: &Factor, b: &Csc, a: &mut [f64]) -> Result<()> {
     let c = b.nrows;
     let last = factor.last();
     let nc = last.len();
@@ -884,19 +882,19 @@ fn a_from_trailing_block(factor: &Factor, b: &Csc, a: &mut [f64]) {
         pos[j] = q;
     }
     let l_claim = factor.ledger().claim_f64(nc * nc);
-    let l = factor.trailing_block();
+    let l = factor.trailing_block()?;
     let _x_claim = factor.ledger().claim_f64(nc * nc);
-    let mut x = Mat::<f64>::zeros(nc, nc);
-    {
-        // On the problem's threads: the inverse is dense c^3/3 work (the sparse
-        // factorisation decides for itself, see factor::PARALLEL_FLOPS_PER_ENTRY).
-        factor
-            .threads()
-            .run(nc * nc >= PARALLEL_MIN_ENTRIES, |par| {
-                let mut mem = MemBuffer::new(llt_inverse::inverse_scratch::<f64>(nc, par));
-                llt_inverse::inverse(x.as_mut(), l.as_ref(), par, MemStack::new(&mut mem));
-            });
-    }
+    let what = "the inverse of the trailing block";
+    let mut x = try_mat(nc, nc, what)?;
+    // On the problem's threads: the inverse is dense c^3/3 work (the sparse
+    // factorisation decides for itself, see factor::PARALLEL_FLOPS_PER_ENTRY).
+    factor
+        .threads()
+        .run(nc * nc >= PARALLEL_MIN_ENTRIES, |par| {
+            let mut mem = try_scratch(llt_inverse::inverse_scratch::<f64>(nc, par), what)?;
+            llt_inverse::inverse(x.as_mut(), l.as_ref(), par, MemStack::new(&mut mem));
+            Ok::<(), crate::Error>(())
+        })?;
     drop(l);
     drop(l_claim);
     // Only the lower triangle of X = S_CC^-1 is written: mirror it, by tiles so
@@ -937,6 +935,7 @@ fn a_from_trailing_block(factor: &Factor, b: &Csc, a: &mut [f64]) {
             }
         }
     }
+    Ok(())
 }
 
 #[cfg(test)]

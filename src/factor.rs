@@ -406,18 +406,25 @@ impl Factor {
     /// C = `last`, L_CC L_CC^T is the Schur complement of K onto C, so
     /// (K^-1)_CC = L_CC^-T L_CC^-1. Lower triangular, rows and columns in the order
     /// of `last`.
-    pub fn trailing_block(&self) -> Mat<f64> {
+    ///
+    /// Errors: `OutOfMemory` when the nc x nc block cannot be allocated.
+    pub fn trailing_block(&self) -> Result<Mat<f64>> {
         let n = self.n();
         let nc = self.last.len();
+        let mut l = crate::memory::try_mat(nc, nc, "the trailing block of the factor")?;
         if nc == 0 {
-            return Mat::zeros(0, 0);
+            return Ok(l);
         }
         let first = n - nc;
         if self.is_dense() {
-            let l = self.dense_l().submatrix(first, first, nc, nc);
-            return Mat::from_fn(nc, nc, |i, j| if i >= j { l[(i, j)] } else { 0.0 });
+            let dense = self.dense_l().submatrix(first, first, nc, nc);
+            for j in 0..nc {
+                for i in j..nc {
+                    l[(i, j)] = dense[(i, j)];
+                }
+            }
+            return Ok(l);
         }
-        let mut l = Mat::<f64>::zeros(nc, nc);
         let sym = self.supernodal_symbolic();
         let llt = SupernodalLltRef::<usize, f64>::new(sym, &self.l_values);
         for s in 0..sym.n_supernodes() {
@@ -447,7 +454,7 @@ impl Factor {
                 }
             }
         }
-        l
+        Ok(l)
     }
 
     /// Number of rows of K.
@@ -648,8 +655,21 @@ impl Factor {
     }
 
     /// L's values rounded to single precision (for [`Factor::solve_single`]).
-    pub(crate) fn single_values(&self) -> Vec<f32> {
-        self.l_values.iter().map(|&v| v as f32).collect()
+    ///
+    /// Errors: `OutOfMemory` when the copy cannot be allocated.
+    pub(crate) fn single_values(&self) -> Result<Vec<f32>> {
+        let mut v = Vec::new();
+        if v.try_reserve_exact(self.l_values.len()).is_err() {
+            return fail(
+                ErrorKind::OutOfMemory,
+                format!(
+                    "the single-precision copy of the factor: the allocation of {} bytes failed",
+                    self.l_values.len() * 4
+                ),
+            );
+        }
+        v.extend(self.l_values.iter().map(|&v| v as f32));
+        Ok(v)
     }
 
     /// Workspace of [`Factor::solve_single`] for one right-hand side.

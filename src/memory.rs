@@ -10,6 +10,7 @@
 //! are not counted (they are small next to those).
 
 use crate::error::{Error, ErrorKind, Result};
+use faer::dyn_stack::MemBuffer;
 use std::sync::Arc;
 use std::sync::atomic::{AtomicUsize, Ordering};
 
@@ -119,6 +120,52 @@ pub(crate) fn limit(max_memory: usize) -> Option<usize> {
     }
 }
 
+/// `OutOfMemory` for an allocation of `bytes` that the allocator refused.
+fn refused(what: &str, bytes: usize) -> Error {
+    Error::new(
+        ErrorKind::OutOfMemory,
+        format!(
+            "{what}: the allocation of {} ({bytes} bytes) failed",
+            human(bytes)
+        ),
+    )
+}
+
+/// A zeroed vector of `len` values, or `OutOfMemory` naming `what`: the
+/// allocations that grow with the problem return an error instead of aborting
+/// the host when the allocator refuses them (where no memory limit is known the
+/// predictions are not checked before the work starts).
+pub(crate) fn try_zeros<T: Copy + Default>(len: usize, what: &str) -> Result<Vec<T>> {
+    let bytes = len.saturating_mul(std::mem::size_of::<T>());
+    let mut v = Vec::new();
+    v.try_reserve_exact(len).map_err(|_| refused(what, bytes))?;
+    v.resize(len, T::default());
+    Ok(v)
+}
+
+/// A zeroed rows x cols matrix, or `OutOfMemory` naming `what` (see
+/// [`try_zeros`]).
+pub(crate) fn try_mat<T: Copy + Default>(
+    rows: usize,
+    cols: usize,
+    what: &str,
+) -> Result<faer::Mat<T>> {
+    let bytes = rows
+        .saturating_mul(cols)
+        .saturating_mul(std::mem::size_of::<T>());
+    let mut m = faer::Mat::new();
+    m.try_reserve(rows, cols)
+        .map_err(|_| refused(what, bytes))?;
+    m.resize_with(rows, cols, |_, _| T::default());
+    Ok(m)
+}
+
+/// Scratch memory for faer's kernels, or `OutOfMemory` naming `what` (see
+/// [`try_zeros`]).
+pub(crate) fn try_scratch(req: faer::dyn_stack::StackReq, what: &str) -> Result<MemBuffer> {
+    MemBuffer::try_new(req).map_err(|_| refused(what, req.size_bytes()))
+}
+
 /// `bytes` in the units a user reads (MB below 10 GB, else GB), for messages.
 pub(crate) fn human(bytes: usize) -> String {
     let b = bytes as f64;
@@ -163,6 +210,21 @@ pub(crate) fn check(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn refused_allocations_are_errors_not_aborts() {
+        let e = try_zeros::<f64>(usize::MAX / 8, "a test vector").unwrap_err();
+        assert_eq!(e.kind, ErrorKind::OutOfMemory);
+        assert!(e.message.contains("a test vector"), "{}", e.message);
+        let e = try_mat::<f64>(1 << 31, 1 << 31, "a test matrix").unwrap_err();
+        assert_eq!(e.kind, ErrorKind::OutOfMemory);
+        let req = faer::dyn_stack::StackReq::new::<f64>(usize::MAX / 16);
+        assert!(try_scratch(req, "test scratch").is_err());
+        let m = try_mat::<f64>(3, 2, "small").unwrap();
+        assert_eq!((m.nrows(), m.ncols()), (3, 2));
+        assert!(m.col_iter().all(|c| c.iter().all(|&v| v == 0.0)));
+        assert_eq!(try_zeros::<f32>(4, "small").unwrap(), vec![0.0f32; 4]);
+    }
 
     #[test]
     fn claims_count_live_and_peak_bytes() {

@@ -596,7 +596,7 @@ mod tests {
             }
             let on_paths = ts.cols.as_ref().unwrap().contains(&f.new_of_old()[n - 1]);
             assert!(on_paths || got[n - 1] == 7.0);
-            let values = f.single_values();
+            let values = f.single_values().unwrap();
             let mut xs: Vec<f32> = x.iter().map(|&v| v as f32).collect();
             let mut ss = ts.scratch::<f32>(n);
             ts.solve_single(&f, &values, &mut xs, &mut ss, f.threads());
@@ -652,7 +652,7 @@ mod tests {
                     let mut again = x.clone();
                     ts.solve(&f, f.values(), &mut again, &mut scratch, f.threads());
                     assert_eq!(again, got);
-                    let values = f.single_values();
+                    let values = f.single_values().unwrap();
                     let mut xs: Vec<f32> = x.iter().map(|&v| v as f32).collect();
                     let mut ss = ts.scratch::<f32>(n);
                     ts.solve_single(&f, &values, &mut xs, &mut ss, f.threads());
@@ -683,7 +683,7 @@ mod tests {
                 assert!((got[i] - full[i]).abs() <= 1e-13 * scale, "{stride} {i}");
             }
             let mut xs: Vec<f32> = x.iter().map(|&v| v as f32).collect();
-            let values = f.single_values();
+            let values = f.single_values().unwrap();
             ts.solve_single(f, &values, &mut xs, &mut ts.scratch(n), f.threads());
             for i in 0..n {
                 assert!((f64::from(xs[i]) - full[i]).abs() <= 1e-5 * scale, "{i}");

@@ -307,7 +307,11 @@ fn newton_step(
     // M = T^T A V + diag, column by column: column l is the sum over the entries of
     // dir_l of coef times T^T A[:, j], gathered from one column of A.
     let _mat_claim = dual.ledger.claim_f64(k * k);
-    let mut mat = Mat::<f64>::zeros(k, k);
+    // Where the allocator refuses the k x k system the step fails as a singular
+    // one does (the fallback sweeps take over) instead of aborting the host.
+    let Ok(mut mat) = crate::memory::try_mat::<f64>(k, k, "") else {
+        return false;
+    };
     let mut rhs = Mat::<f64>::zeros(k, 1);
     for (l, u) in red.iter().enumerate() {
         let col = mat
@@ -764,8 +768,9 @@ fn solve_reduced(
     {
         return Some(z);
     }
-    let z = threads.run(big, |par| dense::lu_solve(m, r, par));
-    if acceptable(&z) {
+    if let Some(z) = threads.run(big, |par| dense::lu_solve(m, r, par))
+        && acceptable(&z)
+    {
         return Some(z);
     }
     drop(copy_claim);
