@@ -58,7 +58,7 @@ fn copy(m: MatRef<'_, f64>) -> Option<Mat<f64>> {
     Some(a)
 }
 
-/// Rounds of iterative refinement [`llt_solve_mixed`] takes at most.
+/// Rounds of iterative refinement [`refine`] takes at most.
 const REFINE_ROUNDS: usize = 6;
 
 /// The Cholesky factor L L^T of a symmetric positive definite M rounded to

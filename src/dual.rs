@@ -73,7 +73,7 @@ pub enum Condensation {
 }
 
 impl Condensation {
-    /// How [`Dual::build`] forms a dual of `c` unknowns in the form asked for,
+    /// How `Dual::build` forms a dual of `c` unknowns in the form asked for,
     /// `trailing` when every contact DOF is among the factor's trailing DOFs.
     pub(crate) fn of(trailing: bool, form: DualForm, c: usize) -> Condensation {
         let free = match form {
@@ -110,7 +110,7 @@ impl Dual {
         )
     }
 
-    /// How [`Dual::build`] forms the dual of (N, T) on `factor` in `form`
+    /// How `Dual::build` forms the dual of (N, T) on `factor` in `form`
     /// (shapes checked by the caller).
     pub(crate) fn condensation_for(
         factor: &Factor,

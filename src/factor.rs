@@ -170,7 +170,7 @@ impl Factor {
         Ok(Arc::new(f))
     }
 
-    /// The analysis of [`Factor::with_last`] alone (ordering and symbolic
+    /// The analysis of `Factor::with_last` alone (ordering and symbolic
     /// factorisation, no numeric work), where `nd_first` makes `Auto` start
     /// with METIS (3D problems; AMD as well where METIS's fronts are small)
     /// rather than AMD: the factor's size is known

@@ -103,7 +103,7 @@ impl DualProblem<'_> {
 
 /// What the driver knows of a method: its name and how to build its outer step.
 /// Each method's file holds its `MethodSpec` constant(s); the table of
-/// [`methods!`] below lists them and defines [`Method`] from them.
+/// `methods!` below lists them and defines [`Method`] from them.
 struct MethodSpec {
     /// Short lower-case name (CLI, report.json, C's `ds_method_name`).
     name: &'static str,

@@ -4,12 +4,12 @@
 //! `block-gs`, MPRGP for `split-mprgp`).
 //!
 //! Schur variant, one outer iteration:
-//! 1. tangential step on S = A22 - A21[:,a] A11[a,a]^-1 A12[a,:] with
-//!    b_T' = b_T - A21[:,a] A11[a,a]^-1 b_N[a], a the contacts with lambda_N > 0
+//! 1. tangential step on `S = A22 - A21[:,a] A11[a,a]^-1 A12[a,:]` with
+//!    `b_T' = b_T - A21[:,a] A11[a,a]^-1 b_N[a]`, a the contacts with lambda_N > 0
 //!    (all of them at the start), bound from the previous lambda_N (Coulomb);
 //! 2. normal step on A11 with b_N - A12 lambda_T, lambda_N >= 0.
 //!
-//! The block variant uses S = A22 and b_T' = b_T - A21 lambda_N. When A11[a,a] is
+//! The block variant uses S = A22 and b_T' = b_T - A21 lambda_N. When `A11[a,a]` is
 //! numerically singular (redundant contacts), the Schur variant takes the block
 //! step for that iteration.
 //!
@@ -43,11 +43,11 @@ struct Schur {
     s: Vec<f64>,
     /// The bytes of `s` on the problem's ledger.
     _claim: Claim,
-    /// b_T - A21[:,a] A11[a,a]^-1 b_N[a].
+    /// `b_T - A21[:,a] A11[a,a]^-1 b_N[a]`.
     q: Vec<f64>,
 }
 
-/// Builds S and b_T' for the contact set `active`; None when A11[a,a] is not
+/// Builds S and b_T' for the contact set `active`; None when `A11[a,a]` is not
 /// numerically positive definite.
 fn schur(problem: &DualProblem<'_>, active: &[bool]) -> Option<Schur> {
     let dual = problem.dual;
@@ -146,8 +146,8 @@ pub(super) const SPLIT_MPRGP: MethodSpec = MethodSpec {
 
 /// Bytes of the Schur variant's dense work space on m contacts and c unknowns
 /// (ct = c - m tangential ones): the S of the previous contact set (ct x ct)
-/// while the next is formed from A11[a,a] (held with its Cholesky factor, then
-/// with S and [S, b_T']), [A12[a,:], b_N[a]] and its solve X, for a contact set
+/// while the next is formed from `A11[a,a]` (held with its Cholesky factor, then
+/// with S and `[S, b_T']`), `[A12[a,:], b_N[a]]` and its solve X, for a contact set
 /// a of up to m contacts (see [`schur`]).
 fn schur_workspace(m: usize, c: usize, _matrix_free: bool) -> usize {
     let ct = c - m;

@@ -62,10 +62,10 @@
 //!   line, for the missing entries.
 //! - Assembling the compressed columns takes memory in O(rows + columns), which
 //!   no entry count bounds (N of a large model has few entries and many columns).
-//!   A matrix read on its own ([`parse_matrix`], [`read_matrix`]) may declare at
-//!   most `max(`[`MAX_UNCONFIRMED_DIM`]` = 2^22, length of the file in bytes)` rows
+//!   A matrix read on its own (`parse_matrix`, `read_matrix`) may declare at
+//!   most max(`MAX_UNCONFIRMED_DIM` = 2^22, length of the file in bytes) rows
 //!   and columns; more is [`BadSize`](crate::ErrorKind::BadSize), before any allocation. In a
-//!   problem folder ([`read_problem`]) the vectors confirm the sizes instead: the
+//!   problem folder (`read_problem`) the vectors confirm the sizes instead: the
 //!   headers of K.mtx, N.mtx and T.mtx are read first and checked against each
 //!   other and against the lengths of f.txt, g.txt and mu.txt / p.txt (which
 //!   their own bytes justify), so sizes that do not fit are `BadSize`, with the

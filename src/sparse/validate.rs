@@ -312,7 +312,7 @@ pub(super) fn collect_dense(view: &MatrixView<'_>, what: &str, base: usize) -> R
     Ok(t)
 }
 
-/// After [`assemble`]: every entry is finite, unless duplicates summed to an
+/// After [`assemble`](super::assemble::assemble): every entry is finite, unless duplicates summed to an
 /// infinity.
 pub(super) fn check_sums_finite(a: &Csc, what: &str, base: usize) -> Result<()> {
     for j in 0..a.ncols {
