@@ -512,7 +512,7 @@ struct Operator {
     /// A_jj, j < c.
     diag: Vec<f64>,
     /// Per contact, its d x d diagonal block of A, row-major (see
-    /// [`crate::contact_blocks::contact_blocks`]).
+    /// [`crate::factor_tree::contact_blocks::contact_blocks`]).
     blocks: Vec<f64>,
     /// Workspace of one product: the n-vector and the solve's scratch.
     work: std::cell::RefCell<(Vec<f64>, MemBuffer)>,
@@ -546,9 +546,9 @@ struct Narrow {
     /// The rows, ascending, and the split for their DOFs; None: the products
     /// are not narrowed.
     rows: Vec<usize>,
-    split: Option<crate::tree_solve::TreeSolve>,
+    split: Option<crate::factor_tree::tree_solve::TreeSolve>,
     /// The factor's elimination tree, made at the first narrowing.
-    tree: Option<crate::supernode_tree::Tree>,
+    tree: Option<crate::factor_tree::supernode_tree::Tree>,
     /// The DOFs of the rows (scratch of [`Dual::narrow_to`]).
     dofs: Vec<usize>,
     work: Option<NarrowWork>,
@@ -558,16 +558,16 @@ struct Narrow {
 }
 
 struct NarrowWork {
-    double: crate::tree_solve::TreeScratch<f64>,
-    single: crate::tree_solve::TreeScratch<f32>,
+    double: crate::factor_tree::tree_solve::TreeScratch<f64>,
+    single: crate::factor_tree::tree_solve::TreeScratch<f32>,
 }
 
 /// Bytes the narrowed products of a dual with c rows on `factor` (sparse)
 /// claim at most: the split and its scratch (`TreeSolve::bytes_bound`), the
 /// elimination tree, and the lists of DOFs and rows.
 fn narrow_bytes(factor: &Factor, c: usize) -> usize {
-    crate::tree_solve::TreeSolve::bytes_bound(factor)
-        + crate::supernode_tree::Tree::bytes_of(factor)
+    crate::factor_tree::tree_solve::TreeSolve::bytes_bound(factor)
+        + crate::factor_tree::supernode_tree::Tree::bytes_of(factor)
         + (factor.n() + c) * std::mem::size_of::<usize>()
 }
 
@@ -578,16 +578,16 @@ fn narrow_bytes(factor: &Factor, c: usize) -> usize {
 /// solve: a Newton direction on a large face's closed zone), with their
 /// scratch in double and single precision and its bytes on the ledger.
 struct OwnSolves {
-    split: crate::tree_solve::TreeSolve,
-    work: std::cell::RefCell<crate::tree_solve::TreeScratch<f64>>,
-    work_single: std::cell::RefCell<crate::tree_solve::TreeScratch<f32>>,
+    split: crate::factor_tree::tree_solve::TreeSolve,
+    work: std::cell::RefCell<crate::factor_tree::tree_solve::TreeScratch<f64>>,
+    work_single: std::cell::RefCell<crate::factor_tree::tree_solve::TreeScratch<f32>>,
     _claim: Claim,
 }
 
 impl OwnSolves {
     /// The solves of B's DOFs on `factor`; None on a dense factor.
     fn of(factor: &Factor, b: &Csc) -> Option<OwnSolves> {
-        let split = crate::tree_solve::TreeSolve::of(factor, &contact_dofs(b))?;
+        let split = crate::factor_tree::tree_solve::TreeSolve::of(factor, &contact_dofs(b))?;
         let n = factor.n();
         Some(OwnSolves {
             _claim: factor.ledger().claim(split.bytes_with_scratch(n)),
@@ -605,7 +605,7 @@ pub(crate) fn own_solves_bytes(factor: &Factor, b: &Csc) -> usize {
     if factor.is_dense() {
         return 0;
     }
-    crate::tree_solve::TreeSolve::of(factor, &contact_dofs(b))
+    crate::factor_tree::tree_solve::TreeSolve::of(factor, &contact_dofs(b))
         .map_or(0, |split| split.bytes_with_scratch(factor.n()))
         + narrow_bytes(factor, b.nrows)
         + b.nrows * std::mem::size_of::<usize>()
@@ -615,7 +615,7 @@ impl Operator {
     /// Errors: `OutOfMemory` when the allocator refuses its work space or the
     /// single-precision copy of the factor.
     fn new(factor: &Arc<Factor>, b: &Csc, m: usize, d: usize) -> Result<Operator> {
-        let blocks = crate::contact_blocks::contact_blocks(factor, b, m, d);
+        let blocks = crate::factor_tree::contact_blocks::contact_blocks(factor, b, m, d);
         let mut diag = vec![0.0; b.nrows];
         for i in 0..m {
             diag[i] = blocks[i * d * d];
@@ -742,9 +742,14 @@ impl Operator {
                     .claim(narrow_bytes(&self.factor, self.bt.ncols)),
             );
         }
-        let tree = tree.get_or_insert_with(|| crate::supernode_tree::Tree::of(&self.factor));
-        *split = Some(crate::tree_solve::TreeSolve::on(&self.factor, tree, dofs))
-            .filter(|s| s.restricted());
+        let tree =
+            tree.get_or_insert_with(|| crate::factor_tree::supernode_tree::Tree::of(&self.factor));
+        *split = Some(crate::factor_tree::tree_solve::TreeSolve::on(
+            &self.factor,
+            tree,
+            dofs,
+        ))
+        .filter(|s| s.restricted());
         let Some(split) = split else {
             return false;
         };

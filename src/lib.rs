@@ -7,13 +7,13 @@
 //! opposes the slip T u.
 
 mod compliance;
-mod contact_blocks;
 mod contact_rows;
 mod dense;
 mod dirichlet;
 mod dual;
 mod error;
 mod factor;
+mod factor_tree;
 // The C boundary: its `extern "C"` functions are the library's exported
 // symbols whatever this module's visibility; as Rust items they are the
 // tests', through `internals::ffi`, not the Rust API.
@@ -32,12 +32,9 @@ mod options;
 mod ordering;
 mod problem;
 mod report;
-mod selected_inverse;
 mod sizes;
 mod sparse;
-mod supernode_tree;
 mod threads;
-mod tree_solve;
 
 pub use error::{Error, ErrorKind, Result};
 pub use friction::Friction;

@@ -352,7 +352,7 @@ impl ContactProblem {
             factor: factor.values_bytes(),
             factor_scratch: factor.factor_scratch_bytes(),
             solve_scratch: factor.solve_scratch(BLOCK).size_bytes(),
-            blocks_work: crate::contact_blocks::work_bytes(factor, &b, n.nrows, d),
+            blocks_work: crate::factor_tree::contact_blocks::work_bytes(factor, &b, n.nrows, d),
             lumped: crate::sparse::congruence_bytes(k, &b, &b.transpose()),
             own_solves: crate::dual::own_solves_bytes(factor, &b),
             dirichlet: crate::dirichlet::plan_bytes(k, &b, factor),
@@ -523,7 +523,12 @@ impl ContactProblem {
         let next = Sizes {
             c: self.d * n.nrows,
             inputs: self.k.bytes() + n.bytes() + t.bytes(),
-            blocks_work: crate::contact_blocks::work_bytes(&self.factor, &b, n.nrows, self.d),
+            blocks_work: crate::factor_tree::contact_blocks::work_bytes(
+                &self.factor,
+                &b,
+                n.nrows,
+                self.d,
+            ),
             lumped: crate::sparse::congruence_bytes(&self.k, &b, &b.transpose()),
             own_solves: crate::dual::own_solves_bytes(&self.factor, &b),
             dirichlet: crate::dirichlet::plan_bytes(&self.k, &b, &self.factor),

@@ -23,7 +23,7 @@
 //! for each column that crosses them).
 
 use crate::factor::Factor;
-use crate::supernode_tree::Tree;
+use crate::factor_tree::supernode_tree::Tree;
 use faer::linalg::matmul::triangular::{BlockStructure, matmul as tri_matmul};
 use faer::linalg::triangular_inverse::invert_lower_triangular;
 use faer::linalg::triangular_solve::solve_upper_triangular_in_place;

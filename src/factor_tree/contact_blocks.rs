@@ -1,7 +1,7 @@
 //! The contacts' d x d diagonal blocks of A = B K^-1 B^T, from K's factor and
 //! without forming anything c x c. Two ways, chosen by their flop counts:
 //!
-//! - **Selected inversion** (`crate::selected_inverse`): A_ii = B_i Z B_i^T needs
+//! - **Selected inversion** (`crate::factor_tree::selected_inverse`): A_ii = B_i Z B_i^T needs
 //!   the entries of Z = K^-1 between contact i's DOFs; when they all lie on the
 //!   factor's pattern (the DOFs of one node, of neighbouring nodes, or of two
 //!   bodies, whose entries are zero), they come from Takahashi's recurrence on
@@ -28,9 +28,9 @@
 //! preconditioner.
 
 use crate::factor::Factor;
-use crate::selected_inverse::{Place, Selection, Term, place};
+use crate::factor_tree::selected_inverse::{Place, Selection, Term, place};
+use crate::factor_tree::supernode_tree::Tree;
 use crate::sparse::Csc;
-use crate::supernode_tree::Tree;
 use faer::linalg::matmul::matmul;
 use faer::linalg::triangular_solve::solve_lower_triangular_in_place;
 use faer::{Accum, Mat, MatMut, Par};

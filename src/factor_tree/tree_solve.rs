@@ -29,7 +29,7 @@
 //! subtrees in parallel, reading the top's values from a copy.
 
 use crate::factor::Factor;
-use crate::supernode_tree::Tree;
+use crate::factor_tree::supernode_tree::Tree;
 use crate::threads::{PARALLEL_MIN_ENTRIES, Threads};
 use faer::linalg::matmul::matmul;
 use faer::linalg::triangular_solve::{
@@ -549,8 +549,8 @@ tree_solve!(solve_single, f32);
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::factor_tree::selected_inverse::tests::grid3;
     use crate::options::Ordering;
-    use crate::selected_inverse::tests::grid3;
     use std::sync::Arc;
 
     /// Restricted to the paths of a strip's bottom row, on one thread (one
