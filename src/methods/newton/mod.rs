@@ -1,0 +1,469 @@
+//! Semismooth Newton (primal-dual active set) on the condensed dual, for the
+//! natural map of docs/design.md section 5:
+//!
+//! ```text
+//! F(lambda) = lambda - P(lambda - rho (A lambda - b)),
+//! ```
+//!
+//! P the projection onto lambda_N >= 0, |lambda_T,i| <= p_i. At each iteration the
+//! trial y = lambda - rho (A lambda - b) sorts every component: a closed normal or a
+//! sticking tangential component is free (its equation is (A d)_j = -F_j / rho_i),
+//! an open normal or a 2D slipping tangential component is fixed (d_j = -F_j). In 3D
+//! a slipping contact splits along n = y_T/|y_T| (fixed: the bound) and the
+//! orthogonal t (free, with the curvature term (1 - s)/(s rho), s = p/|y_T|), the
+//! generalised Jacobian of the disk projection (Hueber, Stadler, Wohlmuth). For
+//! Coulomb the bound mu lambda_N is differentiated too: the slipping tangential
+//! force follows the normal one. The reduced system on the free unknowns is solved
+//! densely (a free row's equation is (A d)_j = -w_j, w = A lambda - b): by
+//! Cholesky where it is symmetric, in single precision with refinement in
+//! double from order MIXED_MIN on, else by LU (`solve_reduced`). The single-
+//! precision factor is kept for the next step: where that step has the same
+//! reduced unknowns, or a few more or fewer (the active set settling, slip
+//! directions turning; `Reused`), CG preconditioned by it solves the next
+//! system without a new factorisation.
+//!
+//! A numerically singular reduced system (A singular: redundant or dependent
+//! contact rows) is solved in the least-squares sense with the minimum norm
+//! (truncated SVD), never by the LU's arbitrary, possibly enormous, null-space
+//! component: on an infeasible problem (no u satisfies N u <= g) the dual is
+//! unbounded along a direction z with B^T z = 0, and a step of size 1e15 along z
+//! would make err = |F| / max(|lambda|, ...) tiny without solving anything.
+//!
+//! Globalisation: a Newton step (or, backtracking, half, a quarter or an eighth
+//! of it) is kept only if it lowers the natural residual |F| (force units) by the
+//! factor 1 - ARMIJO t; err is not the merit, since its
+//! denominator grows with |lambda| and a step could "lower" it by inflating the
+//! multipliers. Otherwise the iterate takes a few projected Gauss-Seidel sweeps (a
+//! first-order descent step for Tresca) and Newton restarts from there, so it
+//! cannot cycle. When neither has lowered |F| by STALL_DROP for STALL_WINDOW
+//! iterations the solve gives up (stalled) instead of burning the iteration limit
+//! on a problem without a solution.
+//!
+//! Warm-up: every solve on a dense A starts with up to PRESWEEPS projected
+//! Gauss-Seidel sweeps (cheap against a Newton step), so that the first active
+//! set Newton sees is near the answer; they, and the fallback's, read A in
+//! single precision on a large dual (`pgs::Rough`, `pgs::ROUGH_MIN_C`). A
+//! matrix-free dual has no entries to sweep: a cold solve starts instead at the projection of alpha G b, G = B K B^T
+//! the lumped estimate of A^-1 (alpha minimising the dual energy along G b),
+//! when that lowers |F|; its reduced systems are solved by CG / GMRES
+//! preconditioned with G too (`krylov_step`).
+//!
+//! Warm start: the first step of a warm-started solve sorts the components by the
+//! multipliers (see WARM_C), not by the natural map, so that a history step starts
+//! from the active set of the previous increment; where the start is a history's
+//! prediction (`DualProblem::predicted`: the load increment is already in it), by
+//! the natural map at it.
+//!
+//! Files: `step.rs` (the linearisation and the reduced unknowns; the dense
+//! reduced system's assembly), `reduced_dense.rs` (its dense solves and the
+//! factor kept between steps), `reduced_krylov.rs` (the Krylov solve on a
+//! matrix-free dual, its preconditioner and refinement), this file (the outer
+//! loop: warm-up, globalisation, fallback, stall).
+
+use super::driver::{Flow, Gradient, OuterStep};
+use super::mprgp::ConvexQp;
+use super::pgs;
+use super::subproblem::Mprgp;
+use super::{DualProblem, MethodSpec};
+use crate::dense;
+use crate::friction::Friction;
+use crate::memory::{F64, Ledger};
+use crate::threads::{PARALLEL_MIN_ENTRIES, Threads};
+use faer::Mat;
+use std::sync::Arc;
+
+/// Gauss-Seidel sweeps taken when a Newton step is rejected.
+const FALLBACK_SWEEPS: usize = 5;
+
+/// MPRGP iterations taken instead when a Newton step on a matrix-free dual is
+/// rejected (each one product with A, as a Krylov iteration of a step).
+const FALLBACK_MPRGP: usize = 20;
+
+/// Projected Gauss-Seidel sweeps before the first Newton step, in chunks of
+/// PRESWEEP_CHUNK with the error checked in between. From a cold start (every
+/// closed contact then looks like slipping) or after a load change, Newton's first
+/// active sets are far from the answer and it spends many steps (one dense LU
+/// each) and fallbacks getting near; sweeps cost O(c^2) each against O(k^3) for a
+/// step (measurements: BENCHMARKS.md, "Tuning measurements").
+const PRESWEEPS: usize = 40;
+const PRESWEEP_CHUNK: usize = 10;
+
+/// Step lengths tried along a Newton direction before the Gauss-Seidel fallback:
+/// 1, 1/2, ..., 2^-(BACKTRACKS-1) (each costs one product with A); without them
+/// Newton can reject every full step (the slender beam of tests/hard_scenes.rs).
+const BACKTRACKS: usize = 4;
+
+mod reduced_dense;
+mod reduced_krylov;
+mod step;
+
+use reduced_dense::*;
+use reduced_krylov::*;
+use step::*;
+
+/// Sufficient decrease for keeping a Newton step: |F(lam + d)| <= (1 - ARMIJO) |F(lam)|.
+const ARMIJO: f64 = 1e-4;
+
+/// The first step of a warm start sorts the components with rho scaled by WARM_C
+/// (F_c(lambda) = lambda - P(lambda - c (A lambda - b)) has the same zeros for every
+/// c > 0): in the limit c -> 0 the active set is the one the multipliers carry
+/// (lambda_N > 0: closed; |lambda_T| < p: stick; |lambda_T| = p: slip), w only
+/// breaking the ties. With c = rho the first step of a history step would sort by
+/// lambda + rho v at the warm start, where v is the response to the load change
+/// with the contact forces frozen (the increment of a free body): every contact
+/// then looks like slipping, and Newton spends its first iterations in an all-slip
+/// active set (on 2D Coulomb blocks the centre contact flips the sign of its
+/// friction force at every step) before it finds the sticking zone again.
+const WARM_C: f64 = 1e-6;
+
+/// The solve gives up when the best |F| has not dropped by STALL_DROP (relative)
+/// within STALL_WINDOW outer iterations.
+const STALL_WINDOW: usize = 50;
+const STALL_DROP: f64 = 1e-2;
+
+/// |F(lam)|_2, the natural map of the module docs at lam (w = A lam - b), in force
+/// units: unlike err it does not shrink when lambda grows without bound.
+fn residual_norm(problem: &DualProblem<'_>, lam: &[f64], w: &[f64]) -> f64 {
+    let dual = problem.dual;
+    let (m, d) = (dual.m, dual.d);
+    let mut r2 = 0.0;
+    for i in 0..m {
+        let rho = dual.rho[i].max(0.0);
+        let jt = m + (d - 1) * i;
+        let rn = lam[i] - (lam[i] - rho * w[i]).max(0.0);
+        r2 += rn * rn;
+        let mut y = [0.0; 2];
+        for s in 0..d - 1 {
+            y[s] = lam[jt + s] - rho * w[jt + s];
+        }
+        crate::friction::project_disk(&mut y[..d - 1], problem.law.bound(i, lam[i]));
+        for s in 0..d - 1 {
+            r2 += (lam[jt + s] - y[s]).powi(2);
+        }
+    }
+    r2.sqrt()
+}
+
+/// `newton`: one semismooth Newton step per outer iteration, on frictionless
+/// increments as well (the unknowns at zero bounds leave its linear systems).
+pub(super) const NEWTON: MethodSpec = MethodSpec {
+    name: "newton",
+    needs_entries: false,
+    // Dense: the reduced matrix, the copy its solver factors and, on a large
+    // dual, A in single precision for the sweeps. Matrix-free: the Krylov
+    // vectors (GMRES's basis and a few more, length c at most).
+    workspace: |_m, c, matrix_free| {
+        if matrix_free {
+            (super::krylov::RESTART + 10) * c * F64
+        } else {
+            let rough = if c >= pgs::ROUGH_MIN_C {
+                c * c * std::mem::size_of::<f32>()
+            } else {
+                0
+            };
+            2 * c * c * F64 + rough
+        }
+    },
+    build: |problem, _opts, target| (Box::new(Newton::new(problem, target)), problem.dual.c),
+};
+
+/// The globalised semismooth Newton method.
+pub(super) struct Newton {
+    /// The dual target: the warm-up sweeps stop when err meets it.
+    target: f64,
+    warm: bool,
+    /// Gauss-Seidel sweeps before the first step (PRESWEEPS; 0 in the tests of
+    /// the warm start itself).
+    presweeps: usize,
+    /// Whether a warm start's first step sorts by the multipliers (WARM_C); off
+    /// only in the tests that measure what that sorting buys.
+    warm_sort: bool,
+    /// Whether a cold start on a matrix-free dual begins at the lumped estimate
+    /// (`Newton::lumped_start`); off only in the test that measures what it buys.
+    lumped_start_on: bool,
+    step: Vec<f64>,
+    f: Vec<f64>,
+    ae0: Vec<f64>,
+    trial: Vec<f64>,
+    wt: Vec<f64>,
+    /// The reduced solves' Krylov state on a matrix-free dual.
+    krylov: Krylov,
+    /// The last dense reduced system's factor (see [`Reused`]).
+    reused: Option<Reused>,
+    /// A's columns in single precision for the warm-up and fallback sweeps on
+    /// a large assembled dual (made at their first use; see pgs::ROUGH_MIN_C).
+    rough_a: Option<pgs::Rough>,
+    /// The matrix-free fallback's MPRGP (made at its first use), the bounds it
+    /// works with and its estimate of |A|.
+    fallback: Option<Mprgp>,
+    radii: Vec<f64>,
+    norm: Option<f64>,
+    /// |F| at the start (the forcing terms' reference).
+    res0: f64,
+    /// |F| at the current iterate, and the lowest |F| with the iteration it was met.
+    res: f64,
+    best: f64,
+    best_at: usize,
+}
+
+impl Newton {
+    pub fn new(problem: &DualProblem<'_>, target: f64) -> Self {
+        let c = problem.dual.c;
+        Newton {
+            target,
+            warm: false,
+            presweeps: PRESWEEPS,
+            warm_sort: true,
+            lumped_start_on: true,
+            step: vec![0.0; c],
+            f: vec![0.0; c],
+            ae0: vec![0.0; c],
+            trial: vec![0.0; c],
+            wt: vec![0.0; c],
+            krylov: Krylov::new(c),
+            reused: None,
+            rough_a: None,
+            fallback: None,
+            radii: Vec::new(),
+            norm: None,
+            res0: 0.0,
+            res: 0.0,
+            best: 0.0,
+            best_at: 0,
+        }
+    }
+}
+
+impl OuterStep for Newton {
+    /// First-order warm-up (module docs): PRESWEEPS sweeps, fewer when err meets
+    /// the target first.
+    fn start(
+        &mut self,
+        problem: &DualProblem<'_>,
+        lam: &mut [f64],
+        w: &mut [f64],
+        inner: &mut usize,
+    ) -> Flow {
+        let (m, c) = (problem.dual.m, problem.dual.c);
+        self.warm = lam.iter().any(|&x| x != 0.0);
+        // The error's scratch: `f` and `ae0` are overwritten by every step.
+        let (p, v) = (&mut self.f[..m], &mut self.ae0[..c]);
+        let mut swept = 0;
+        // Gauss-Seidel reads entries of A: no sweeps on a matrix-free dual.
+        let presweeps = if problem.dual.is_matrix_free() {
+            0
+        } else {
+            self.presweeps
+        };
+        while swept < presweeps && problem.error(lam, w, p, v) > self.target {
+            let n = PRESWEEP_CHUNK.min(presweeps - swept);
+            *inner += pgs::sweeps_for_newton(problem, &mut self.rough_a, lam, w, n);
+            swept += n;
+        }
+        if swept > 0 {
+            // w was updated column by column (in single precision on a large
+            // dual; the error tests between chunks read it so: they only decide
+            // when to stop sweeping): recompute it.
+            problem.gradient(lam, w);
+        }
+        // No sweeps on a matrix-free dual: a cold start begins at the lumped
+        // estimate instead, when it is better than zero.
+        if let Some(g) = problem.dual.lumped()
+            && !self.warm
+            && self.lumped_start_on
+        {
+            self.lumped_start(problem, g, lam, w);
+        }
+        self.res = residual_norm(problem, lam, w);
+        self.res0 = self.res;
+        (self.best, self.best_at) = (self.res, 0);
+        Flow::Go(Gradient::Exact)
+    }
+
+    fn step(
+        &mut self,
+        problem: &DualProblem<'_>,
+        lam: &mut [f64],
+        w: &mut [f64],
+        inner: &mut usize,
+        k: usize,
+    ) -> Flow {
+        let c = problem.dual.c;
+        if self.res < (1.0 - STALL_DROP) * self.best {
+            (self.best, self.best_at) = (self.res, k);
+        } else if k >= self.best_at + STALL_WINDOW {
+            // Neither Newton nor Gauss-Seidel makes progress: no solution to find
+            // (an infeasible problem), or none this method can reach.
+            return Flow::Stalled;
+        }
+        // A warm start's first step takes its active set from the multipliers
+        // (see WARM_C); every later step from the natural map.
+        let cscale = if self.warm && self.warm_sort && !problem.predicted && !problem.near && k == 0
+        {
+            WARM_C
+        } else {
+            1.0
+        };
+        let (step, trial, wt) = (&mut self.step, &mut self.trial, &mut self.wt);
+        self.krylov.eta = forcing(self.res, self.res0, self.target, norm(lam));
+        // A step from rough (single-precision) products that the backtracking
+        // rejects is solved again with exact ones before any fallback: on an
+        // ill-conditioned K the rough products can be too rough.
+        for exact in [false, true] {
+            self.krylov.exact = exact;
+            let rough = problem.dual.is_matrix_free() && self.krylov.eta >= ROUGH_ETA;
+            if exact && !rough {
+                break;
+            }
+            let before = self.krylov.its;
+            let solved = newton_step(
+                problem,
+                lam,
+                w,
+                step,
+                &mut self.f,
+                &mut self.ae0,
+                cscale,
+                &mut self.krylov,
+                &mut self.reused,
+            );
+            *inner += self.krylov.its - before;
+            if !solved {
+                continue;
+            }
+            // Backtracking: the full step, then halves of it, their gradients
+            // w + t A d from one exact product (A is linear): one addition's
+            // rounding away from A (lam + t d) - b, as current as a gradient
+            // computed afresh, so the driver need not recompute it before it
+            // accepts a convergence (one product per solve saved).
+            let ad = &mut self.ae0;
+            problem.dual.apply(step, ad);
+            let mut t = 1.0;
+            for _ in 0..BACKTRACKS {
+                for j in 0..c {
+                    trial[j] = lam[j] + t * step[j];
+                    wt[j] = w[j] + t * ad[j];
+                }
+                let r = residual_norm(problem, trial, wt);
+                if r <= (1.0 - ARMIJO * t) * self.res {
+                    lam.copy_from_slice(trial);
+                    w.copy_from_slice(wt);
+                    self.res = r;
+                    return Flow::Go(Gradient::Exact);
+                }
+                t *= 0.5;
+            }
+        }
+        if problem.dual.is_matrix_free() {
+            return self.mprgp_fallback(problem, lam, w, inner);
+        }
+        // Fallback: a first-order step.
+        *inner += pgs::sweeps_for_newton(problem, &mut self.rough_a, lam, w, FALLBACK_SWEEPS);
+        problem.gradient(lam, w);
+        self.res = residual_norm(problem, lam, w);
+        Flow::Go(Gradient::Exact)
+    }
+}
+
+impl Newton {
+    /// A cold start on a matrix-free dual: lam = P(alpha G b), the projection
+    /// onto the feasible set of the minimiser of the dual energy along G b
+    /// (G = B K B^T ~ A^-1: the lumped estimate of the unconstrained
+    /// multipliers), kept when it lowers |F| below its value at lam = 0. Two
+    /// products with A.
+    fn lumped_start(
+        &mut self,
+        problem: &DualProblem<'_>,
+        g: &crate::sparse::Csc,
+        lam: &mut [f64],
+        w: &mut [f64],
+    ) {
+        let dual = problem.dual;
+        let (m, d, c) = (dual.m, dual.d, dual.c);
+        let (y, ay) = (&mut self.trial, &mut self.wt);
+        g.mul_vec(problem.b, y);
+        dual.apply_rough(y, ay);
+        let yay: f64 = y.iter().zip(ay.iter()).map(|(a, b)| a * b).sum();
+        let by: f64 = y.iter().zip(problem.b).map(|(a, b)| a * b).sum();
+        if !(yay > 0.0 && by > 0.0 && yay.is_finite()) {
+            return;
+        }
+        let alpha = by / yay;
+        y.iter_mut().for_each(|v| *v *= alpha);
+        for i in 0..m {
+            y[i] = y[i].max(0.0);
+            let r = problem.law.bound(i, y[i]);
+            let jt = m + (d - 1) * i;
+            crate::friction::project_disk(&mut y[jt..jt + d - 1], r);
+        }
+        problem.gradient(y, ay);
+        let r = residual_norm(problem, y, ay);
+        if r < residual_norm(problem, lam, w) {
+            lam[..c].copy_from_slice(&y[..c]);
+            w[..c].copy_from_slice(&ay[..c]);
+        }
+    }
+
+    /// The fallback on a matrix-free dual (no Gauss-Seidel without entries of A):
+    /// FALLBACK_MPRGP iterations of MPRGP / MPGP (one product with A each) on the
+    /// Tresca problem of the current bound, from lam: a first-order descent step
+    /// that, unlike a projection step, makes progress where A is ill-conditioned
+    /// (the slender beam of tests/hard_scenes.rs); Newton restarts from there.
+    fn mprgp_fallback(
+        &mut self,
+        problem: &DualProblem<'_>,
+        lam: &mut [f64],
+        w: &mut [f64],
+        inner: &mut usize,
+    ) -> Flow {
+        let dual = problem.dual;
+        let (m, c) = (dual.m, dual.c);
+        self.radii.resize(m, 0.0);
+        problem.law.bounds(&lam[..m], &mut self.radii);
+        let qp = ConvexQp::whole(problem, &self.radii);
+        let solver = self
+            .fallback
+            .get_or_insert_with(|| Mprgp::new(c, 0.0, FALLBACK_MPRGP));
+        if let Flow::Infeasible = Flow::after(
+            solver.solve_convex(&qp, lam, &mut self.norm),
+            inner,
+            Gradient::Stale,
+        ) {
+            return Flow::Infeasible;
+        }
+        problem.gradient(lam, w);
+        self.res = residual_norm(problem, lam, w);
+        Flow::Go(Gradient::Exact)
+    }
+}
+
+/// The fraction of the target a step's error aims at (see [`forcing`]).
+const ENOUGH: f64 = 0.1;
+
+/// The forcing term of an inexact Newton step on a matrix-free dual: the
+/// reduced system is solved to the relative residual eta = |F| / |F_0| (capped
+/// at 0.1: superlinear convergence), but no tighter than a step whose error
+/// leaves |F| at a tenth of the target (err's scale taken as |lambda|; the
+/// history benchmark's last steps then end at err 1e-12 to 8e-11 for the
+/// target 1e-10, and a hundredth spent 2-3 more products per increment for
+/// errors a decade lower).
+fn forcing(res: f64, res0: f64, target: f64, lam_norm: f64) -> f64 {
+    let eta = if res0 > 0.0 {
+        (res / res0).min(0.1)
+    } else {
+        0.1
+    };
+    let enough = if res > 0.0 {
+        ENOUGH * target * lam_norm / res
+    } else {
+        0.1
+    };
+    eta.max(enough.min(0.1)).max(1e-14)
+}
+
+fn norm(x: &[f64]) -> f64 {
+    x.iter().map(|v| v * v).sum::<f64>().sqrt()
+}
+
+#[cfg(test)]
+mod tests;

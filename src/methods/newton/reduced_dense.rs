@@ -1,0 +1,169 @@
+//! The reduced system of a Newton step on a dense dual: Cholesky (in single
+//! precision with refinement in double from MIXED_MIN unknowns on), LU where it
+//! is not symmetric, the truncated SVD where it is numerically singular; the
+//! single-precision factor kept to precondition CG on the next step's system
+//! where the reduced unknowns barely changed (`Reused`).
+
+use super::*;
+
+/// Singular values below RCOND times the largest are dropped in the reduced solve,
+/// and an LU solution z with |M|_max |z|_inf > |rhs|_inf / RCOND is taken as the
+/// sign of a (numerically) singular M.
+pub(super) const RCOND: f64 = 1e-12;
+
+/// Reduced systems of at least this order, when symmetric, are first solved by
+/// Cholesky in single precision with refinement (`dense::refine`) to the
+/// normwise backward error MIXED_RTOL, that of a Cholesky solve in double;
+/// below it the factorisation is cheap anyway.
+pub(super) const MIXED_MIN: usize = 256;
+pub(super) const MIXED_RTOL: f64 = 1e-15;
+
+/// Most CG iterations a reduced solve spends on the last step's factor
+/// before it factors its own matrix: an iteration costs about 3 k^2 flops
+/// (a product with M in double, two triangular solves in single precision),
+/// a factorisation k^3 / 3 at the faster rate of blocked kernels.
+pub(super) const REUSE_MAX_IT: usize = 20;
+
+/// The single-precision factor of the last dense reduced system, with the
+/// unknowns it was formed on (`key`: each unknown's first test index and
+/// kind), held for the next Newton step: where that step has the same
+/// unknowns, or a few more or fewer (REUSE_MAX_CHANGED), its matrix differs
+/// in a few directions (those unknowns, the slipping contacts' turned
+/// directions and the curvature terms), and CG preconditioned by this
+/// factor solves it in a few iterations (`dense::pcg`).
+pub(super) struct Reused {
+    pub(super) key: Vec<usize>,
+    pub(super) llt: dense::LltF32,
+    pub(super) _claim: crate::memory::Claim,
+}
+
+impl Reused {
+    /// Each of `key`'s unknowns' position in the kept factor (None for a new
+    /// one); empty when the unknowns are the same, in the same order. None
+    /// when more than REUSE_MAX_CHANGED unknowns came or went: CG on the
+    /// kept factor would need about as many iterations as a factorisation.
+    pub(super) fn positions(&self, key: &[usize]) -> Option<Vec<Option<usize>>> {
+        if self.key == key {
+            return Some(Vec::new());
+        }
+        let old: std::collections::HashMap<usize, usize> = self
+            .key
+            .iter()
+            .enumerate()
+            .map(|(q, &kq)| (kq, q))
+            .collect();
+        let pos: Vec<Option<usize>> = key.iter().map(|kj| old.get(kj).copied()).collect();
+        let shared = pos.iter().flatten().count();
+        let changed = (key.len() - shared) + (self.key.len() - shared);
+        (changed <= REUSE_MAX_CHANGED).then_some(pos)
+    }
+}
+
+/// Most reduced unknowns that may come or go between two Newton steps for
+/// the second to solve on the first one's factor (see [`Reused`]).
+pub(super) const REUSE_MAX_CHANGED: usize = 8;
+
+/// How `solve_reduced` may solve: whether M is symmetric, the unknowns'
+/// key, and the factor kept from the last step (replaced by this step's).
+pub(super) struct Reduce<'a> {
+    pub(super) symmetric: bool,
+    pub(super) key: Vec<usize>,
+    pub(super) reused: &'a mut Option<Reused>,
+}
+
+/// Solves the reduced system M z = rhs: by Cholesky when M is `symmetric` (half the
+/// flops of LU), else or when that fails by a partially pivoted LU, unless M is numerically
+/// singular (the solution is not finite or much larger than M and rhs warrant),
+/// then by the minimum-norm least-squares solution with singular values below
+/// RCOND sigma_max dropped. None when no finite solution is found.
+pub(super) fn solve_reduced(
+    mat: &Mat<f64>,
+    rhs: &Mat<f64>,
+    how: Reduce<'_>,
+    threads: &Threads,
+    ledger: &Arc<Ledger>,
+) -> Option<Mat<f64>> {
+    let Reduce {
+        symmetric,
+        key,
+        reused,
+    } = how;
+    let max_abs = |a: faer::MatRef<'_, f64>| {
+        let mut v = 0.0f64;
+        for j in 0..a.ncols() {
+            for i in 0..a.nrows() {
+                v = v.max(a[(i, j)].abs());
+            }
+        }
+        v
+    };
+    let (mn, rn) = (max_abs(mat.as_ref()), max_abs(rhs.as_ref()));
+    let acceptable =
+        |z: &Mat<f64>| z.as_ref().is_all_finite() && mn * max_abs(z.as_ref()) * RCOND <= rn;
+    let big = mat.nrows() * mat.ncols() >= PARALLEL_MIN_ENTRIES;
+    let (m, r) = (mat.as_ref(), rhs.as_ref());
+    let k2 = mat.nrows() * mat.ncols();
+    let rv: Vec<f64> = r.col(0).iter().copied().collect();
+    // The last step's factor, where this step has the same unknowns: CG
+    // preconditioned by it (see REUSE_MAX_IT).
+    if symmetric
+        && let Some(old) = reused.as_ref()
+        && let Some(pos) = old.positions(&key)
+        && let Some(z) = threads.run(big, |par| {
+            let pos = (!pos.is_empty()).then_some(&pos[..]);
+            dense::pcg(m, &old.llt, pos, &rv, MIXED_RTOL, REUSE_MAX_IT, par)
+        })
+    {
+        let z = Mat::from_fn(z.len(), 1, |i, _| z[i]);
+        if acceptable(&z) {
+            return Some(z);
+        }
+    }
+    // A new factor replaces the old one (never both held: the workspace).
+    *reused = None;
+    if symmetric && mat.nrows() >= MIXED_MIN {
+        let k = mat.nrows();
+        let claim = ledger.claim(k * k * std::mem::size_of::<f32>());
+        if let Some(llt) = threads.run(big, |par| dense::LltF32::of(m, par))
+            && let Some(z) = threads.run(big, |par| dense::refine(m, &llt, &rv, MIXED_RTOL, par))
+        {
+            let z = Mat::from_fn(z.len(), 1, |i, _| z[i]);
+            if acceptable(&z) {
+                *reused = Some(Reused {
+                    key,
+                    llt,
+                    _claim: claim,
+                });
+                return Some(z);
+            }
+        }
+    }
+    // The double-precision solvers work on a copy of M (the SVD on two k x k
+    // factors too); the single-precision factor above is claimed by itself.
+    let copy_claim = ledger.claim_f64(k2);
+    if symmetric
+        && let Some(z) = threads.run(big, |par| dense::llt_solve(m, r, par))
+        && acceptable(&z)
+    {
+        return Some(z);
+    }
+    if let Some(z) = threads.run(big, |par| dense::lu_solve(m, r, par))
+        && acceptable(&z)
+    {
+        return Some(z);
+    }
+    drop(copy_claim);
+    let _svd_claim = ledger.claim_f64(3 * k2);
+    let (u, sv, v) = threads.run(big, |par| dense::thin_svd(m, par))?;
+    let smax = sv.iter().fold(0.0f64, |a, &s| a.max(s));
+    let mut z = Mat::<f64>::zeros(mat.ncols(), 1);
+    for l in 0..sv.len() {
+        if sv[l] > RCOND * smax {
+            let coef = (0..u.nrows()).map(|r| u[(r, l)] * rhs[(r, 0)]).sum::<f64>() / sv[l];
+            for r in 0..v.nrows() {
+                z[(r, 0)] += coef * v[(r, l)];
+            }
+        }
+    }
+    z.as_ref().is_all_finite().then_some(z)
+}

@@ -1,0 +1,296 @@
+//! The reduced system of a Newton step on a matrix-free dual: CG (symmetric)
+//! or GMRES on products with A, preconditioned by the lumped G = B K B^T (or
+//! the layered Dirichlet preconditioner) with the Jacobi part of the
+//! compliance; rough products in single precision where the forcing term
+//! allows, and mixed-precision refinement where it does not (`refine`).
+
+use super::*;
+
+/// Most products with A in one reduced solve on a matrix-free dual.
+pub(super) const KRYLOV_MAX_IT: usize = 200;
+
+/// Reduced solves on a matrix-free dual whose forcing term is at least this use
+/// products with the factor in single precision (half the memory traffic of a
+/// solve): their error, about 1e-7 times the factor's conditioning, stays well
+/// below the residual such a solve asks for. The step is still checked by the
+/// exact gradient (the backtracking), so a rough step can only cost a step.
+/// A tighter reduced solve refines in mixed precision (`refine`): rough
+/// products for the corrections, exact ones for the residuals.
+pub(super) const ROUGH_ETA: f64 = 1e-4;
+
+/// The Krylov solve of a Newton step on a matrix-free dual: its forcing term,
+/// its budget, its scratch (two vectors of length c) and the products it used.
+pub(super) struct Krylov {
+    /// Relative residual the reduced solve must reach.
+    pub eta: f64,
+    /// Most products with A per reduced solve.
+    pub max_it: usize,
+    /// Products used so far (inner iterations).
+    pub its: usize,
+    /// Whether the reduced solve must use exact products whatever its forcing
+    /// term (see ROUGH_ETA).
+    pub exact: bool,
+    pub(super) v: Vec<f64>,
+    pub(super) av: Vec<f64>,
+    /// The rows a step's products are narrowed to (`Dual::narrow_to`).
+    pub(super) rows: Vec<usize>,
+    /// Steps whose products were narrowed.
+    pub narrowed: usize,
+}
+
+impl Krylov {
+    /// Whether this reduced solve may use products in single precision (see
+    /// ROUGH_ETA).
+    pub(super) fn rough(&self) -> bool {
+        !self.exact && self.eta >= ROUGH_ETA
+    }
+
+    pub(super) fn new(c: usize) -> Krylov {
+        Krylov {
+            eta: 0.1,
+            max_it: KRYLOV_MAX_IT,
+            its: 0,
+            exact: false,
+            v: vec![0.0; c],
+            av: vec![0.0; c],
+            rows: Vec::with_capacity(c),
+            narrowed: 0,
+        }
+    }
+}
+
+/// Entry (ja, jb) of A where both lie in one contact's d x d diagonal block
+/// (every pair a reduced unknown couples), read from the matrix-free dual's blocks.
+pub(super) fn block_entry(problem: &DualProblem<'_>, ja: usize, jb: usize) -> f64 {
+    let dual = problem.dual;
+    let (m, d) = (dual.m, dual.d);
+    let at = |j: usize| {
+        if j < m {
+            (j, 0)
+        } else {
+            ((j - m) / (d - 1), 1 + (j - m) % (d - 1))
+        }
+    };
+    let ((ia, la), (ib, lb)) = (at(ja), at(jb));
+    match dual.block_entry(ia, la, lb) {
+        Some(v) if ia == ib => v,
+        _ => 0.0,
+    }
+}
+
+/// The reduced system M z = rhs of a Newton step on a matrix-free dual, by
+/// preconditioned CG (symmetric M) or GMRES to the relative residual
+/// `krylov.eta`, each product M x one product with A. The preconditioner is
+/// S V^T G V S with G the dual's approximate inverse of A
+/// (`Dual::precondition`: the layered Dirichlet one B S_l B^T of
+/// `dirichlet.rs` where it was formed, else the lumped G = B K B^T that FETI
+/// codes use for the same operator) and S_l = sqrt(a_l / M_ll),
+/// a_l = v_l^T A v_l (so that it is G where the diagonal term of M vanishes and
+/// tends to 1 / M_ll where that term dominates, as for a fast slip); M's
+/// diagonal (Jacobi) when the dual holds no G. Both from the contacts'
+/// diagonal blocks of A. Adds V z to `step`. False when the Krylov iteration
+/// broke down.
+pub(super) fn krylov_step(
+    problem: &DualProblem<'_>,
+    red: &[Reduced],
+    step: &mut [f64],
+    ae0: &[f64],
+    krylov: &mut Krylov,
+) -> bool {
+    let dual = problem.dual;
+    let k = red.len();
+    let rhs: Vec<f64> = red
+        .iter()
+        .map(|u| {
+            u.rhs
+                - u.test[..u.n_test]
+                    .iter()
+                    .map(|&(j, c)| c * ae0[j])
+                    .sum::<f64>()
+        })
+        .collect();
+    // Per reduced unknown, the entry of T^T A V + diag it sits on, from the
+    // contacts' diagonal blocks of A.
+    let mdiag: Vec<f64> = red
+        .iter()
+        .map(|u| {
+            let mut mll = u.diag;
+            for &(ja, ca) in &u.test[..u.n_test] {
+                for &(jb, cb) in &u.dir[..u.n_dir] {
+                    mll += ca * cb * block_entry(problem, ja, jb);
+                }
+            }
+            mll
+        })
+        .collect();
+    let symmetric = red
+        .iter()
+        .all(|u| u.n_test == u.n_dir && u.test[..u.n_test] == u.dir[..u.n_dir]);
+    // A loose inner solve tolerates products in single precision (see
+    // ROUGH_ETA); a tight one refines with exact residuals (see `refine`).
+    let rough = std::cell::Cell::new(krylov.rough());
+    let (v, av) = (&mut krylov.v, &mut krylov.av);
+    let mut op = |x: &[f64], y: &mut [f64]| {
+        v.iter_mut().for_each(|e| *e = 0.0);
+        for (u, &xl) in red.iter().zip(x) {
+            for &(j, c) in &u.dir[..u.n_dir] {
+                v[j] += c * xl;
+            }
+        }
+        dual.apply_narrow(v, av, rough.get());
+        for ((u, &xl), yl) in red.iter().zip(x).zip(y.iter_mut()) {
+            *yl = u.diag * xl
+                + u.test[..u.n_test]
+                    .iter()
+                    .map(|&(j, c)| c * av[j])
+                    .sum::<f64>();
+        }
+    };
+    let (mut gv, mut gg) = (vec![0.0; dual.c], vec![0.0; dual.c]);
+    // The preconditioner S V^T G V S, S_l = sqrt(a_l / (a_l + diag_l)) with
+    // a_l = v_l^T A v_l (G ~ A^-1 where diag vanishes, 1 / M_ll where it
+    // dominates), G the dual's approximate inverse of A (`Dual::precondition`:
+    // layered Dirichlet or lumped); Jacobi without one.
+    // The interface compliance's D (`Dual::set_shift`) counts with the
+    // diagonal term (G approximates A^-1, not (A + D)^-1), and the Jacobi
+    // part (1 - S_l^2) / M_ll is added where D is present: a soft interface
+    // (D ten times A's diagonal) took 37 products against the rigid 20 on
+    // the 3d-32x32x4 slab without it, 21 with it.
+    let shift = dual.shift();
+    let scale: Vec<f64> = red
+        .iter()
+        .zip(&mdiag)
+        .map(|(u, &mll)| {
+            let mut a = mll - u.diag;
+            if !shift.is_empty() {
+                for &(ja, ca) in &u.test[..u.n_test] {
+                    for &(jb, cb) in &u.dir[..u.n_dir] {
+                        if ja == jb {
+                            a -= ca * cb * shift[ja];
+                        }
+                    }
+                }
+            }
+            if a > 0.0 && mll > 0.0 {
+                (a / mll).sqrt()
+            } else {
+                1.0
+            }
+        })
+        .collect();
+    let mut pre = |x: &[f64], y: &mut [f64]| {
+        gv.iter_mut().for_each(|e| *e = 0.0);
+        for ((u, &xl), &sl) in red.iter().zip(x).zip(&scale) {
+            for &(j, c) in &u.dir[..u.n_dir] {
+                gv[j] += c * sl * xl;
+            }
+        }
+        if dual.precondition(&gv, &mut gg) {
+            for ((((u, yl), &sl), &xl), &mll) in
+                red.iter().zip(y.iter_mut()).zip(&scale).zip(x).zip(&mdiag)
+            {
+                *yl = sl
+                    * u.dir[..u.n_dir]
+                        .iter()
+                        .map(|&(j, c)| c * gg[j])
+                        .sum::<f64>();
+                if !shift.is_empty() && mll > 0.0 {
+                    *yl += (1.0 - sl * sl) * xl / mll;
+                }
+            }
+        } else {
+            for ((yl, &xl), &mll) in y.iter_mut().zip(x).zip(&mdiag) {
+                *yl = if mll > 0.0 { xl / mll } else { xl };
+            }
+        }
+    };
+    let mut z = vec![0.0; k];
+    let solver = if symmetric {
+        crate::methods::krylov::pcg
+    } else {
+        crate::methods::krylov::gmres
+    };
+    let (eta, max_it) = (krylov.eta, krylov.max_it);
+    let its = if krylov.exact || rough.get() {
+        solver(&mut op, &rhs, &mut pre, eta, max_it, &mut z)
+    } else {
+        refine(solver, &mut op, &rough, &rhs, &mut pre, eta, max_it, &mut z)
+    };
+    let Some(its) = its else {
+        return false;
+    };
+    krylov.its += its;
+    for (u, &zl) in red.iter().zip(&z) {
+        for &(j, coef) in &u.dir[..u.n_dir] {
+            step[j] += coef * zl;
+        }
+    }
+    true
+}
+
+/// Rounds of `refine` before it falls back to exact products.
+pub(super) const REFINE_ROUNDS: usize = 4;
+
+/// A tight reduced solve (relative residual `eta` < ROUGH_ETA) by iterative
+/// refinement in mixed precision: each round solves M dz = r for the
+/// correction with products in single precision (`rough` set) to the relative
+/// residual ROUGH_ETA, or to what the target needs when that is looser, then
+/// measures r = rhs - M z with one exact product. A round that does not halve
+/// |r| (single precision too rough for this factor) hands the rest to the
+/// solver with exact products, from the z reached. Same contract as the
+/// solvers: the products used, None on a breakdown.
+#[allow(clippy::too_many_arguments)]
+pub(super) fn refine(
+    solver: crate::methods::krylov::Solver,
+    op: &mut dyn FnMut(&[f64], &mut [f64]),
+    rough: &std::cell::Cell<bool>,
+    rhs: &[f64],
+    pre: &mut dyn FnMut(&[f64], &mut [f64]),
+    eta: f64,
+    max_it: usize,
+    z: &mut [f64],
+) -> Option<usize> {
+    let k = rhs.len();
+    let stop = eta * norm(rhs);
+    z.iter_mut().for_each(|v| *v = 0.0);
+    let mut r = rhs.to_vec();
+    let (mut dz, mut mz, mut saved) = (vec![0.0; k], vec![0.0; k], vec![0.0; k]);
+    let mut r_norm = norm(&r);
+    let mut its = 0;
+    for _ in 0..REFINE_ROUNDS {
+        if r_norm <= stop || its >= max_it {
+            return Some(its);
+        }
+        saved.copy_from_slice(&r);
+        rough.set(true);
+        let inner = ROUGH_ETA.max(stop / r_norm);
+        its += solver(op, &r, pre, inner, max_it - its, &mut dz)?;
+        z.iter_mut().zip(&dz).for_each(|(a, b)| *a += b);
+        rough.set(false);
+        op(z, &mut mz);
+        its += 1;
+        for j in 0..k {
+            r[j] = rhs[j] - mz[j];
+        }
+        let before = r_norm;
+        r_norm = norm(&r);
+        if !r_norm.is_finite() || r_norm >= before {
+            // Worse (or not finite): undo the round.
+            z.iter_mut().zip(&dz).for_each(|(a, b)| *a -= b);
+            r.copy_from_slice(&saved);
+            r_norm = before;
+            break;
+        }
+        if r_norm > 0.5 * before {
+            break;
+        }
+    }
+    if r_norm <= stop || its >= max_it {
+        return Some(its);
+    }
+    // Exact products for the rest.
+    rough.set(false);
+    its += solver(op, &r, pre, stop / r_norm, max_it - its, &mut dz)?;
+    z.iter_mut().zip(&dz).for_each(|(a, b)| *a += b);
+    Some(its)
+}

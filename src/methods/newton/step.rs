@@ -1,0 +1,238 @@
+//! One Newton step: the linearisation of the natural map at lambda (each
+//! component sorted free or fixed, 3D slip split along the slip direction,
+//! Coulomb's bound differentiated), the reduced unknowns it leaves, and on a
+//! dense dual the reduced system assembled from A's columns (its solve:
+//! `reduced_dense`; on a matrix-free dual: `reduced_krylov`).
+
+use super::*;
+
+/// One reduced unknown: its test row and its direction in lambda-space (sparse,
+/// at most three entries each), a diagonal term and the right-hand side.
+pub(super) struct Reduced {
+    pub(super) test: [(usize, f64); 2],
+    pub(super) n_test: usize,
+    pub(super) dir: [(usize, f64); 3],
+    pub(super) n_dir: usize,
+    pub(super) diag: f64,
+    pub(super) rhs: f64,
+}
+
+impl Reduced {
+    pub(super) fn unit(j: usize, rhs: f64) -> Reduced {
+        Reduced {
+            test: [(j, 1.0), (0, 0.0)],
+            n_test: 1,
+            dir: [(j, 1.0), (0, 0.0), (0, 0.0)],
+            n_dir: 1,
+            diag: 0.0,
+            rhs,
+        }
+    }
+}
+
+/// Sorts the components at lam for the natural map F_c with c = cscale rho and
+/// returns the reduced unknowns and the explicit part e0 of the step (written into
+/// `e0`); `f` receives F_c(lam). A free row's right-hand side is -F_c/c = -w, taken
+/// from w directly (no cancellation when c is small).
+pub(super) fn linearise(
+    problem: &DualProblem<'_>,
+    lam: &[f64],
+    w: &[f64],
+    e0: &mut [f64],
+    f: &mut [f64],
+    cscale: f64,
+) -> Vec<Reduced> {
+    let dual = problem.dual;
+    let (m, d) = (dual.m, dual.d);
+    let coulomb_mu = match problem.law {
+        Friction::Coulomb(mu) => Some(mu),
+        Friction::Tresca(_) => None,
+    };
+    e0.iter_mut().for_each(|v| *v = 0.0);
+    let mut red = Vec::with_capacity(dual.c);
+    for i in 0..m {
+        let rho = cscale * dual.rho[i];
+        let jt = m + (d - 1) * i;
+        let r = problem.law.bound(i, lam[i]);
+        if rho <= 0.0 {
+            // The contact does not act on u: project and keep it there.
+            f[i] = lam[i] - lam[i].max(0.0);
+            e0[i] = -f[i];
+            let mut y = [0.0; 2];
+            y[..d - 1].copy_from_slice(&lam[jt..jt + d - 1]);
+            crate::friction::project_disk(&mut y[..d - 1], r);
+            for s in 0..d - 1 {
+                f[jt + s] = lam[jt + s] - y[s];
+                e0[jt + s] = -f[jt + s];
+            }
+            continue;
+        }
+        let yn = lam[i] - rho * w[i];
+        f[i] = lam[i] - yn.max(0.0);
+        let normal_free = yn > 0.0;
+        let mut yt = [0.0; 2];
+        for s in 0..d - 1 {
+            yt[s] = lam[jt + s] - rho * w[jt + s];
+        }
+        let ny = yt[..d - 1].iter().map(|v| v * v).sum::<f64>().sqrt();
+        // Coupling of the slipping tangential force to lambda_N (Coulomb).
+        let mut coupling: Option<[f64; 2]> = None;
+        if r > 0.0 && ny < r {
+            // Stick: every tangential component free.
+            for s in 0..d - 1 {
+                f[jt + s] = lam[jt + s] - yt[s];
+                red.push(Reduced::unit(jt + s, -w[jt + s]));
+            }
+        } else if ny == 0.0 {
+            for s in 0..d - 1 {
+                f[jt + s] = lam[jt + s];
+                e0[jt + s] = -f[jt + s];
+            }
+        } else {
+            let nvec = [yt[0] / ny, if d == 3 { yt[1] / ny } else { 0.0 }];
+            for s in 0..d - 1 {
+                f[jt + s] = lam[jt + s] - r * nvec[s];
+            }
+            let fn_ = (0..d - 1).map(|s| f[jt + s] * nvec[s]).sum::<f64>();
+            for s in 0..d - 1 {
+                e0[jt + s] -= fn_ * nvec[s];
+            }
+            if d == 3 {
+                let t = [-nvec[1], nvec[0]];
+                let ft = f[jt] * t[0] + f[jt + 1] * t[1];
+                let sr = r / ny;
+                if sr > 0.0 {
+                    red.push(Reduced {
+                        test: [(jt, t[0]), (jt + 1, t[1])],
+                        n_test: 2,
+                        dir: [(jt, t[0]), (jt + 1, t[1]), (0, 0.0)],
+                        n_dir: 2,
+                        diag: (1.0 - sr) / (sr * rho),
+                        rhs: -ft / (sr * rho),
+                    });
+                } else {
+                    e0[jt] -= ft * t[0];
+                    e0[jt + 1] -= ft * t[1];
+                }
+            }
+            if let Some(mu) = coulomb_mu {
+                coupling = Some([mu[i] * nvec[0], mu[i] * nvec[1]]);
+            }
+        }
+        if normal_free {
+            let mut u = Reduced::unit(i, -w[i]);
+            if let Some(cp) = coupling {
+                for (s, &cs) in cp[..d - 1].iter().enumerate() {
+                    u.dir[1 + s] = (jt + s, cs);
+                }
+                u.n_dir = d;
+            }
+            red.push(u);
+        } else {
+            e0[i] = -f[i];
+            if let Some(cp) = coupling {
+                // lambda_N moves by -F_N: the bound, hence the slip force, follows.
+                for s in 0..d - 1 {
+                    e0[jt + s] += cp[s] * e0[i];
+                }
+            }
+        }
+    }
+    red
+}
+
+/// Solves for the Newton step `step` at lam (w = A lam - b). False when the
+/// reduced system is singular.
+#[allow(clippy::too_many_arguments)]
+pub(super) fn newton_step(
+    problem: &DualProblem<'_>,
+    lam: &[f64],
+    w: &[f64],
+    step: &mut [f64],
+    f: &mut [f64],
+    ae0: &mut [f64],
+    cscale: f64,
+    krylov: &mut Krylov,
+    reused: &mut Option<Reused>,
+) -> bool {
+    let dual = problem.dual;
+    let red = linearise(problem, lam, w, step, f, cscale);
+    let k = red.len();
+    if k == 0 {
+        return true;
+    }
+    if dual.is_matrix_free() {
+        // The products of this step read and give only the rows of the
+        // reduced unknowns and of the explicit part: narrowed to them (where
+        // their DOFs' paths hold few of L's entries; Coulomb's open contacts
+        // leave the reduced system).
+        let rows = &mut krylov.rows;
+        rows.clear();
+        for u in &red {
+            rows.extend(u.dir[..u.n_dir].iter().map(|&(j, _)| j));
+            rows.extend(u.test[..u.n_test].iter().map(|&(j, _)| j));
+        }
+        rows.extend((0..dual.c).filter(|&j| step[j] != 0.0));
+        rows.sort_unstable();
+        rows.dedup();
+        if dual.narrow_to(rows) {
+            krylov.narrowed += 1;
+        }
+        // The fixed components' part of the right-hand side, to the accuracy
+        // the reduced solve asks for.
+        dual.apply_narrow(step, ae0, krylov.rough());
+        let solved = krylov_step(problem, &red, step, ae0, krylov);
+        dual.widen();
+        return solved;
+    }
+    dual.apply(step, ae0);
+    // M = T^T A V + diag, column by column: column l is the sum over the entries of
+    // dir_l of coef times T^T A[:, j], gathered from one column of A.
+    let _mat_claim = dual.ledger.claim_f64(k * k);
+    // Where the allocator refuses the k x k system the step fails as a singular
+    // one does (the fallback sweeps take over) instead of aborting the host.
+    let Ok(mut mat) = crate::memory::try_mat::<f64>(k, k, "") else {
+        return false;
+    };
+    let mut rhs = Mat::<f64>::zeros(k, 1);
+    for (l, u) in red.iter().enumerate() {
+        let col = mat
+            .col_mut(l)
+            .try_as_col_major_mut()
+            .expect("contiguous")
+            .as_slice_mut();
+        for &(jd, cd) in &u.dir[..u.n_dir] {
+            let a = dual.col(jd);
+            for (x, ur) in col.iter_mut().zip(&red) {
+                let t = &ur.test[..ur.n_test];
+                *x += cd * t.iter().map(|&(jt, ct)| ct * a[jt]).sum::<f64>();
+            }
+        }
+        col[l] += u.diag;
+        let mut g = u.rhs;
+        for &(j, coef) in &u.test[..u.n_test] {
+            g -= coef * ae0[j];
+        }
+        rhs[(l, 0)] = g;
+    }
+    // Test and direction vectors equal (every unknown but a Coulomb normal that
+    // drags its slip force): M is symmetric, positive definite unless A is singular.
+    let symmetric = red
+        .iter()
+        .all(|u| u.n_test == u.n_dir && u.test[..u.n_test] == u.dir[..u.n_dir]);
+    let key: Vec<usize> = red.iter().map(|u| 4 * u.test[0].0 + u.n_test).collect();
+    let how = Reduce {
+        symmetric,
+        key,
+        reused,
+    };
+    let Some(z) = solve_reduced(&mat, &rhs, how, &dual.threads, &dual.ledger) else {
+        return false;
+    };
+    for (l, u) in red.iter().enumerate() {
+        for &(j, coef) in &u.dir[..u.n_dir] {
+            step[j] += coef * z[(l, 0)];
+        }
+    }
+    true
+}

@@ -1,0 +1,579 @@
+//! Unit tests of Newton's pieces and of its outer loop.
+use super::*;
+use crate::friction::Friction;
+use crate::options::{Method, Options};
+use crate::problem::ContactProblem;
+use crate::sparse::Csc;
+
+/// A 2D strip of `nodes` contact nodes (u_x, u_y each), tied to a rigid top
+/// by vertical and shear springs and to each other by bars: pressed down by
+/// `press` and sheared by `shear` through the top; contact i: N = -e_y, T = e_x,
+/// gap 1e-3 (i - c)^2 / c^2 around the centre c.
+fn strip(nodes: usize) -> (ContactProblem, Vec<f64>) {
+    let n = 2 * nodes;
+    let mut k = Vec::new();
+    for i in 0..nodes {
+        let (x, y) = (2 * i, 2 * i + 1);
+        k.push((x, x, 0.02));
+        k.push((y, y, 1.0));
+        if i + 1 < nodes {
+            for (a, b, s) in [(x, x + 2, 2.0), (y, y + 2, 0.5)] {
+                k.push((a, a, s));
+                k.push((b, b, s));
+                k.push((a, b, -s));
+                k.push((b, a, -s));
+            }
+        }
+    }
+    let nmat: Vec<_> = (0..nodes).map(|i| (i, 2 * i + 1, -1.0)).collect();
+    let tmat: Vec<_> = (0..nodes).map(|i| (i, 2 * i, 1.0)).collect();
+    let c = (nodes - 1) as f64 / 2.0;
+    let g: Vec<f64> = (0..nodes)
+        .map(|i| 1e-3 * (i as f64 - c).powi(2) / (c * c))
+        .collect();
+    let pb = ContactProblem::from_csc(
+        2,
+        Csc::from_triplets(n, n, &k),
+        Csc::from_triplets(nodes, n, &nmat),
+        Csc::from_triplets(nodes, n, &tmat),
+    )
+    .unwrap();
+    (pb, g)
+}
+
+/// b = B K^-1 f - [g; 0] of the strip under the top's load.
+fn rhs(pb: &ContactProblem, g: &[f64], press: f64, shear: f64) -> Vec<f64> {
+    let nodes = g.len();
+    let mut u0: Vec<f64> = (0..2 * nodes)
+        .map(|j| if j % 2 == 0 { 0.3 * shear } else { -press })
+        .collect();
+    pb.factor().solve_vec(&mut u0);
+    let mut b = vec![0.0; 2 * nodes];
+    pb.dual().rows.mul_vec(&u0, &mut b);
+    for (bi, gi) in b.iter_mut().zip(g) {
+        *bi -= gi;
+    }
+    b
+}
+
+/// Newton without its Gauss-Seidel warm-up from `lam`: the outer iterations.
+fn newton_steps(
+    pb: &ContactProblem,
+    b: &[f64],
+    mu: &[f64],
+    lam: &mut [f64],
+    warm_sort: bool,
+) -> usize {
+    let (out, _) = drive_newton(pb.dual(), b, Friction::Coulomb(mu), lam, |n| {
+        n.presweeps = 0;
+        n.warm_sort = warm_sort;
+    });
+    out.outer
+}
+
+#[test]
+fn the_warm_start_sorts_by_the_multipliers_and_saves_newton_steps() {
+    // A history step: the converged multipliers of one load, then the load
+    // raised by 5 %. From the same starting iterate, the first step sorted by
+    // the multipliers (the warm start) needs fewer Newton steps than the first
+    // step sorted by the natural map at that iterate, where the load change
+    // with the forces frozen makes the contacts look like slipping.
+    let (pb, g) = strip(41);
+    let mu = vec![0.3; 41];
+    let (press, shear) = (4e-3, 3e-3);
+    let b1 = rhs(&pb, &g, press, shear);
+    let mut lam1 = vec![0.0; 82];
+    newton_steps(&pb, &b1, &mu, &mut lam1, true);
+    // Mostly sticking, two contacts slipping (at mu = 0.3, shear 3e-3).
+    let slipping = (0..41)
+        .filter(|&i| lam1[41 + i].abs() >= (1.0 - 1e-9) * 0.3 * lam1[i])
+        .count();
+    assert!((1..41).contains(&slipping), "{slipping} slipping");
+    let b2 = rhs(&pb, &g, 1.05 * press, 1.05 * shear);
+    let (mut warm, mut cold) = (lam1.clone(), lam1.clone());
+    let with_sort = newton_steps(&pb, &b2, &mu, &mut warm, true);
+    let without = newton_steps(&pb, &b2, &mu, &mut cold, false);
+    println!(
+        "warm step: {with_sort} Newton steps sorted by the multipliers, {without} by the \
+         natural map"
+    );
+    assert!(with_sort < without, "{with_sort} vs {without}");
+    assert!(with_sort <= 2, "{with_sort}");
+}
+
+/// `refine` against an operator whose single-precision products err by
+/// `rough_error` (relative, a fixed non-symmetric perturbation): with
+/// 1e-7 it reaches eta = 1e-12 on the exact residual with most products
+/// rough; with 0.9 (single precision useless) it falls back to exact
+/// products and still reaches it.
+#[test]
+fn refinement_reaches_the_exact_residual_with_rough_products() {
+    let k = 300;
+    let exact = |x: &[f64], y: &mut [f64]| {
+        for i in 0..k {
+            let mut s = (4.0 + 0.01 * i as f64) * x[i];
+            if i > 0 {
+                s -= x[i - 1];
+            }
+            if i + 1 < k {
+                s -= x[i + 1];
+            }
+            y[i] = s;
+        }
+    };
+    let rhs: Vec<f64> = (0..k).map(|i| (0.3 * i as f64).cos() + 0.2).collect();
+    for (rough_error, most_rough) in [(1e-7, true), (0.9, false)] {
+        for solver in [
+            super::super::krylov::pcg as super::super::krylov::Solver,
+            super::super::krylov::gmres,
+        ] {
+            let rough = std::cell::Cell::new(false);
+            let (mut n_rough, mut n_exact) = (0, 0);
+            let mut op = |x: &[f64], y: &mut [f64]| {
+                exact(x, y);
+                if rough.get() {
+                    n_rough += 1;
+                    let scale = norm(y) * rough_error / (k as f64).sqrt();
+                    for (i, v) in y.iter_mut().enumerate() {
+                        *v += scale * ((i * 7 % 13) as f64 / 6.0 - 1.0);
+                    }
+                } else {
+                    n_exact += 1;
+                }
+            };
+            let mut pre = |x: &[f64], y: &mut [f64]| y.copy_from_slice(x);
+            let mut z = vec![0.0; k];
+            let its = refine(solver, &mut op, &rough, &rhs, &mut pre, 1e-12, 500, &mut z)
+                .expect("no breakdown");
+            assert_eq!(its, n_rough + n_exact);
+            let mut mz = vec![0.0; k];
+            exact(&z, &mut mz);
+            let r: Vec<f64> = mz.iter().zip(&rhs).map(|(a, b)| a - b).collect();
+            assert!(
+                norm(&r) <= 1e-12 * norm(&rhs),
+                "{rough_error}: {}",
+                norm(&r)
+            );
+            println!("rough error {rough_error}: {n_rough} rough, {n_exact} exact products");
+            if most_rough {
+                assert!(n_rough > 2 * n_exact, "{n_rough} rough, {n_exact} exact");
+            }
+        }
+    }
+}
+
+/// Newton's warm-up sweeps read A in single precision: from the same
+/// start they follow the exact sweeps to rounding, their w drifts from
+/// A lam - b by rounding only, and the copy is on the ledger while it lives.
+#[test]
+fn rough_sweeps_follow_the_exact_ones() {
+    let (pb, g) = strip(41);
+    let p = vec![2e-3; 41];
+    let b = rhs(&pb, &g, 4e-3, 3e-3);
+    let problem = DualProblem {
+        dual: pb.dual(),
+        b: &b,
+        law: Friction::Tresca(&p),
+        monitor: None,
+        deadline: None,
+        predicted: false,
+        near: false,
+    };
+    let c = problem.dual.c;
+    let (mut lam_exact, mut w_exact) = (vec![0.0; c], vec![0.0; c]);
+    problem.gradient(&lam_exact, &mut w_exact);
+    let (mut lam, mut w) = (lam_exact.clone(), w_exact.clone());
+    let mut pgs = pgs::Pgs::new(&problem);
+    let mut inner = 0;
+    for k in 0..30 {
+        pgs.step(&problem, &mut lam_exact, &mut w_exact, &mut inner, k);
+    }
+    let ledger = problem.dual.ledger.clone();
+    let live = ledger.live();
+    let mut rough = pgs::Rough::new(problem.dual);
+    assert_eq!(ledger.live(), live + c * c * 4);
+    assert_eq!(
+        pgs::rough_sweeps(&problem, &mut rough, &mut lam, &mut w, 30),
+        30
+    );
+    drop(rough);
+    assert_eq!(ledger.live(), live);
+    let scale = norm(&lam_exact);
+    assert!(scale > 0.0);
+    let dl: Vec<f64> = lam.iter().zip(&lam_exact).map(|(a, b)| a - b).collect();
+    assert!(norm(&dl) <= 1e-5 * scale, "{}", norm(&dl) / scale);
+    let mut w_true = vec![0.0; c];
+    problem.gradient(&lam, &mut w_true);
+    let dw: Vec<f64> = w.iter().zip(&w_true).map(|(a, b)| a - b).collect();
+    let a_max = problem.dual.a.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+    assert!(norm(&dw) <= 1e-6 * a_max * norm(&lam) * (c as f64).sqrt());
+    assert!(norm(&dw) > 0.0, "single precision leaves some drift");
+}
+
+fn mat(rows: &[&[f64]]) -> Mat<f64> {
+    Mat::from_fn(rows.len(), rows[0].len(), |i, j| rows[i][j])
+}
+
+#[test]
+fn the_reduced_solve_takes_cholesky_lu_or_least_squares_as_the_matrix_allows() {
+    let rhs = mat(&[&[1.0], &[2.0]]);
+    let seq = Threads::sequential();
+    fn fresh(none: &mut Option<Reused>) -> Reduce<'_> {
+        Reduce {
+            symmetric: true,
+            key: Vec::new(),
+            reused: none,
+        }
+    }
+    let mut none = None;
+    // SPD: Cholesky; z solves M z = rhs.
+    let spd = mat(&[&[4.0, 1.0], &[1.0, 3.0]]);
+    let z = solve_reduced(&spd, &rhs, fresh(&mut none), &seq, &Ledger::new()).unwrap();
+    assert!((4.0 * z[(0, 0)] + z[(1, 0)] - 1.0).abs() < 1e-15);
+    assert!((z[(0, 0)] + 3.0 * z[(1, 0)] - 2.0).abs() < 1e-15);
+    // Symmetric but indefinite: Cholesky fails, LU solves it: z = (2, 1).
+    let indef = mat(&[&[0.0, 1.0], &[1.0, 0.0]]);
+    let z = solve_reduced(&indef, &rhs, fresh(&mut none), &seq, &Ledger::new()).unwrap();
+    assert!((z[(0, 0)] - 2.0).abs() < 1e-15 && (z[(1, 0)] - 1.0).abs() < 1e-15);
+    // Singular: the minimum-norm least-squares solution of [1 1; 1 1] z = (1, 2)
+    // is z = (0.75, 0.75).
+    let sing = mat(&[&[1.0, 1.0], &[1.0, 1.0]]);
+    let z = solve_reduced(&sing, &rhs, fresh(&mut none), &seq, &Ledger::new()).unwrap();
+    assert!((z[(0, 0)] - 0.75).abs() < 1e-12 && (z[(1, 0)] - 0.75).abs() < 1e-12);
+}
+
+/// A dense reduced solve keeps its single-precision factor for the next
+/// step; a next step with the same unknowns, or one more and one fewer,
+/// solves its own (nearby) matrix by CG on that factor, exactly, without
+/// factoring again; one with other unknowns factors its own and keeps it.
+#[test]
+fn a_reduced_solve_with_the_same_unknowns_reuses_the_last_factor() {
+    let k = MIXED_MIN + 44;
+    let seq = Threads::sequential();
+    let ledger = Ledger::new();
+    // M0: diagonally dominant SPD; M1 = M0 + 3 w w^T.
+    let m0 = Mat::from_fn(k, k, |i, j| {
+        if i == j {
+            4.0 + (i % 7) as f64
+        } else {
+            1.0 / (1.0 + (i as f64 - j as f64).abs()).powi(2)
+        }
+    });
+    let w: Vec<f64> = (0..k).map(|i| (i as f64 * 0.3 + 0.5).sin()).collect();
+    let m1 = Mat::from_fn(k, k, |i, j| m0[(i, j)] + 3.0 * w[i] * w[j]);
+    let rhs = Mat::from_fn(k, 1, |i, _| (i as f64 * 0.7).cos());
+    let key: Vec<usize> = (0..k).collect();
+    let mut reused = None;
+    fn how<'a>(key: &[usize], reused: &'a mut Option<Reused>) -> Reduce<'a> {
+        Reduce {
+            symmetric: true,
+            key: key.to_vec(),
+            reused,
+        }
+    }
+    let check = |m: &Mat<f64>, z: &Mat<f64>| {
+        let r = m * z - &rhs;
+        let res = (0..k).fold(0.0f64, |a, i| a.max(r[(i, 0)].abs()));
+        assert!(res <= 1e-13, "{res}");
+    };
+    let z = solve_reduced(&m0, &rhs, how(&key, &mut reused), &seq, &ledger).unwrap();
+    check(&m0, &z);
+    let first = reused.as_ref().expect("kept").llt.order();
+    assert_eq!(first, k);
+    assert_eq!(ledger.live(), k * k * 4, "the kept factor is claimed");
+    let l00 = |r: &Option<Reused>| r.as_ref().unwrap().llt.first_entry();
+    let before = l00(&reused);
+    let z = solve_reduced(&m1, &rhs, how(&key, &mut reused), &seq, &ledger).unwrap();
+    check(&m1, &z);
+    assert_eq!(l00(&reused), before, "M1 solved on M0's factor");
+    // One unknown gone, one new: still on M0's factor, embedded.
+    let near: Vec<usize> = (1..=k).collect();
+    let z = solve_reduced(&m1, &rhs, how(&near, &mut reused), &seq, &ledger).unwrap();
+    check(&m1, &z);
+    assert_eq!(l00(&reused), before, "embedded");
+    // Other unknowns: M1 factored and kept.
+    let other: Vec<usize> = (k..2 * k).collect();
+    let z = solve_reduced(&m1, &rhs, how(&other, &mut reused), &seq, &ledger).unwrap();
+    check(&m1, &z);
+    assert_ne!(l00(&reused), before);
+    assert_eq!(reused.as_ref().unwrap().key, other);
+    assert_eq!(ledger.live(), k * k * 4, "one factor held at a time");
+}
+
+/// A thin slab of springs, nx x ny x nz nodes with 3 DOFs each: every two
+/// nodes at most one cell diagonal apart joined by a unit spring along
+/// their line (a lattice that resists shear through its diagonals, as an
+/// elastic solid does), plus `anchor` on the diagonal.
+fn lattice(nx: usize, ny: usize, nz: usize, anchor: f64) -> Csc {
+    let id = |i: usize, j: usize, l: usize| i + nx * (j + ny * l);
+    let mut t = Vec::new();
+    for l in 0..nz {
+        for j in 0..ny {
+            for i in 0..nx {
+                let a = id(i, j, l);
+                for r in 0..3 {
+                    t.push((3 * a + r, 3 * a + r, anchor));
+                }
+                // Offsets (di, dj, dl) in {-1, 0, 1}^3 after (0, 0, 0) in
+                // the order of off = (di + 1) + 3 (dj + 1) + 9 (dl + 1):
+                // each pair once.
+                for off in 14..27usize {
+                    let o = [off % 3, (off / 3) % 3, off / 9].map(|v| v as i64 - 1);
+                    let (i2, j2, l2) = (i as i64 + o[0], j as i64 + o[1], l as i64 + o[2]);
+                    if i2 < 0 || j2 < 0 || l2 < 0 {
+                        continue;
+                    }
+                    let (i2, j2, l2) = (i2 as usize, j2 as usize, l2 as usize);
+                    if i2 >= nx || j2 >= ny || l2 >= nz {
+                        continue;
+                    }
+                    let b = id(i2, j2, l2);
+                    let len = ((o[0] * o[0] + o[1] * o[1] + o[2] * o[2]) as f64).sqrt();
+                    let e = o.map(|v| v as f64 / len);
+                    for r in 0..3 {
+                        for s in 0..3 {
+                            let v = e[r] * e[s];
+                            t.push((3 * a + r, 3 * a + s, v));
+                            t.push((3 * b + r, 3 * b + s, v));
+                            t.push((3 * a + r, 3 * b + s, -v));
+                            t.push((3 * b + r, 3 * a + s, -v));
+                        }
+                    }
+                }
+            }
+        }
+    }
+    let n = 3 * nx * ny * nz;
+    Csc::from_triplets(n, n, &t)
+}
+
+/// Every bottom node of an nx x ny lattice slab a contact: N = e_z, T =
+/// e_x, e_y (3 DOFs per node, the bottom layer first), as matrices with
+/// `ndof` columns.
+fn slab_contacts(nx: usize, ny: usize, ndof: usize) -> (Csc, Csc) {
+    let m = nx * ny;
+    let nmat: Vec<_> = (0..m).map(|i| (i, 3 * i + 2, 1.0)).collect();
+    let tmat: Vec<_> = (0..2 * m).map(|r| (r, 3 * (r / 2) + r % 2, 1.0)).collect();
+    (
+        Csc::from_triplets(m, ndof, &nmat),
+        Csc::from_triplets(2 * m, ndof, &tmat),
+    )
+}
+
+/// The slab's contact-space load: the gap closed in a round central
+/// patch, b_N = 0.1 - curve r^2, and a shear `shear` along x.
+fn patch_load(nx: usize, ny: usize, curve: f64, shear: f64) -> Vec<f64> {
+    let m = nx * ny;
+    let centre = (nx as f64 - 1.0) / 2.0;
+    (0..m)
+        .map(|i| {
+            let (x, y) = ((i % nx) as f64 - centre, (i / nx) as f64 - centre);
+            0.1 - curve * (x * x + y * y)
+        })
+        .chain((0..2 * m).map(|r| if r % 2 == 0 { shear } else { 0.0 }))
+        .collect()
+}
+
+/// Newton (target 1e-12) on `dual` from `lam`, set up by `setup`:
+/// asserts that it converged; the driver's outcome and the method's state
+/// (its Krylov counters).
+fn drive_newton(
+    dual: &crate::dual::Dual,
+    b: &[f64],
+    law: Friction<'_>,
+    lam: &mut [f64],
+    setup: impl FnOnce(&mut Newton),
+) -> (super::super::driver::Outcome, Newton) {
+    let problem = DualProblem {
+        dual,
+        b,
+        law,
+        monitor: None,
+        deadline: None,
+        predicted: false,
+        near: false,
+    };
+    let mut newton = Newton::new(&problem, 1e-12);
+    setup(&mut newton);
+    let opts = Options {
+        method: Method::Newton,
+        ..Options::default()
+    };
+    let out = super::super::driver::drive(&problem, lam, &opts, 1e-12, &mut newton);
+    assert_eq!(out.end, super::super::End::Converged, "{out:?}");
+    (out, newton)
+}
+
+/// The largest entrywise difference.
+fn max_diff(a: &[f64], b: &[f64]) -> f64 {
+    a.iter()
+        .zip(b)
+        .map(|(x, y)| (x - y).abs())
+        .fold(0.0, f64::max)
+}
+
+/// Matrix-free Newton on a thin 3D lattice slab, Tresca, with the layered
+/// Dirichlet preconditioner and with the lumped one: both converge to dense
+/// Newton's multipliers (1e-10 relative), the layered one with fewer
+/// products.
+#[test]
+fn the_layered_dirichlet_preconditioner_saves_products() {
+    use crate::dual::{Condensation, Dual};
+    use crate::factor::Factor;
+    use crate::options::Ordering;
+    use std::sync::Arc;
+    // A thin slab on its bottom face (every bottom node a contact), pressed
+    // in a round patch and sheared.
+    let (nx, ny, nz) = (16, 16, 4);
+    let k = lattice(nx, ny, nz, 1e-4);
+    let m = nx * ny;
+    let (nm, tm) = slab_contacts(nx, ny, k.nrows);
+    let factor =
+        Arc::new(Factor::with_last(&k, &[], Ordering::Amd, Arc::new(Threads::new(1))).unwrap());
+    let b = patch_load(nx, ny, 0.002, 0.01);
+    let p = vec![0.05; m];
+    let solve = |dual: &Dual| {
+        let mut lam = vec![0.0; dual.c];
+        let (out, _) = drive_newton(dual, &b, Friction::Tresca(&p), &mut lam, |_| {});
+        (lam, out.inner)
+    };
+    let mut lumped = Dual::build_with(&factor, &nm, &tm, 3, Condensation::MatrixFree).unwrap();
+    lumped.set_lumped(&k);
+    lumped.drop_dirichlet();
+    let mut layered = Dual::build_with(&factor, &nm, &tm, 3, Condensation::MatrixFree).unwrap();
+    layered.set_lumped(&k);
+    assert!(layered.force_dirichlet(&k));
+    let dense = Dual::build_with(&factor, &nm, &tm, 3, Condensation::Solves).unwrap();
+    let (l_dense, _) = solve(&dense);
+    let (l_lumped, its_lumped) = solve(&lumped);
+    let (l_layered, its_layered) = solve(&layered);
+    // Some contacts open, some closed: the active set is not trivial.
+    assert!(l_dense[..m].contains(&0.0) && l_dense[..m].iter().any(|&v| v > 0.0));
+    let scale = norm(&l_dense);
+    for (what, l) in [("lumped", &l_lumped), ("layered", &l_layered)] {
+        let diff = max_diff(l, &l_dense);
+        assert!(diff <= 1e-10 * scale, "{what}: {diff:.2e}");
+    }
+    println!("products: lumped {its_lumped}, layered Dirichlet {its_layered}");
+    assert!(
+        (its_layered as f64) < 0.85 * its_lumped as f64,
+        "products: layered {its_layered}, lumped {its_lumped}"
+    );
+}
+
+/// Matrix-free Newton on a 3D lattice slab, Coulomb, pressed in a small
+/// central patch (most contacts open, so they leave the reduced systems)
+/// and sheared so that its contacts slip: its steps' products are narrowed
+/// to the patch's rows (`Dual::narrow_to`), and it converges to dense
+/// Newton's multipliers (1e-10 relative).
+#[test]
+fn coulomb_steps_narrow_their_products_to_the_contact_zone() {
+    use crate::dual::{Condensation, Dual};
+    use crate::factor::Factor;
+    use crate::options::Ordering;
+    use std::sync::Arc;
+    let (nx, ny, nz) = (24, 24, 3);
+    let k = lattice(nx, ny, nz, 0.05);
+    let m = nx * ny;
+    let (nm, tm) = slab_contacts(nx, ny, k.nrows);
+    let factor =
+        Arc::new(Factor::with_last(&k, &[], Ordering::Metis, Arc::new(Threads::new(1))).unwrap());
+    let b = patch_load(nx, ny, 0.004, 0.005);
+    let mu = vec![0.3; m];
+    let solve = |dual: &Dual| {
+        let mut lam = vec![0.0; dual.c];
+        let (out, newton) = drive_newton(dual, &b, Friction::Coulomb(&mu), &mut lam, |_| {});
+        (lam, out.outer, newton.krylov.narrowed)
+    };
+    let mut free = Dual::build_with(&factor, &nm, &tm, 3, Condensation::MatrixFree).unwrap();
+    free.set_lumped(&k);
+    let dense = Dual::build_with(&factor, &nm, &tm, 3, Condensation::Solves).unwrap();
+    let (l_dense, _, _) = solve(&dense);
+    let (l_free, outer, narrowed) = solve(&free);
+    let closed = l_dense[..m].iter().filter(|&&v| v > 0.0).count();
+    let slipping = (0..m)
+        .filter(|&i| {
+            let t = l_dense[m + 2 * i].hypot(l_dense[m + 2 * i + 1]);
+            l_dense[i] > 0.0 && t >= 0.3 * l_dense[i] * (1.0 - 1e-9)
+        })
+        .count();
+    println!(
+        "closed {closed} of {m}, slipping {slipping}; {outer} Newton steps, {narrowed} narrowed"
+    );
+    assert!(closed > 0 && closed < m / 4, "closed {closed} of {m}");
+    assert!(
+        slipping > 0,
+        "no contact slips: Coulomb's coupling untested"
+    );
+    assert!(
+        narrowed >= outer.saturating_sub(1) && narrowed > 0,
+        "{narrowed} of {outer}"
+    );
+    let diff = max_diff(&l_free, &l_dense);
+    assert!(diff <= 1e-10 * norm(&l_dense), "{diff:.2e}");
+}
+
+/// Matrix-free Newton on a grid's bottom row (d = 2: normal on the row's
+/// DOFs, tangent on the row above), Tresca, with the lumped preconditioner
+/// G = B K B^T (from zero and from the lumped start) and with Jacobi: all
+/// converge to dense Newton's multipliers (1e-10 relative), the lumped
+/// preconditioner with fewer products than Jacobi.
+#[test]
+fn the_lumped_preconditioner_saves_products() {
+    use crate::dual::tests::grid;
+    use crate::dual::{Condensation, Dual};
+    use crate::factor::Factor;
+    use crate::options::Ordering;
+    use std::sync::Arc;
+    let (nx, ny) = (60, 30);
+    let k = grid(nx, ny);
+    let m = nx;
+    let nmat: Vec<_> = (0..m).map(|i| (i, i, 1.0)).collect();
+    let tmat: Vec<_> = (0..m).map(|i| (i, i + nx, 1.0)).collect();
+    let (nm, tm) = (
+        Csc::from_triplets(m, nx * ny, &nmat),
+        Csc::from_triplets(m, nx * ny, &tmat),
+    );
+    let factor =
+        Arc::new(Factor::with_last(&k, &[], Ordering::Amd, Arc::new(Threads::new(1))).unwrap());
+    // Pressed in the middle, pulled off at the ends, sheared.
+    let b: Vec<f64> = (0..m)
+        .map(|i| 0.5 - ((i as f64 - 30.0) / 20.0).powi(2))
+        .chain((0..m).map(|i| 0.3 * (i as f64 * 0.2).sin()))
+        .collect();
+    let p = vec![0.04; m];
+    let solve = |dual: &Dual, start: bool| {
+        let mut lam = vec![0.0; dual.c];
+        let law = Friction::Tresca(&p);
+        let (out, _) = drive_newton(dual, &b, law, &mut lam, |n| n.lumped_start_on = start);
+        (lam, out.inner, out.outer)
+    };
+    let jacobi = Dual::build_with(&factor, &nm, &tm, 2, Condensation::MatrixFree).unwrap();
+    let mut lumped = Dual::build_with(&factor, &nm, &tm, 2, Condensation::MatrixFree).unwrap();
+    lumped.set_lumped(&k);
+    assert!(jacobi.lumped().is_none() && lumped.lumped().is_some());
+    let dense = Dual::build_with(&factor, &nm, &tm, 2, Condensation::Solves).unwrap();
+    let (l_dense, _, _) = solve(&dense, true);
+    let (l_jacobi, its_jacobi, _) = solve(&jacobi, true);
+    let (l_lumped, its_lumped, steps_cold) = solve(&lumped, false);
+    let (l_start, its_start, steps_start) = solve(&lumped, true);
+    println!(
+        "steps: from zero {steps_cold}, from the lumped start {steps_start}; products {its_start}"
+    );
+    assert!(its_start > 0 && steps_start > 0);
+    let scale = norm(&l_dense);
+    assert!(l_dense.contains(&0.0) && l_dense[..m].iter().any(|&v| v > 0.0));
+    for (what, l) in [
+        ("jacobi", &l_jacobi),
+        ("lumped", &l_lumped),
+        ("start", &l_start),
+    ] {
+        let diff = max_diff(l, &l_dense);
+        assert!(diff <= 1e-10 * scale, "{what}: {diff:.2e}");
+    }
+    assert!(
+        its_lumped < its_jacobi,
+        "products: lumped {its_lumped}, jacobi {its_jacobi}"
+    );
+    println!("products: lumped {its_lumped}, jacobi {its_jacobi}");
+}
