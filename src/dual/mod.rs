@@ -1,0 +1,511 @@
+//! The condensed dual problem of docs/design.md section 2: with B = [N; T],
+//! A = B K^-1 B^T (dense, c x c with c = d m) and, per increment,
+//! b = B K^-1 f - [g; 0]. Unknown ordering: lambda_N (m), then lambda_T ((d-1) m,
+//! contact by contact).
+//!
+//! Files: this one (the dual, its forms, rho, the compliance's diagonal, the
+//! products' entry points), `condense.rs` (the two dense condensations),
+//! `operator.rs` (the matrix-free operator and its preconditioners), tests.rs.
+
+use crate::contact_rows::{check_shapes, contact_dofs, stack_rows};
+use crate::error::Result;
+use crate::factor::Factor;
+use crate::memory::{Claim, F64, Ledger, try_mat, try_scratch, try_zeros};
+use crate::options::{DENSE_MAX, DualForm};
+use crate::sparse::Csc;
+use crate::threads::{PARALLEL_MIN_ENTRIES, Threads};
+use faer::MatMut;
+use faer::dyn_stack::{MemBuffer, MemStack};
+use faer::linalg::cholesky::llt::inverse as llt_inverse;
+use std::sync::Arc;
+use std::time::Instant;
+
+/// Number of right-hand sides solved together while forming A.
+pub(crate) const BLOCK: usize = 32;
+
+/// The dense condensed dual operator of one set of contact matrices.
+pub struct Dual {
+    /// Contact dimension (2 or 3).
+    pub(crate) d: usize,
+    /// Number of contacts.
+    pub(crate) m: usize,
+    /// Number of dual unknowns, d m.
+    pub(crate) c: usize,
+    /// A = B K^-1 B^T, c x c, column-major and exactly symmetric; empty when
+    /// matrix-free (`condensation == Condensation::MatrixFree`).
+    pub(crate) a: Vec<f64>,
+    /// The products of the matrix-free form (None when A is assembled).
+    free: Option<Operator>,
+    /// Per contact: rho_i = d / trace of the contact's d x d diagonal block of A
+    /// (0 when that block vanishes). Units: force / length.
+    pub(crate) rho: Vec<f64>,
+    /// The matrix B = [N; T] (the contact rows, stacked), c x n. (The dual's
+    /// linear term, the vector b, lives in `methods::DualProblem::b`.)
+    pub(crate) rows: Csc,
+    /// Seconds spent forming A.
+    pub(crate) condense_seconds: f64,
+    /// How A was formed.
+    pub(crate) condensation: Condensation,
+    /// Whether every DOF B touches is among the factor's trailing DOFs (u is then
+    /// recovered through the trailing block: `ContactProblem::recover_u`).
+    pub(crate) trailing: bool,
+    /// The problem's threads (those of the factor it was built from).
+    pub(crate) threads: Arc<Threads>,
+    /// The problem's count of its large allocations (the factor's).
+    pub(crate) ledger: Arc<Ledger>,
+    /// The bytes of A (or of the matrix-free form) on that ledger.
+    _claim: Claim,
+    /// The interface compliance's diagonal D (`compliance.rs`), length c, or
+    /// empty where every contact is rigid: the operator is A + D. On a dense
+    /// dual D is added to A's diagonal (entries read from `a` include it).
+    shift: Vec<f64>,
+    /// A's own diagonal while D is added to it (dense form; else empty).
+    rigid_diag: Vec<f64>,
+}
+
+/// How the condensed dual operator was formed.
+#[derive(Copy, Clone, Debug, PartialEq, Eq)]
+pub enum Condensation {
+    /// From the trailing block L_CC of K's factor with the contact DOFs C ordered
+    /// last: A = B_C (L_CC L_CC^T)^-1 B_C^T (dense inverse from L_CC, sparse B_C).
+    TrailingBlock,
+    /// One forward and back solve with K's factor per dual unknown.
+    Solves,
+    /// A is not formed: each product is one solve with K's factor, whatever its
+    /// ordering (see [`crate::DualForm::MatrixFree`]).
+    MatrixFree,
+}
+
+impl Condensation {
+    /// How `Dual::build` forms a dual of `c` unknowns in the form asked for,
+    /// `trailing` when every contact DOF is among the factor's trailing DOFs.
+    pub(crate) fn of(trailing: bool, form: DualForm, c: usize) -> Condensation {
+        let free = match form {
+            DualForm::Dense => false,
+            DualForm::MatrixFree => true,
+            DualForm::Auto => c > DENSE_MAX,
+        };
+        match (trailing, free) {
+            (_, true) => Condensation::MatrixFree,
+            (false, false) => Condensation::Solves,
+            (true, false) => Condensation::TrailingBlock,
+        }
+    }
+}
+
+impl Dual {
+    /// Builds the dual operator in the form asked for: `Dense` assembles A, from the
+    /// trailing block of the factor when every DOF that B touches is among the DOFs
+    /// the factor ordered last, by solves otherwise; `MatrixFree` forms nothing
+    /// c x c (products by solves with the factor, whatever its ordering); `Auto`
+    /// is `Dense` up to [`DENSE_MAX`] dual unknowns, `MatrixFree` beyond.
+    ///
+    /// Errors: `BadSize` if the shapes of N and T do not match d and K,
+    /// `OutOfMemory` if A does not fit.
+    #[cfg(any(test, feature = "internals"))]
+    pub fn build(factor: &Arc<Factor>, n: &Csc, t: &Csc, d: usize, form: DualForm) -> Result<Dual> {
+        check_shapes(factor.n(), d, n, t)?;
+        Self::build_with(
+            factor,
+            n,
+            t,
+            d,
+            Self::condensation_for(factor, n, t, d, form),
+        )
+    }
+
+    /// How `Dual::build` forms the dual of (N, T) on `factor` in `form`
+    /// (shapes checked by the caller).
+    pub(crate) fn condensation_for(
+        factor: &Factor,
+        n: &Csc,
+        t: &Csc,
+        d: usize,
+        form: DualForm,
+    ) -> Condensation {
+        let trailing = Self::trailing_available(factor, n, t);
+        Condensation::of(trailing, form, d * n.nrows)
+    }
+
+    /// True when every DOF that N or T touches is among the DOFs `factor` orders
+    /// last (the condition of `TrailingBlock`).
+    pub fn trailing_available(factor: &Factor, n: &Csc, t: &Csc) -> bool {
+        Self::trailing_of(factor, &stack_rows(n, t))
+    }
+
+    /// A, c x c column-major, when it is formed (None when it is not: the
+    /// matrix-free form, or no contacts).
+    #[cfg(any(test, feature = "internals"))]
+    pub fn dense(&self) -> Option<&[f64]> {
+        (!self.a.is_empty()).then_some(&self.a[..])
+    }
+
+    /// Number of dual unknowns c = d m.
+    #[cfg(any(test, feature = "internals"))]
+    pub fn unknowns(&self) -> usize {
+        self.c
+    }
+
+    /// Seconds spent forming A.
+    #[cfg(any(test, feature = "internals"))]
+    pub fn condense_seconds(&self) -> f64 {
+        self.condense_seconds
+    }
+
+    /// The stacked contact rows B = [N; T], c x n.
+    #[cfg(any(test, feature = "internals"))]
+    pub fn rows(&self) -> &Csc {
+        &self.rows
+    }
+
+    /// rho_i per contact (see the field), length m.
+    #[cfg(any(test, feature = "internals"))]
+    pub fn rho(&self) -> &[f64] {
+        &self.rho
+    }
+
+    /// True when A is not assembled (products only).
+    pub fn is_matrix_free(&self) -> bool {
+        self.free.is_some()
+    }
+
+    /// Forms A in the way asked for (`TrailingBlock` requires the contact DOFs to
+    /// be among the factor's trailing DOFs).
+    pub fn build_with(
+        factor: &Arc<Factor>,
+        n: &Csc,
+        t: &Csc,
+        d: usize,
+        how: Condensation,
+    ) -> Result<Dual> {
+        let start = Instant::now();
+        let m = n.nrows;
+        check_shapes(factor.n(), d, n, t)?;
+        let b = stack_rows(n, t);
+        let c = b.nrows;
+        let trailing = Self::trailing_of(factor, &b);
+        let ledger = factor.ledger();
+        if how == Condensation::MatrixFree {
+            let free = Operator::new(factor, &b, m, d)?;
+            let rho = rho_of(m, d, |j| free.diag[j]);
+            return Ok(Dual {
+                _claim: ledger.claim_f64(d * c),
+                ledger: ledger.clone(),
+                d,
+                m,
+                c,
+                a: Vec::new(),
+                free: Some(free),
+                rho,
+                rows: b,
+                condense_seconds: start.elapsed().as_secs_f64(),
+                condensation: how,
+                trailing,
+                threads: factor.threads().clone(),
+                shift: Vec::new(),
+                rigid_diag: Vec::new(),
+            });
+        }
+        let mut a = alloc_zeroed(c, c, "condensed dual")?;
+        let claim = ledger.claim_f64(c * c);
+        match how {
+            Condensation::Solves => a_by_solves(factor, &b, &mut a)?,
+            Condensation::TrailingBlock => a_from_trailing_block(factor, &b, &mut a)?,
+            Condensation::MatrixFree => unreachable!("returned above"),
+        }
+        for j in 0..c {
+            for i in 0..j {
+                let s = 0.5 * (a[i + j * c] + a[j + i * c]);
+                a[i + j * c] = s;
+                a[j + i * c] = s;
+            }
+        }
+        let rho = rho_of(m, d, |j| a[j + j * c]);
+        Ok(Dual {
+            _claim: claim,
+            ledger: ledger.clone(),
+            d,
+            m,
+            c,
+            a,
+            free: None,
+            rho,
+            rows: b,
+            condense_seconds: start.elapsed().as_secs_f64(),
+            condensation: how,
+            trailing,
+            threads: factor.threads().clone(),
+            shift: Vec::new(),
+            rigid_diag: Vec::new(),
+        })
+    }
+
+    /// Makes the operator A + D for the compliance diagonal `shift` (length c;
+    /// empty: A itself, every contact rigid), replacing the last one, and
+    /// recomputes rho from the new diagonal. Exact: A's own diagonal is kept
+    /// while D is added to it, so an empty shift restores A bitwise.
+    pub(crate) fn set_shift(&mut self, shift: &[f64]) {
+        debug_assert!(shift.is_empty() || shift.len() == self.c);
+        if self.free.is_none() && !self.a.is_empty() {
+            let c = self.c;
+            if self.rigid_diag.is_empty() {
+                self.rigid_diag = (0..c).map(|j| self.a[j + j * c]).collect();
+            }
+            for j in 0..c {
+                self.a[j + j * c] = self.rigid_diag[j] + shift.get(j).copied().unwrap_or(0.0);
+            }
+            if shift.is_empty() {
+                self.rigid_diag = Vec::new();
+            }
+        }
+        self.shift = shift.to_vec();
+        self.rho = rho_of(self.m, self.d, |j| self.diag(j));
+    }
+
+    /// The compliance diagonal D of [`Dual::set_shift`] (empty: rigid).
+    pub(crate) fn shift(&self) -> &[f64] {
+        &self.shift
+    }
+
+    /// y += D x on the leading entries both reach (a matrix-free product's
+    /// compliance part; on a dense dual D is in A).
+    fn add_shift(&self, x: &[f64], y: &mut [f64]) {
+        for ((yi, xi), di) in y.iter_mut().zip(x).zip(&self.shift) {
+            *yi += di * xi;
+        }
+    }
+
+    /// Column (= row) j of A. Panics when matrix-free (the solver checks
+    /// [`crate::Method::needs_entries`] before running a method).
+    #[inline]
+    pub fn col(&self, j: usize) -> &[f64] {
+        &self.a[j * self.c..(j + 1) * self.c]
+    }
+
+    /// (A + D)_jj (D the compliance diagonal, zero for rigid contacts).
+    #[inline]
+    pub fn diag(&self, j: usize) -> f64 {
+        match &self.free {
+            Some(f) => f.diag[j] + self.shift.get(j).copied().unwrap_or(0.0),
+            None => self.a[j + j * self.c],
+        }
+    }
+
+    /// Entry (la, lb) of contact i's d x d diagonal block of A + D (0 the
+    /// normal unknown, 1.. the tangential ones), when matrix-free (None when A
+    /// is assembled: read its entries).
+    pub(crate) fn block_entry(&self, i: usize, la: usize, lb: usize) -> Option<f64> {
+        let (d, m) = (self.d, self.m);
+        let f = self.free.as_ref()?;
+        let mut v = f.blocks[i * d * d + la * d + lb];
+        if la == lb && !self.shift.is_empty() {
+            let j = if la == 0 { i } else { m + (d - 1) * i + la - 1 };
+            v += self.shift[j];
+        }
+        Some(v)
+    }
+
+    /// Hands K over to a matrix-free dual, which forms G = B K B^T from it (the
+    /// lumped preconditioner of Newton's reduced systems) and, where it pays,
+    /// the layered Dirichlet preconditioner (`dirichlet.rs`); nothing on a
+    /// dense dual.
+    pub(crate) fn set_lumped(&mut self, k: &Csc) {
+        if let Some(f) = &mut self.free {
+            let g = crate::sparse::congruence(k, &self.rows, &f.bt);
+            let claim = self.ledger.claim(g.bytes());
+            f.lumped = Some((g, claim));
+            let plan = crate::dirichlet::Plan::of(
+                k,
+                &self.rows,
+                &f.factor,
+                f.factor.threads().clone(),
+                self.ledger.clone(),
+            );
+            f.dirichlet = plan.and_then(|p| p.form(&self.ledger));
+        }
+    }
+
+    /// y := P x, P the approximate inverse of A that preconditions Newton's
+    /// reduced systems on a matrix-free dual: the layered Dirichlet one
+    /// (`dirichlet.rs`) where it was formed, else the lumped G = B K B^T.
+    /// False (y untouched) where the dual holds neither (a dense dual, or K
+    /// not handed over).
+    pub(crate) fn precondition(&self, x: &[f64], y: &mut [f64]) -> bool {
+        let Some(f) = &self.free else { return false };
+        if let Some(dn) = &f.dirichlet {
+            dn.apply(&self.rows, x, y);
+            return true;
+        }
+        match &f.lumped {
+            Some((g, _)) => {
+                g.mul_vec(x, y);
+                true
+            }
+            None => false,
+        }
+    }
+
+    /// Drops the layered Dirichlet preconditioner (the tests that measure what
+    /// it buys against the lumped one).
+    #[cfg(test)]
+    pub(crate) fn drop_dirichlet(&mut self) {
+        if let Some(f) = &mut self.free {
+            f.dirichlet = None;
+        }
+    }
+
+    /// Forms the layered Dirichlet preconditioner whatever it costs (the tests
+    /// that measure what it buys, on scenes too small for it to pay); true
+    /// where it was formed.
+    #[cfg(test)]
+    pub(crate) fn force_dirichlet(&mut self, k: &Csc) -> bool {
+        let Some(f) = &mut self.free else {
+            return false;
+        };
+        let threads = f.factor.threads().clone();
+        f.dirichlet =
+            crate::dirichlet::Plan::unguarded(k, &self.rows, threads, self.ledger.clone())
+                .and_then(|p| p.form(&self.ledger));
+        f.dirichlet.is_some()
+    }
+
+    /// G = B K B^T when a matrix-free dual holds it ([`Dual::set_lumped`]).
+    pub(crate) fn lumped(&self) -> Option<&Csc> {
+        self.free
+            .as_ref()
+            .and_then(|f| f.lumped.as_ref().map(|(g, _)| g))
+    }
+
+    /// True when every DOF B touches is among the DOFs `factor` orders last.
+    pub(crate) fn trailing_of(factor: &Factor, b: &Csc) -> bool {
+        !factor.last().is_empty() && {
+            let mut in_last = vec![false; factor.n()];
+            factor.last().iter().for_each(|&j| in_last[j] = true);
+            contact_dofs(b)
+                .iter()
+                .all(|&j| j < in_last.len() && in_last[j])
+        }
+    }
+
+    /// Narrows the products of [`Dual::apply_narrow`] to the dual rows `rows`
+    /// (ascending, no repeats): the x they are given vanishes outside them and
+    /// y is wanted only there (Newton's reduced solves: their unknowns' rows
+    /// and the explicit part's). The solves then take only the supernodes of
+    /// K's factor on the paths of those rows' DOFs (`tree_solve.rs`); on a
+    /// matrix-free dual where those hold at most MAX_FRACTION of L's entries.
+    /// False, and the products stay whole, where they hold more, and on an
+    /// assembled dual. In force until the next call or [`Dual::widen`].
+    pub(crate) fn narrow_to(&self, rows: &[usize]) -> bool {
+        self.free.as_ref().is_some_and(|f| f.narrow_to(rows))
+    }
+
+    /// Ends a narrowing (see [`Dual::narrow_to`]).
+    pub(crate) fn widen(&self) {
+        if let Some(f) = &self.free {
+            f.narrow.borrow_mut().split = None;
+        }
+    }
+
+    /// y := A x, in single precision where `rough` (as [`Dual::apply_rough`]),
+    /// where a narrowing is in force ([`Dual::narrow_to`]) only at its rows
+    /// and zero elsewhere (x must vanish outside them); else as
+    /// [`Dual::apply`] / [`Dual::apply_rough`].
+    pub(crate) fn apply_narrow(&self, x: &[f64], y: &mut [f64], rough: bool) {
+        match &self.free {
+            Some(f) => {
+                f.apply_narrow(x, y, rough);
+                self.add_shift(x, y);
+            }
+            None => self.apply(x, y),
+        }
+    }
+
+    /// y ~= A x for an inexact inner solve: on a matrix-free dual the solve with
+    /// K's factor runs in single precision (relative error about 1e-7 times the
+    /// factor's conditioning, half the memory traffic); exactly [`Dual::apply`]
+    /// on a dense one.
+    pub(crate) fn apply_rough(&self, x: &[f64], y: &mut [f64]) {
+        match &self.free {
+            Some(f) => {
+                f.apply_single(x, y);
+                self.add_shift(x, y);
+            }
+            None => self.apply(x, y),
+        }
+    }
+
+    /// y := A x. x and y may be shorter than c: then y is the leading block of A
+    /// (rows 0..len(y), columns 0..len(x)) times x, e.g. A_NN x_N for the normal
+    /// unknowns alone.
+    pub fn apply(&self, x: &[f64], y: &mut [f64]) {
+        if let Some(f) = &self.free {
+            // A cold start's first gradient: a zero x needs no solve (the
+            // back substitution, unlike the forward one, skips nothing).
+            if x.iter().all(|&v| v == 0.0) {
+                y.fill(0.0);
+                return;
+            }
+            f.apply(x, y);
+            self.add_shift(x, y);
+            return;
+        }
+        leading_block_apply(&self.a, self.c, x, y, &self.threads);
+    }
+}
+
+/// y := H x for the leading len(y) x len(x) block H of the column-major array `a`
+/// with leading dimension `ld`. Mostly nonzero x: faer's matrix-vector product
+/// (measured against a column loop: BENCHMARKS.md, "Tuning measurements"); sparse
+/// x (open contacts, active bounds): only the columns of its nonzeros.
+/// Large products run on `threads` (see [`PARALLEL_MIN_ENTRIES`]).
+pub(crate) fn leading_block_apply(
+    a: &[f64],
+    ld: usize,
+    x: &[f64],
+    y: &mut [f64],
+    threads: &Threads,
+) {
+    let nonzeros = x.iter().filter(|&&v| v != 0.0).count();
+    if 4 * nonzeros >= 3 * x.len() && !x.is_empty() && !y.is_empty() {
+        let h = faer::MatRef::from_column_major_slice_with_stride(a, y.len(), x.len(), ld);
+        let xm = faer::MatRef::from_column_major_slice(x, x.len(), 1);
+        let big = x.len() * y.len() >= PARALLEL_MIN_ENTRIES;
+        let ym = MatMut::from_column_major_slice_mut(y, y.len(), 1);
+        threads.run(big, |par| {
+            faer::linalg::matmul::matmul(ym, faer::Accum::Replace, h, xm, 1.0, par);
+        });
+        return;
+    }
+    let k = y.len();
+    y.iter_mut().for_each(|v| *v = 0.0);
+    for (j, &xj) in x.iter().enumerate() {
+        if xj != 0.0 {
+            for (yi, aij) in y.iter_mut().zip(&a[j * ld..j * ld + k]) {
+                *yi += aij * xj;
+            }
+        }
+    }
+}
+
+/// rho_i = d / trace of contact i's d x d diagonal block of A (0 when it vanishes).
+fn rho_of(m: usize, d: usize, diag: impl Fn(usize) -> f64) -> Vec<f64> {
+    (0..m)
+        .map(|i| {
+            let mut tr = diag(i);
+            for k in 0..d - 1 {
+                tr += diag(m + (d - 1) * i + k);
+            }
+            if tr > 0.0 { d as f64 / tr } else { 0.0 }
+        })
+        .collect()
+}
+
+mod condense;
+mod operator;
+
+use condense::*;
+pub(crate) use operator::own_solves_bytes;
+use operator::*;
+
+#[cfg(test)]
+pub(crate) mod tests;

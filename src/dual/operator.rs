@@ -1,0 +1,336 @@
+//! The matrix-free form of the dual: A applied by solves with K's factor
+//! (whole, narrowed to a Newton step's rows, in double or single precision),
+//! its contact blocks and diagonal, and the preconditioners Newton's reduced
+//! systems take (lumped, layered Dirichlet).
+
+use super::*;
+
+/// The matrix-free form of A = B K^-1 B^T: each product is one solve with K's
+/// factor (whatever its ordering); nothing c x c is formed. The contacts' d x d
+/// diagonal blocks of A are computed once (`contact_blocks`), for rho, the
+/// diagonal and Newton's preconditioner.
+pub(super) struct Operator {
+    pub(super) factor: Arc<Factor>,
+    /// B^T, n x c: column r holds row r of B.
+    pub(super) bt: Csc,
+    /// A_jj, j < c.
+    pub(super) diag: Vec<f64>,
+    /// Per contact, its d x d diagonal block of A, row-major (see
+    /// [`crate::factor_tree::contact_blocks::contact_blocks`]).
+    pub(super) blocks: Vec<f64>,
+    /// Workspace of one product: the n-vector and the solve's scratch.
+    pub(super) work: std::cell::RefCell<(Vec<f64>, MemBuffer)>,
+    /// L's values in single precision, for the rough products of
+    /// [`Dual::apply_rough`], with their workspace; and their bytes on the ledger.
+    pub(super) single: Vec<f32>,
+    pub(super) work_single: std::cell::RefCell<(Vec<f32>, MemBuffer)>,
+    pub(super) _single_claim: Claim,
+    /// G = B K B^T (c x c, sparse), the lumped approximation of A^-1 that
+    /// preconditions Newton's reduced systems, once K is handed over
+    /// ([`Dual::set_lumped`]), with its bytes on the ledger.
+    pub(super) lumped: Option<(Csc, Claim)>,
+    /// The layered Dirichlet preconditioner, where it pays (`dirichlet.rs`).
+    pub(super) dirichlet: Option<crate::dirichlet::Dirichlet>,
+    /// The products' own solves (see [`OwnSolves`]); None on a dense
+    /// factor: its plain solve.
+    pub(super) own: Option<OwnSolves>,
+    /// The narrowed products of Newton's reduced solves (see
+    /// [`Dual::narrow_to`]).
+    pub(super) narrow: std::cell::RefCell<Narrow>,
+}
+
+/// Products narrowed to a set of dual rows: x vanishes outside them and y is
+/// wanted only there (a Newton step's reduced unknowns and explicit part), so
+/// the solves take the supernodes on the paths of their DOFs alone
+/// (`tree_solve.rs`). The split is replaced at each narrowing; its scratch in
+/// double and single precision is made at the first one, refitted after,
+/// and claimed on the ledger (`TreeSolve::bytes_bound` in the prediction).
+#[derive(Default)]
+pub(super) struct Narrow {
+    /// The rows, ascending, and the split for their DOFs; None: the products
+    /// are not narrowed.
+    pub(super) rows: Vec<usize>,
+    pub(super) split: Option<crate::factor_tree::tree_solve::TreeSolve>,
+    /// The factor's elimination tree, made at the first narrowing.
+    pub(super) tree: Option<crate::factor_tree::supernode_tree::Tree>,
+    /// The DOFs of the rows (scratch of [`Dual::narrow_to`]).
+    pub(super) dofs: Vec<usize>,
+    pub(super) work: Option<NarrowWork>,
+    /// The bytes of all this at their bound ([`narrow_bytes`]), claimed at
+    /// the first narrowing.
+    pub(super) claim: Option<Claim>,
+}
+
+pub(super) struct NarrowWork {
+    pub(super) double: crate::factor_tree::tree_solve::TreeScratch<f64>,
+    pub(super) single: crate::factor_tree::tree_solve::TreeScratch<f32>,
+}
+
+/// Bytes the narrowed products of a dual with c rows on `factor` (sparse)
+/// claim at most: the split and its scratch (`TreeSolve::bytes_bound`), the
+/// elimination tree, and the lists of DOFs and rows.
+pub(super) fn narrow_bytes(factor: &Factor, c: usize) -> usize {
+    crate::factor_tree::tree_solve::TreeSolve::bytes_bound(factor)
+        + crate::factor_tree::supernode_tree::Tree::bytes_of(factor)
+        + (factor.n() + c) * std::mem::size_of::<usize>()
+}
+
+/// The solves a matrix-free dual's products take instead of the factor's
+/// plain solve (`tree_solve.rs`: restricted to the contact DOFs' paths where
+/// those hold few of L's entries, split between threads where there are
+/// several, and skipping the supernodes a sparse x leaves zero in the forward
+/// solve: a Newton direction on a large face's closed zone), with their
+/// scratch in double and single precision and its bytes on the ledger.
+pub(super) struct OwnSolves {
+    pub(super) split: crate::factor_tree::tree_solve::TreeSolve,
+    pub(super) work: std::cell::RefCell<crate::factor_tree::tree_solve::TreeScratch<f64>>,
+    pub(super) work_single: std::cell::RefCell<crate::factor_tree::tree_solve::TreeScratch<f32>>,
+    pub(super) _claim: Claim,
+}
+
+impl OwnSolves {
+    /// The solves of B's DOFs on `factor`; None on a dense factor.
+    pub(super) fn of(factor: &Factor, b: &Csc) -> Option<OwnSolves> {
+        let split = crate::factor_tree::tree_solve::TreeSolve::of(factor, &contact_dofs(b))?;
+        let n = factor.n();
+        Some(OwnSolves {
+            _claim: factor.ledger().claim(split.bytes_with_scratch(n)),
+            work: std::cell::RefCell::new(split.scratch(n)),
+            work_single: std::cell::RefCell::new(split.scratch(n)),
+            split,
+        })
+    }
+}
+
+/// Bytes the products of a matrix-free dual of B (`b`) on `factor` claim for
+/// their own solves ([`OwnSolves`]), and at most for their narrowed ones
+/// ([`narrow_bytes`], and Newton's list of the rows).
+pub(crate) fn own_solves_bytes(factor: &Factor, b: &Csc) -> usize {
+    if factor.is_dense() {
+        return 0;
+    }
+    crate::factor_tree::tree_solve::TreeSolve::of(factor, &contact_dofs(b))
+        .map_or(0, |split| split.bytes_with_scratch(factor.n()))
+        + narrow_bytes(factor, b.nrows)
+        + b.nrows * std::mem::size_of::<usize>()
+}
+
+impl Operator {
+    /// Errors: `OutOfMemory` when the allocator refuses its work space or the
+    /// single-precision copy of the factor.
+    pub(super) fn new(factor: &Arc<Factor>, b: &Csc, m: usize, d: usize) -> Result<Operator> {
+        let blocks = crate::factor_tree::contact_blocks::contact_blocks(factor, b, m, d);
+        let mut diag = vec![0.0; b.nrows];
+        for i in 0..m {
+            diag[i] = blocks[i * d * d];
+            for s in 0..d - 1 {
+                diag[m + (d - 1) * i + s] = blocks[i * d * d + (s + 1) * (d + 1)];
+            }
+        }
+        let single = factor.single_values()?;
+        let own = OwnSolves::of(factor, b);
+        let what = "the matrix-free dual's work space";
+        Ok(Operator {
+            factor: factor.clone(),
+            bt: b.transpose(),
+            diag,
+            blocks,
+            work: std::cell::RefCell::new((
+                try_zeros(factor.n(), what)?,
+                try_scratch(factor.solve_scratch(1), what)?,
+            )),
+            _single_claim: factor.ledger().claim(single.len() * 4),
+            lumped: None,
+            dirichlet: None,
+            own,
+            narrow: std::cell::RefCell::new(Narrow::default()),
+            single,
+            work_single: std::cell::RefCell::new((
+                try_zeros(factor.n(), what)?,
+                try_scratch(factor.solve_scratch_single(), what)?,
+            )),
+        })
+    }
+
+    /// y ~= A x with the solve in single precision (the products with B in
+    /// double): relative error about 1e-7 times the conditioning of K's factor.
+    pub(super) fn apply_single(&self, x: &[f64], y: &mut [f64]) {
+        self.apply_in(x, y, true);
+    }
+
+    /// y := A x (leading blocks for shorter x and y, as [`Dual::apply`]).
+    pub(super) fn apply(&self, x: &[f64], y: &mut [f64]) {
+        self.apply_in(x, y, false);
+    }
+
+    /// y := A x with the solve in single precision where `rough`, else in
+    /// double: B^T x scattered into the n-vector, the solve (the own one,
+    /// else the factor's plain one), B z gathered. No solve for a zero x
+    /// (Newton's explicit part near convergence, often Tresca's).
+    pub(super) fn apply_in(&self, x: &[f64], y: &mut [f64], rough: bool) {
+        if x.iter().all(|&v| v == 0.0) {
+            y.iter_mut().for_each(|v| *v = 0.0);
+            return;
+        }
+        let (bt, factor) = (&self.bt, &self.factor);
+        macro_rules! whole {
+            ($work:expr, $t:ty, $values:expr, $own_work:ident, $solve:ident) => {{
+                let mut work = $work.borrow_mut();
+                let (z, mem) = &mut *work;
+                z.iter_mut().for_each(|v| *v = 0.0);
+                for (r, &xr) in x.iter().enumerate() {
+                    if xr != 0.0 {
+                        for k in bt.col_ptr[r]..bt.col_ptr[r + 1] {
+                            z[bt.row_idx[k]] += (bt.values[k] * xr) as $t;
+                        }
+                    }
+                }
+                match &self.own {
+                    Some(own) => {
+                        let mut scratch = own.$own_work.borrow_mut();
+                        own.split
+                            .$solve(factor, $values, z, &mut scratch, factor.threads());
+                    }
+                    None => {
+                        let n = z.len();
+                        let zm = MatMut::from_column_major_slice_mut(&mut z[..], n, 1);
+                        factor.solve_values($values, zm, MemStack::new(mem));
+                    }
+                }
+                for (r, yr) in y.iter_mut().enumerate() {
+                    *yr = (bt.col_ptr[r]..bt.col_ptr[r + 1])
+                        .map(|k| bt.values[k] * f64::from(z[bt.row_idx[k]]))
+                        .sum();
+                }
+            }};
+        }
+        if rough {
+            whole!(
+                self.work_single,
+                f32,
+                &self.single,
+                work_single,
+                solve_single
+            );
+        } else {
+            whole!(self.work, f64, factor.values(), work, solve);
+        }
+    }
+}
+
+impl Operator {
+    /// See [`Dual::narrow_to`].
+    pub(super) fn narrow_to(&self, rows: &[usize]) -> bool {
+        let mut narrow = self.narrow.borrow_mut();
+        if self.factor.is_dense() {
+            return false;
+        }
+        let Narrow {
+            rows: held,
+            split,
+            tree,
+            dofs,
+            work,
+            claim,
+        } = &mut *narrow;
+        dofs.clear();
+        for &r in rows {
+            dofs.extend_from_slice(&self.bt.row_idx[self.bt.col_ptr[r]..self.bt.col_ptr[r + 1]]);
+        }
+        dofs.sort_unstable();
+        dofs.dedup();
+        if claim.is_none() {
+            *claim = Some(
+                self.factor
+                    .ledger()
+                    .claim(narrow_bytes(&self.factor, self.bt.ncols)),
+            );
+        }
+        let tree =
+            tree.get_or_insert_with(|| crate::factor_tree::supernode_tree::Tree::of(&self.factor));
+        *split = Some(crate::factor_tree::tree_solve::TreeSolve::on(
+            &self.factor,
+            tree,
+            dofs,
+        ))
+        .filter(|s| s.restricted());
+        let Some(split) = split else {
+            return false;
+        };
+        held.clear();
+        held.extend_from_slice(rows);
+        match work {
+            Some(work) => {
+                split.refit(&mut work.double);
+                split.refit(&mut work.single);
+            }
+            None => {
+                let n = self.factor.n();
+                *work = Some(NarrowWork {
+                    double: split.scratch(n),
+                    single: split.scratch(n),
+                });
+            }
+        }
+        true
+    }
+
+    /// See [`Dual::apply_narrow`].
+    pub(super) fn apply_narrow(&self, x: &[f64], y: &mut [f64], rough: bool) {
+        let mut narrow = self.narrow.borrow_mut();
+        let Narrow {
+            rows,
+            split: Some(split),
+            work: Some(work),
+            ..
+        } = &mut *narrow
+        else {
+            drop(narrow);
+            return if rough {
+                self.apply_single(x, y)
+            } else {
+                self.apply(x, y)
+            };
+        };
+        debug_assert!(
+            x.iter()
+                .enumerate()
+                .all(|(r, &v)| v == 0.0 || rows.binary_search(&r).is_ok()),
+            "x vanishes outside the narrowed rows"
+        );
+        y.iter_mut().for_each(|v| *v = 0.0);
+        if rows.iter().all(|&r| x[r] == 0.0) {
+            return;
+        }
+        let (bt, threads) = (&self.bt, self.factor.threads());
+        // The solve reads and writes z on the paths' columns, which hold the
+        // rows' DOFs: z is cleared there (`TreeSolve::clear`), B^T x
+        // scattered into it, and A x gathered at the rows.
+        macro_rules! narrowed {
+            ($z:expr, $t:ty, $solve:ident, $values:expr, $scratch:expr) => {{
+                let z = $z;
+                split.clear(&self.factor, z);
+                for &r in rows.iter() {
+                    if x[r] != 0.0 {
+                        for k in bt.col_ptr[r]..bt.col_ptr[r + 1] {
+                            z[bt.row_idx[k]] += (bt.values[k] * x[r]) as $t;
+                        }
+                    }
+                }
+                split.$solve(&self.factor, $values, z, $scratch, threads);
+                for &r in rows.iter() {
+                    y[r] = (bt.col_ptr[r]..bt.col_ptr[r + 1])
+                        .map(|k| bt.values[k] * f64::from(z[bt.row_idx[k]]))
+                        .sum();
+                }
+            }};
+        }
+        if rough {
+            let mut w = self.work_single.borrow_mut();
+            narrowed!(&mut w.0, f32, solve_single, &self.single, &mut work.single);
+        } else {
+            let mut w = self.work.borrow_mut();
+            narrowed!(&mut w.0, f64, solve, self.factor.values(), &mut work.double);
+        }
+    }
+}
