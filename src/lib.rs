@@ -30,6 +30,7 @@ mod methods;
 pub mod mtx;
 mod options;
 mod ordering;
+mod plan;
 mod problem;
 mod report;
 mod sizes;

@@ -3,23 +3,25 @@
 //! the C boundary wraps.
 
 use crate::compliance::Compliance;
-use crate::contact_rows::{check_shapes, contact_dofs, stack_rows};
-use crate::dual::{BLOCK, Condensation, Dual};
+use crate::contact_rows::{check_shapes, stack_rows};
+use crate::dual::{Condensation, Dual};
 use crate::error::{ErrorKind, Result, fail};
 use crate::factor::Factor;
 use crate::friction::Friction;
 use crate::history::History;
 use crate::info::Info;
-use crate::memory::{self, Claim, F64, Ledger};
+use crate::memory::{self, Claim};
 use crate::methods::{self, DualProblem, End, Monitor, Progress};
-use crate::options::{DENSE_MAX, DualForm, Method, Options};
+use crate::options::{DualForm, Method, Options};
+use crate::plan;
 use crate::report::Report;
 use crate::report::{SolveStatus, contact_states, natural_map_error};
 use crate::sizes::Sizes;
 use crate::sparse::{Csc, MatrixView};
-use crate::threads::Threads;
 use std::sync::Arc;
 use std::time::{Duration, Instant};
+
+mod solve;
 
 /// The result of one solve.
 #[derive(Clone, Debug)]
@@ -58,33 +60,6 @@ pub struct ContactProblem {
     compliance: Compliance,
 }
 
-/// The route of a new problem, decided after K's analysis.
-struct Plan {
-    sizes: Sizes,
-    /// `Dense` or `MatrixFree`.
-    form: DualForm,
-}
-
-/// Times the dual error is tightened when the error measured on the recovered u
-/// misses the tolerance although the dual one met it (rounding in A).
-const REFINEMENTS: usize = 3;
-
-/// Rounds of Newton on a nonlinear normal compliance law (m_N != 1) before a
-/// solve ends `NotConverged`: each round is one solve of the linear law of
-/// the tangent (docs/design.md section 8).
-const LAW_ROUNDS: usize = 30;
-
-fn check_d(d: usize) -> Result<()> {
-    if d == 2 || d == 3 {
-        Ok(())
-    } else {
-        fail(
-            ErrorKind::BadArgument,
-            format!("d = {d}: the contact dimension must be 2 or 3"),
-        )
-    }
-}
-
 fn check_vec(name: &str, x: &[f64], len: usize) -> Result<()> {
     if x.len() != len {
         return fail(
@@ -108,7 +83,7 @@ fn internal_form(
     n: &MatrixView<'_>,
     t: &MatrixView<'_>,
 ) -> Result<(Csc, Csc, Csc)> {
-    check_d(d)?;
+    plan::check_d(d)?;
     let k = Csc::symmetric_from_view(k, "K")?;
     let n = Csc::from_view(n, "N")?;
     let t = Csc::from_view(t, "T")?;
@@ -142,10 +117,6 @@ fn form_dual(
         dual.set_shift(shift);
     }
     Ok(dual)
-}
-
-fn norm(x: &[f64]) -> f64 {
-    x.iter().map(|v| v * v).sum::<f64>().sqrt()
 }
 
 impl ContactProblem {
@@ -200,7 +171,7 @@ impl ContactProblem {
     /// [`ContactProblem::from_csc_with`] from matrices known to keep the
     /// internal form's invariants.
     fn from_checked(d: usize, k: Csc, n: Csc, t: Csc, opts: &Options) -> Result<Self> {
-        let (mut factor, plan) = Self::analysed(d, &k, &n, &t, opts)?;
+        let (mut factor, plan) = plan::analysed(d, &k, &n, &t, opts)?;
         let inputs = factor.ledger().claim(plan.sizes.inputs);
         factor.refactor(&k)?;
         let factor = Arc::new(factor);
@@ -257,9 +228,9 @@ impl ContactProblem {
     /// [`ContactProblem::analyse_csc`] from matrices known to keep the internal
     /// form's invariants.
     fn analyse_checked(d: usize, k: &Csc, n: &Csc, t: &Csc, opts: &Options) -> Result<Info> {
-        let (factor, plan, limit) = Self::plan(d, k, n, t, opts)?;
+        let (factor, plan, limit) = plan::route(d, k, n, t, opts)?;
         let now = Condensation::of(true, plan.form, plan.sizes.c);
-        Ok(Self::info_of(
+        Ok(plan::info_of(
             d,
             k,
             n,
@@ -281,7 +252,7 @@ impl ContactProblem {
         Info {
             compliant_contacts: self.compliant_contacts(),
             power_law_contacts: self.compliance.nonlinear().len(),
-            ..Self::info_of(
+            ..plan::info_of(
                 self.d,
                 &self.k,
                 &self.n,
@@ -293,188 +264,6 @@ impl ContactProblem {
                 limit,
             )
         }
-    }
-
-    #[allow(clippy::too_many_arguments)]
-    fn info_of(
-        d: usize,
-        k: &Csc,
-        n: &Csc,
-        factor: &Factor,
-        sizes: &Sizes,
-        now: Condensation,
-        trailing: bool,
-        opts: &Options,
-        limit: Option<usize>,
-    ) -> Info {
-        let next = Self::solve_condensation(now, trailing, opts);
-        let (factor_nnz, factor_flops) = factor.nnz_and_flops();
-        let form_of = |how| match how {
-            Condensation::MatrixFree => DualForm::MatrixFree,
-            _ => DualForm::Dense,
-        };
-        Info {
-            d,
-            n: k.nrows,
-            m: n.nrows,
-            c: sizes.c,
-            nnz_k: k.nnz(),
-            ordering: factor.ordering(),
-            factor_nnz,
-            factor_flops,
-            setup_form: form_of(now),
-            method: opts.method,
-            solve_form: form_of(next),
-            setup_bytes: sizes.setup(now),
-            resident_bytes: sizes.resident(now),
-            refactor_bytes: sizes.refactor(now, k.bytes()),
-            solve_bytes: sizes.solve(
-                now,
-                next,
-                opts.method
-                    .workspace(n.nrows, sizes.c, next == Condensation::MatrixFree),
-            ),
-            memory_limit: limit.unwrap_or(0),
-            analyse_seconds: factor.analyse_seconds,
-            compliant_contacts: 0,
-            power_law_contacts: 0,
-        }
-    }
-
-    /// The sizes of a problem's memory predictions, after K's analysis.
-    fn sizes_of(k: &Csc, n: &Csc, t: &Csc, d: usize, factor: &Factor) -> Sizes {
-        let b = stack_rows(n, t);
-        Sizes {
-            n: k.nrows,
-            c: d * n.nrows,
-            nc: factor.last().len(),
-            inputs: k.bytes() + n.bytes() + t.bytes(),
-            factor: factor.values_bytes(),
-            factor_scratch: factor.factor_scratch_bytes(),
-            solve_scratch: factor.solve_scratch(BLOCK).size_bytes(),
-            blocks_work: crate::factor_tree::contact_blocks::work_bytes(factor, &b, n.nrows, d),
-            lumped: crate::sparse::congruence_bytes(k, &b, &b.transpose()),
-            own_solves: crate::dual::own_solves_bytes(factor, &b),
-            dirichlet: crate::dirichlet::plan_bytes(k, &b, factor),
-        }
-    }
-
-    /// How a solve with `opts` needs the dual, held as `now` (see `prepare_dual`).
-    fn solve_condensation(now: Condensation, trailing: bool, opts: &Options) -> Condensation {
-        let free_now = now == Condensation::MatrixFree;
-        let want_free = match opts.dual_form {
-            DualForm::Dense => false,
-            DualForm::MatrixFree => true,
-            DualForm::Auto => free_now && !opts.method.needs_entries(),
-        };
-        match (want_free, free_now) {
-            (true, true) | (false, false) => now,
-            (true, false) => Condensation::MatrixFree,
-            (false, true) => Condensation::of(trailing, DualForm::Dense, 0),
-        }
-    }
-
-    /// Validation, K's analysis and the route of a new problem, and the memory
-    /// limit.
-    fn plan(
-        d: usize,
-        k: &Csc,
-        n: &Csc,
-        t: &Csc,
-        opts: &Options,
-    ) -> Result<(Factor, Plan, Option<usize>)> {
-        check_d(d)?;
-        opts.check("")?;
-        if k.nrows != k.ncols {
-            return fail(
-                ErrorKind::BadSize,
-                format!("K is {} x {}, not square", k.nrows, k.ncols),
-            );
-        }
-        check_shapes(k.nrows, d, n, t)?;
-        let threads = Arc::new(Threads::new(opts.threads));
-        let limit = memory::limit(opts.max_memory);
-        let c = d * n.nrows;
-        let dense_first = match opts.dual_form {
-            DualForm::Dense => true,
-            DualForm::MatrixFree => false,
-            DualForm::Auto => c <= DENSE_MAX,
-        };
-        if dense_first {
-            // Contact DOFs last, so that the factor's trailing block condenses K
-            // onto them.
-            let last = contact_dofs(&stack_rows(n, t));
-            let factor = Factor::analyse(
-                k,
-                &last,
-                opts.ordering,
-                d == 3,
-                threads.clone(),
-                Ledger::new(),
-            )?;
-            let sizes = Self::sizes_of(k, n, t, d, &factor);
-            let dense = Condensation::of(true, DualForm::Dense, sizes.c);
-            // Asked for, the dense route is kept whatever it needs (`analysed`
-            // refuses it with OutOfMemory); AUTO falls back to the matrix-free one.
-            if opts.dual_form == DualForm::Dense || limit.is_none_or(|l| sizes.setup(dense) <= l) {
-                let form = DualForm::Dense;
-                return Ok((factor, Plan { sizes, form }, limit));
-            }
-        }
-        // The matrix-free dual works with the best plain factor of K.
-        let factor = Factor::analyse(k, &[], opts.ordering, d == 3, threads, Ledger::new())?;
-        let sizes = Self::sizes_of(k, n, t, d, &factor);
-        let form = DualForm::MatrixFree;
-        Ok((factor, Plan { sizes, form }, limit))
-    }
-
-    /// [`ContactProblem::plan`], refused with `OutOfMemory` before any numeric
-    /// work when the route's predicted setup exceeds the memory limit.
-    fn analysed(d: usize, k: &Csc, n: &Csc, t: &Csc, opts: &Options) -> Result<(Factor, Plan)> {
-        let (factor, plan, limit) = Self::plan(d, k, n, t, opts)?;
-        let (sizes, form) = (plan.sizes, plan.form);
-        let how = Condensation::of(true, form, sizes.c);
-        let need = sizes.setup(how);
-        let free = Condensation::MatrixFree;
-        let fits = limit.is_none_or(|l| need <= l);
-        // Refused on the dense route: what the matrix-free one would need, from
-        // the analysis it would use (the plain factor, not the contacts-last one).
-        let free_need = match (fits, how != free) {
-            (false, true) => {
-                let plain = Factor::analyse(
-                    k,
-                    &[],
-                    opts.ordering,
-                    d == 3,
-                    factor.threads().clone(),
-                    Ledger::new(),
-                )?;
-                Some(Self::sizes_of(k, n, t, d, &plain).setup(free))
-            }
-            _ => None,
-        };
-        let hint = if let Some(free_need) = free_need.filter(|&f| f < need) {
-            format!(
-                "the matrix-free dual (dual_form = matrix-free, method auto, newton or mprgp) would need \
-                 about {}",
-                memory::human(free_need)
-            )
-        } else {
-            format!(
-                "K's factor alone takes {} (nnz(L) = {}); a larger max_memory or a \
-                 machine with more memory is needed",
-                memory::human(sizes.factor),
-                sizes.factor / F64
-            )
-        };
-        let what = format!(
-            "creating the problem (n = {}, c = {}, {} dual)",
-            sizes.n,
-            sizes.c,
-            form.name()
-        );
-        memory::check(need, limit, opts.max_memory, &what, &hint)?;
-        Ok((factor, Plan { sizes, form }))
     }
 
     /// Refactors K with new values and the same sparsity pattern (same storage);
@@ -647,63 +436,6 @@ impl ContactProblem {
         }
     }
 
-    /// Puts the dual operator in the form `opts` asks for (see [`DualForm`]),
-    /// rebuilding it from the factor when the form changes; the new form is kept
-    /// for later solves. On error the problem is unchanged.
-    ///
-    /// Checks the solve's predicted memory against the limit first, and starts
-    /// a new peak on the ledger; returns the prediction (bytes).
-    ///
-    /// Errors: `BadArgument` (`MatrixFree` with a method that reads entries of A),
-    /// `OutOfMemory` (the solve's predicted need exceeds the memory limit, or A
-    /// does not fit).
-    fn prepare_dual(&mut self, opts: &Options) -> Result<usize> {
-        if opts.dual_form == DualForm::MatrixFree && opts.method.needs_entries() {
-            return fail(
-                ErrorKind::BadArgument,
-                format!(
-                    "method {} reads entries of the condensed dual A and cannot run \
-                     matrix-free: use auto, newton or mprgp, or the dense or auto dual form",
-                    opts.method.name()
-                ),
-            );
-        }
-        let trailing = Dual::trailing_available(&self.factor, &self.n, &self.t);
-        let now = self.dual.condensation;
-        let next = Self::solve_condensation(now, trailing, opts);
-        let free = Condensation::MatrixFree;
-        let (m, c) = (self.n_contacts(), self.dual.c);
-        let need = self
-            .sizes
-            .solve(now, next, opts.method.workspace(m, c, next == free));
-        let hint = if next != free {
-            let free_need = self
-                .sizes
-                .solve(now, free, Method::Newton.workspace(m, c, true));
-            format!(
-                "the matrix-free dual (dual_form auto or matrix-free, method auto, \
-                 newton or mprgp) would need about {}",
-                memory::human(free_need)
-            )
-        } else {
-            "a larger max_memory or a machine with more memory is needed".to_string()
-        };
-        memory::check(
-            need,
-            memory::limit(opts.max_memory),
-            opts.max_memory,
-            &format!("a solve with method {}", opts.method.name()),
-            &hint,
-        )?;
-        self.factor.ledger().reset_peak();
-        if next != now {
-            let shift = self.compliance.shift(self.d);
-            let nt = (&self.n, &self.t);
-            self.dual = form_dual(&self.factor, &self.k, nt, self.d, next, &shift)?;
-        }
-        Ok(need)
-    }
-
     /// The number of threads the problem's pool has (1: no pool, the calling
     /// thread only).
     pub fn threads(&self) -> usize {
@@ -778,313 +510,6 @@ impl ContactProblem {
             predicted,
         )?;
         Ok(sol)
-    }
-
-    /// u := K^-1 (f - B^T lambda) given y_f = L^-1 P f (the forward half of the
-    /// solve for K^-1 f) and `bt_lam` = B^T lambda. When the contact DOFs are the
-    /// factor's trailing DOFs, B^T lambda lives on them, so its forward half
-    /// touches only the trailing block and the whole recovery costs about half a
-    /// solve (a matrix-free dual on a plain factor takes the whole forward half). The difference is taken between the
-    /// forward halves, not between K^-1 f and K^-1 B^T lambda: those two nearly
-    /// cancel where the contact carries the load, and on the slender beam of
-    /// tests/hard_scenes.rs (cond(K) 1.6e9) their difference left an equilibrium
-    /// residual of 3e-8 against 3e-12 here. For the same reason b's K^-1 f
-    /// comes from the same substitution (`Factor::backward_to_last` repeats
-    /// `Factor::backward`'s arithmetic exactly).
-    fn recover_u(&self, f: &[f64], y_f: &[f64], bt_lam: &[f64], u: &mut [f64]) {
-        if self.dual.condensation == Condensation::Solves {
-            for i in 0..u.len() {
-                u[i] = f[i] - bt_lam[i];
-            }
-            self.factor.solve_vec(u);
-            return;
-        }
-        let mut y = vec![0.0; u.len()];
-        if self.dual.trailing {
-            let r_last: Vec<f64> = self.factor.last().iter().map(|&j| bt_lam[j]).collect();
-            self.factor.forward_from_last(&r_last, &mut y);
-        } else {
-            self.factor.forward(bt_lam, &mut y);
-        }
-        for (yi, fi) in y.iter_mut().zip(y_f) {
-            *yi = fi - *yi;
-        }
-        self.factor.backward(&mut y, u);
-    }
-
-    /// The increment solve, starting from the multipliers in `lam`, or, for a
-    /// step of `history`, from the history's prediction (then the step's
-    /// contact-space load is returned too, for the history), the elastic
-    /// slip's return mapping from `lt_prev` (empty: zero); `predicted` is the
-    /// solve's memory prediction (from `prepare_dual`), for the report.
-    #[allow(clippy::too_many_arguments)]
-    fn solve_from(
-        &mut self,
-        f: &[f64],
-        g: &[f64],
-        friction: Friction<'_>,
-        opts: &Options,
-        lam: &mut [f64],
-        (history, lt_prev): (Option<&History>, &[f64]),
-        mut monitor: Option<Monitor<'_>>,
-        predicted: usize,
-    ) -> Result<(Solution, Option<Vec<f64>>)> {
-        let start = Instant::now();
-        let (ndof, m, c) = (self.n_dofs(), self.n_contacts(), self.dual.c);
-        // y_f, K^-1 f, u, B^T lambda, K u and the residual below.
-        let _vectors = self.factor.ledger().claim_f64(6 * ndof);
-        check_vec("f", f, ndof)?;
-        check_vec("g", g, m)?;
-        self.check_friction(friction)?;
-        opts.check("")?;
-        // b = B K^-1 f - [g; 0], with the forward half y_f = L^-1 P f kept for the
-        // recovery of u.
-        let mut y_f = vec![0.0; ndof];
-        self.factor.forward(f, &mut y_f);
-        // u0 = K^-1 f where B reads it: at the trailing DOFs alone when B
-        // touches no other (their back substitution needs the trailing block
-        // of L only), else everywhere.
-        let mut u0 = vec![0.0; ndof];
-        if self.dual.trailing {
-            let last = self.factor.last();
-            let mut u_last = vec![0.0; last.len()];
-            self.factor.backward_to_last(&y_f, &mut u_last);
-            for (&j, &v) in last.iter().zip(&u_last) {
-                u0[j] = v;
-            }
-        } else {
-            self.factor.backward(&mut y_f.clone(), &mut u0);
-        }
-        let mut b = vec![0.0; c];
-        self.dual.rows.mul_vec(&u0, &mut b);
-        for i in 0..m {
-            b[i] -= g[i];
-        }
-        let mut extrapolated = false;
-        let load = history.map(|h| {
-            let mut bu = vec![0.0; c];
-            self.dual.rows.mul_vec(&h.u, &mut bu);
-            let load = History::load_of(&b, &bu, m);
-            extrapolated = h.start(&load, friction, self.d, lam) > 0.0;
-            load
-        });
-        // The compliance's tangential term is centred at the force the return
-        // mapping starts from: b += D_T lambda_T,prev (a history's last force;
-        // zero in a single solve).
-        let shift = self.dual.shift();
-        if !shift.is_empty() {
-            for ((bj, dj), lj) in b[m..].iter_mut().zip(&shift[m..]).zip(lt_prev) {
-                *bj += dj * lj;
-            }
-        }
-        // A nonlinear normal law (m_N != 1) is solved by Newton on the law
-        // (docs/design.md section 8): each round solves the linear law of its
-        // tangent at the last penetrations delta, from the last multipliers,
-        // until the error of the nonlinear law meets the tolerance. The first
-        // tangent is taken where the start's forces put the contacts.
-        let nonlinear = self.compliance.nonlinear();
-        let (mut delta, mut d_max) = (vec![0.0; m], vec![0.0; m]);
-        for &i in &nonlinear {
-            delta[i] = self.compliance.penetration(i, lam[i]);
-            // An open tangent carries nothing: 1e4 times A_ii's compliance.
-            d_max[i] = 1e4 * (self.dual.diag(i) - self.dual.shift()[i]);
-        }
-        let cold = nonlinear.iter().all(|&i| lam[i] == 0.0);
-        let mut offset = vec![0.0; m];
-        let mut b_round = b.clone();
-        let mut rounds = 0;
-        // A round's tolerance: the solve's, or for Newton on a nonlinear law
-        // a hundredth of the law's last error (inexact Newton), not below it.
-        let mut round_tol = if nonlinear.is_empty() {
-            opts.tol
-        } else {
-            opts.tol.max(1e-6)
-        };
-        // The monitor sees iteration numbers and times of the whole solve.
-        let base = std::cell::Cell::new(0usize);
-        let mut relay = |p: &Progress| -> bool {
-            match monitor.as_mut() {
-                Some(user) => user(&Progress {
-                    iteration: base.get() + p.iteration,
-                    elapsed_seconds: start.elapsed().as_secs_f64(),
-                    ..*p
-                }),
-                None => true,
-            }
-        };
-        let deadline =
-            (opts.max_seconds > 0.0).then(|| start + Duration::from_secs_f64(opts.max_seconds));
-        let mut target = round_tol;
-        let mut end = End::Converged;
-        let mut outer = 0;
-        let mut inner = 0;
-        let mut unknowns = c;
-        let (mut method, mut choice) = (opts.method, "");
-        let mut u = vec![0.0; ndof];
-        let mut bt_lam = vec![0.0; ndof];
-        let mut v = vec![0.0; c];
-        let mut p = vec![0.0; m];
-        let mut err = f64::INFINITY;
-        loop {
-            if !nonlinear.is_empty() {
-                // A cold start's first round is rigid at the nonlinear
-                // contacts (D = 0); its forces give the first tangent.
-                let rigid = vec![0.0; m];
-                let cap = if rounds == 0 && cold { &rigid } else { &d_max };
-                let (shift, s) = self.compliance.linearised(self.d, &delta, cap);
-                self.dual.set_shift(&shift);
-                b_round.copy_from_slice(&b);
-                for &i in &nonlinear {
-                    b_round[i] -= s[i];
-                }
-                offset = s;
-                target = round_tol;
-            }
-            let problem = DualProblem {
-                dual: &self.dual,
-                b: &b_round,
-                law: friction,
-                monitor: Some(std::cell::RefCell::new(&mut relay)),
-                deadline,
-                predicted: extrapolated && rounds == 0,
-                near: rounds > 0,
-            };
-            let shift = self.dual.shift();
-            for _ in 0..=REFINEMENTS {
-                let local = Options {
-                    max_outer: opts.max_outer.saturating_sub(outer),
-                    ..*opts
-                };
-                let o = methods::run(&problem, lam, &local, target);
-                outer += o.outer;
-                inner += o.inner;
-                unknowns = o.unknowns;
-                method = o.method.unwrap_or(method);
-                choice = o.choice;
-                base.set(outer);
-                end = o.end;
-                // u = K^-1 (f - B^T lambda), and the error measured on it.
-                self.dual.rows.mul_t_vec(lam, &mut bt_lam);
-                self.recover_u(f, &y_f, &bt_lam, &mut u);
-                self.dual.rows.mul_vec(&u, &mut v);
-                for i in 0..m {
-                    v[i] -= g[i];
-                }
-                // The compliance's part of the gap: v := v - D (lambda - [0; lt_prev]).
-                if !shift.is_empty() {
-                    for ((vj, dj), lj) in v.iter_mut().zip(shift).zip(lam.iter()) {
-                        *vj -= dj * lj;
-                    }
-                    for ((vj, dj), lj) in v[m..].iter_mut().zip(&shift[m..]).zip(lt_prev) {
-                        *vj += dj * lj;
-                    }
-                }
-                for &i in &nonlinear {
-                    v[i] -= offset[i];
-                }
-                friction.bounds(&lam[..m], &mut p);
-                err = natural_map_error(lam, &v, &self.dual.rho, &b_round, &p, self.d);
-                if end == End::Infeasible {
-                    // No u satisfies N u <= g: no error can be small (report.rs).
-                    err = f64::INFINITY;
-                    break;
-                }
-                // Tighten the dual target only when the dual run met it but the error
-                // on the recovered u missed the tolerance (rounding in A).
-                if end != End::Converged || err <= round_tol || outer >= opts.max_outer {
-                    if end == End::Converged && err > round_tol {
-                        end = End::Limit;
-                    }
-                    break;
-                }
-                if problem.deadline.is_some_and(|d| Instant::now() >= d) {
-                    end = End::TimeLimit;
-                    break;
-                }
-                target *= 0.1;
-            }
-            if nonlinear.is_empty() || end != End::Converged {
-                break;
-            }
-            // The error of the nonlinear law: v_N,i = N u - g - (lambda_N,i / c_N)^(1/m),
-            // and the penetrations the next tangent is taken at.
-            for &i in &nonlinear {
-                let raw = v[i] + offset[i] + shift[i] * lam[i];
-                delta[i] = if rounds == 0 && cold {
-                    self.compliance.penetration(i, lam[i])
-                } else {
-                    raw
-                };
-                v[i] = raw - self.compliance.penetration(i, lam[i]);
-            }
-            err = natural_map_error(lam, &v, &self.dual.rho, &b, &p, self.d);
-            rounds += 1;
-            if err <= opts.tol {
-                break;
-            }
-            round_tol = (0.01 * err).max(opts.tol);
-            if rounds >= LAW_ROUNDS || outer >= opts.max_outer {
-                end = End::Limit;
-                break;
-            }
-            if deadline.is_some_and(|d| Instant::now() >= d) {
-                end = End::TimeLimit;
-                break;
-            }
-        }
-        // Equilibrium residual |K u - f + B^T lambda| / |f|.
-        let mut ku = vec![0.0; ndof];
-        self.k.mul_vec(&u, &mut ku);
-        let res: Vec<f64> = (0..ndof).map(|i| ku[i] - f[i] + bt_lam[i]).collect();
-        let denom = {
-            let nf = norm(f);
-            if nf > 0.0 {
-                nf
-            } else {
-                norm(&ku).max(norm(&bt_lam))
-            }
-        };
-        let rn = norm(&res);
-        let equilibrium_residual = if rn == 0.0 { 0.0 } else { rn / denom };
-        let (n_open, n_stick, n_slip) = contact_states(lam, &v, &self.dual.rho, &p, self.d);
-        let status = match end {
-            End::Stopped => SolveStatus::Stopped,
-            _ if err <= opts.tol => SolveStatus::Converged,
-            End::Stalled => SolveStatus::Stalled,
-            End::TimeLimit => SolveStatus::TimeLimit,
-            End::Converged | End::Limit | End::Infeasible => SolveStatus::NotConverged,
-        };
-        let (factor_nnz, factor_flops) = self.factor.nnz_and_flops();
-        let sol = Solution {
-            u,
-            lambda_n: lam[..m].to_vec(),
-            lambda_t: lam[m..].to_vec(),
-            report: Report {
-                status,
-                method,
-                choice: choice.to_string(),
-                err,
-                equilibrium_residual,
-                outer_iterations: outer,
-                inner_iterations: inner,
-                dual_unknowns: unknowns,
-                n_open,
-                n_stick,
-                n_slip,
-                factor_seconds: self.factor.factor_seconds,
-                condense_seconds: self.dual.condense_seconds,
-                solve_seconds: start.elapsed().as_secs_f64(),
-                ordering: self.factor.ordering(),
-                factor_nnz,
-                factor_flops,
-                threads: self.threads(),
-                analyse_seconds: self.factor.analyse_seconds,
-                memory_predicted: predicted,
-                memory_peak: self.factor.ledger().peak(),
-                compliant_contacts: self.compliant_contacts(),
-            },
-        };
-        Ok((sol, load))
     }
 
     /// One step of a quasistatic history (docs/design.md section 1): with the held u_k,

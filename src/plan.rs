@@ -1,0 +1,229 @@
+//! The route of a problem, planned after K's analysis and before any numeric
+//! work: which factor (contact DOFs last for the dense dual, the best plain
+//! one for the matrix-free dual), which form of the dual, the sizes the
+//! memory predictions are made of (`Sizes`), the check of those predictions
+//! against the memory limit, and the analysis report (`Info`). Above `dual`
+//! and `factor`, below `problem`.
+
+use crate::contact_rows::{check_shapes, contact_dofs, stack_rows};
+use crate::dual::{BLOCK, Condensation};
+use crate::error::{ErrorKind, Result, fail};
+use crate::factor::Factor;
+use crate::info::Info;
+use crate::memory::{self, F64, Ledger};
+use crate::options::{DENSE_MAX, DualForm, Options};
+use crate::sizes::Sizes;
+use crate::sparse::Csc;
+use crate::threads::Threads;
+use std::sync::Arc;
+
+/// The route of a new problem, decided after K's analysis.
+pub(crate) struct Plan {
+    pub sizes: Sizes,
+    /// `Dense` or `MatrixFree`.
+    pub form: DualForm,
+}
+
+/// `BadArgument` unless d is 2 or 3.
+pub(crate) fn check_d(d: usize) -> Result<()> {
+    if d == 2 || d == 3 {
+        Ok(())
+    } else {
+        fail(
+            ErrorKind::BadArgument,
+            format!("d = {d}: the contact dimension must be 2 or 3"),
+        )
+    }
+}
+
+#[allow(clippy::too_many_arguments)]
+pub(crate) fn info_of(
+    d: usize,
+    k: &Csc,
+    n: &Csc,
+    factor: &Factor,
+    sizes: &Sizes,
+    now: Condensation,
+    trailing: bool,
+    opts: &Options,
+    limit: Option<usize>,
+) -> Info {
+    let next = solve_condensation(now, trailing, opts);
+    let (factor_nnz, factor_flops) = factor.nnz_and_flops();
+    let form_of = |how| match how {
+        Condensation::MatrixFree => DualForm::MatrixFree,
+        _ => DualForm::Dense,
+    };
+    Info {
+        d,
+        n: k.nrows,
+        m: n.nrows,
+        c: sizes.c,
+        nnz_k: k.nnz(),
+        ordering: factor.ordering(),
+        factor_nnz,
+        factor_flops,
+        setup_form: form_of(now),
+        method: opts.method,
+        solve_form: form_of(next),
+        setup_bytes: sizes.setup(now),
+        resident_bytes: sizes.resident(now),
+        refactor_bytes: sizes.refactor(now, k.bytes()),
+        solve_bytes: sizes.solve(
+            now,
+            next,
+            opts.method
+                .workspace(n.nrows, sizes.c, next == Condensation::MatrixFree),
+        ),
+        memory_limit: limit.unwrap_or(0),
+        analyse_seconds: factor.analyse_seconds,
+        compliant_contacts: 0,
+        power_law_contacts: 0,
+    }
+}
+
+/// The sizes of a problem's memory predictions, after K's analysis.
+pub(crate) fn sizes_of(k: &Csc, n: &Csc, t: &Csc, d: usize, factor: &Factor) -> Sizes {
+    let b = stack_rows(n, t);
+    Sizes {
+        n: k.nrows,
+        c: d * n.nrows,
+        nc: factor.last().len(),
+        inputs: k.bytes() + n.bytes() + t.bytes(),
+        factor: factor.values_bytes(),
+        factor_scratch: factor.factor_scratch_bytes(),
+        solve_scratch: factor.solve_scratch(BLOCK).size_bytes(),
+        blocks_work: crate::factor_tree::contact_blocks::work_bytes(factor, &b, n.nrows, d),
+        lumped: crate::sparse::congruence_bytes(k, &b, &b.transpose()),
+        own_solves: crate::dual::own_solves_bytes(factor, &b),
+        dirichlet: crate::dirichlet::plan_bytes(k, &b, factor),
+    }
+}
+
+/// How a solve with `opts` needs the dual, held as `now` (see `prepare_dual`).
+pub(crate) fn solve_condensation(
+    now: Condensation,
+    trailing: bool,
+    opts: &Options,
+) -> Condensation {
+    let free_now = now == Condensation::MatrixFree;
+    let want_free = match opts.dual_form {
+        DualForm::Dense => false,
+        DualForm::MatrixFree => true,
+        DualForm::Auto => free_now && !opts.method.needs_entries(),
+    };
+    match (want_free, free_now) {
+        (true, true) | (false, false) => now,
+        (true, false) => Condensation::MatrixFree,
+        (false, true) => Condensation::of(trailing, DualForm::Dense, 0),
+    }
+}
+
+/// Validation, K's analysis and the route of a new problem, and the memory
+/// limit.
+pub(crate) fn route(
+    d: usize,
+    k: &Csc,
+    n: &Csc,
+    t: &Csc,
+    opts: &Options,
+) -> Result<(Factor, Plan, Option<usize>)> {
+    check_d(d)?;
+    opts.check("")?;
+    if k.nrows != k.ncols {
+        return fail(
+            ErrorKind::BadSize,
+            format!("K is {} x {}, not square", k.nrows, k.ncols),
+        );
+    }
+    check_shapes(k.nrows, d, n, t)?;
+    let threads = Arc::new(Threads::new(opts.threads));
+    let limit = memory::limit(opts.max_memory);
+    let c = d * n.nrows;
+    let dense_first = match opts.dual_form {
+        DualForm::Dense => true,
+        DualForm::MatrixFree => false,
+        DualForm::Auto => c <= DENSE_MAX,
+    };
+    if dense_first {
+        // Contact DOFs last, so that the factor's trailing block condenses K
+        // onto them.
+        let last = contact_dofs(&stack_rows(n, t));
+        let factor = Factor::analyse(
+            k,
+            &last,
+            opts.ordering,
+            d == 3,
+            threads.clone(),
+            Ledger::new(),
+        )?;
+        let sizes = sizes_of(k, n, t, d, &factor);
+        let dense = Condensation::of(true, DualForm::Dense, sizes.c);
+        // Asked for, the dense route is kept whatever it needs (`analysed`
+        // refuses it with OutOfMemory); AUTO falls back to the matrix-free one.
+        if opts.dual_form == DualForm::Dense || limit.is_none_or(|l| sizes.setup(dense) <= l) {
+            let form = DualForm::Dense;
+            return Ok((factor, Plan { sizes, form }, limit));
+        }
+    }
+    // The matrix-free dual works with the best plain factor of K.
+    let factor = Factor::analyse(k, &[], opts.ordering, d == 3, threads, Ledger::new())?;
+    let sizes = sizes_of(k, n, t, d, &factor);
+    let form = DualForm::MatrixFree;
+    Ok((factor, Plan { sizes, form }, limit))
+}
+
+/// [`route`], refused with `OutOfMemory` before any numeric
+/// work when the route's predicted setup exceeds the memory limit.
+pub(crate) fn analysed(
+    d: usize,
+    k: &Csc,
+    n: &Csc,
+    t: &Csc,
+    opts: &Options,
+) -> Result<(Factor, Plan)> {
+    let (factor, plan, limit) = route(d, k, n, t, opts)?;
+    let (sizes, form) = (plan.sizes, plan.form);
+    let how = Condensation::of(true, form, sizes.c);
+    let need = sizes.setup(how);
+    let free = Condensation::MatrixFree;
+    let fits = limit.is_none_or(|l| need <= l);
+    // Refused on the dense route: what the matrix-free one would need, from
+    // the analysis it would use (the plain factor, not the contacts-last one).
+    let free_need = match (fits, how != free) {
+        (false, true) => {
+            let plain = Factor::analyse(
+                k,
+                &[],
+                opts.ordering,
+                d == 3,
+                factor.threads().clone(),
+                Ledger::new(),
+            )?;
+            Some(sizes_of(k, n, t, d, &plain).setup(free))
+        }
+        _ => None,
+    };
+    let hint = if let Some(free_need) = free_need.filter(|&f| f < need) {
+        format!(
+            "the matrix-free dual (dual_form = matrix-free, method auto, newton or mprgp) would need \
+             about {}",
+            memory::human(free_need)
+        )
+    } else {
+        format!(
+            "K's factor alone takes {} (nnz(L) = {}); a larger max_memory or a \
+             machine with more memory is needed",
+            memory::human(sizes.factor),
+            sizes.factor / F64
+        )
+    };
+    let what = format!(
+        "creating the problem (n = {}, c = {}, {} dual)",
+        sizes.n,
+        sizes.c,
+        form.name()
+    );
+    memory::check(need, limit, opts.max_memory, &what, &hint)?;
+    Ok((factor, Plan { sizes, form }))
+}
