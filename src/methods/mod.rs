@@ -13,6 +13,7 @@
 //! [`subproblem::SubSolver`]: projected Gauss-Seidel or MPRGP. Projections onto
 //! the friction sets and the small local problems live in `projection`.
 
+mod aitken;
 mod auto;
 mod driver;
 mod krylov;
@@ -23,6 +24,7 @@ mod projection;
 mod signorini;
 mod split;
 mod subproblem;
+mod sweeps;
 mod whole;
 
 pub use driver::{End, Outcome};

@@ -26,8 +26,8 @@
 //! the block variant, whose steps ignore that response, relaxes the whole iterate.
 //! At the iteration limit the iterate with the lowest error is returned.
 
+use super::aitken::Aitken;
 use super::driver::{Flow, Gradient, OuterStep};
-use super::pgs::Aitken;
 use super::signorini::frictionless;
 use super::subproblem::{GaussSeidel, Mprgp, SubQp, SubSolver};
 use super::{Built, DualProblem, MethodSpec, Options, inner_rule};

@@ -1,11 +1,11 @@
 //! MPRGP / MPGP on the whole dual, with the Coulomb fixed point p = mu lambda_N
 //! outside: each outer iteration solves the Tresca problem of the current bound
 //! (one outer iteration for Tresca). The Coulomb bound is relaxed as in the
-//! splittings (`pgs::Aitken`; the plain fixed point while it does not oscillate).
+//! splittings (`aitken::Aitken`; the plain fixed point while it does not oscillate).
 
+use super::aitken::Aitken;
 use super::driver::{Flow, Gradient, OuterStep};
 use super::mprgp::ConvexQp;
-use super::pgs::Aitken;
 use super::signorini::frictionless;
 use super::subproblem::Mprgp;
 use super::{DualProblem, MethodSpec, inner_rule};

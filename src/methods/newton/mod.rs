@@ -42,7 +42,7 @@
 //! Warm-up: every solve on a dense A starts with up to PRESWEEPS projected
 //! Gauss-Seidel sweeps (cheap against a Newton step), so that the first active
 //! set Newton sees is near the answer; they, and the fallback's, read A in
-//! single precision on a large dual (`pgs::Rough`, `pgs::ROUGH_MIN_C`). A
+//! single precision on a large dual (`sweeps::Rough`, `sweeps::ROUGH_MIN_C`). A
 //! matrix-free dual has no entries to sweep: a cold solve starts instead at the projection of alpha G b, G = B K B^T
 //! the lumped estimate of A^-1 (alpha minimising the dual energy along G b),
 //! when that lowers |F|; its reduced systems are solved by CG / GMRES
@@ -62,8 +62,8 @@
 
 use super::driver::{Flow, Gradient, OuterStep};
 use super::mprgp::ConvexQp;
-use super::pgs;
 use super::subproblem::Mprgp;
+use super::sweeps;
 use super::{DualProblem, MethodSpec};
 use crate::dense;
 use crate::friction::Friction;
@@ -156,7 +156,7 @@ pub(super) const NEWTON: MethodSpec = MethodSpec {
         if matrix_free {
             (super::krylov::RESTART + 10) * c * F64
         } else {
-            let rough = if c >= pgs::ROUGH_MIN_C {
+            let rough = if c >= sweeps::ROUGH_MIN_C {
                 c * c * std::mem::size_of::<f32>()
             } else {
                 0
@@ -191,8 +191,8 @@ pub(super) struct Newton {
     /// The last dense reduced system's factor (see [`Reused`]).
     reused: Option<Reused>,
     /// A's columns in single precision for the warm-up and fallback sweeps on
-    /// a large assembled dual (made at their first use; see pgs::ROUGH_MIN_C).
-    rough_a: Option<pgs::Rough>,
+    /// a large assembled dual (made at their first use; see sweeps::ROUGH_MIN_C).
+    rough_a: Option<sweeps::Rough>,
     /// The matrix-free fallback's MPRGP (made at its first use), the bounds it
     /// works with and its estimate of |A|.
     fallback: Option<Mprgp>,
@@ -257,7 +257,7 @@ impl OuterStep for Newton {
         };
         while swept < presweeps && problem.error(lam, w, p, v) > self.target {
             let n = PRESWEEP_CHUNK.min(presweeps - swept);
-            *inner += pgs::sweeps_for_newton(problem, &mut self.rough_a, lam, w, n);
+            *inner += sweeps::sweeps_for_newton(problem, &mut self.rough_a, lam, w, n);
             swept += n;
         }
         if swept > 0 {
@@ -358,7 +358,7 @@ impl OuterStep for Newton {
             return self.mprgp_fallback(problem, lam, w, inner);
         }
         // Fallback: a first-order step.
-        *inner += pgs::sweeps_for_newton(problem, &mut self.rough_a, lam, w, FALLBACK_SWEEPS);
+        *inner += sweeps::sweeps_for_newton(problem, &mut self.rough_a, lam, w, FALLBACK_SWEEPS);
         problem.gradient(lam, w);
         self.res = residual_norm(problem, lam, w);
         Flow::Go(Gradient::Exact)

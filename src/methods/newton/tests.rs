@@ -183,17 +183,17 @@ fn rough_sweeps_follow_the_exact_ones() {
     let (mut lam_exact, mut w_exact) = (vec![0.0; c], vec![0.0; c]);
     problem.gradient(&lam_exact, &mut w_exact);
     let (mut lam, mut w) = (lam_exact.clone(), w_exact.clone());
-    let mut pgs = pgs::Pgs::new(&problem);
+    let mut pgs = crate::methods::pgs::Pgs::new(&problem);
     let mut inner = 0;
     for k in 0..30 {
         pgs.step(&problem, &mut lam_exact, &mut w_exact, &mut inner, k);
     }
     let ledger = problem.dual.ledger.clone();
     let live = ledger.live();
-    let mut rough = pgs::Rough::new(problem.dual);
+    let mut rough = sweeps::Rough::new(problem.dual);
     assert_eq!(ledger.live(), live + c * c * 4);
     assert_eq!(
-        pgs::rough_sweeps(&problem, &mut rough, &mut lam, &mut w, 30),
+        sweeps::rough_sweeps(&problem, &mut rough, &mut lam, &mut w, 30),
         30
     );
     drop(rough);
