@@ -249,11 +249,13 @@ impl Block {
     }
 }
 
-/// Bytes the preconditioner of K and B (`b`) on K's factor `of_k` will hold
-/// ([`Plan::bytes`]; 0 where it is not formed). Analyses the layer: it costs
-/// a symbolic factorisation of K_II.
-pub(crate) fn plan_bytes(k: &Csc, b: &Csc, of_k: &Factor) -> usize {
-    Plan::of(k, b, of_k, of_k.threads().clone(), Ledger::new()).map_or(0, |p| p.bytes())
+/// The layer of K and B (`b`) on K's factor `of_k`, analysed on its threads
+/// and counted on its ledger where it is formed (None where it does not pay):
+/// kept by the caller from the memory prediction ([`Plan::bytes`]) to the
+/// formation, so that the layer is analysed once (a symbolic factorisation
+/// of K_II).
+pub(crate) fn layer_of(k: &Csc, b: &Csc, of_k: &Factor) -> Option<Plan> {
+    Plan::of(k, b, of_k, of_k.threads().clone(), of_k.ledger().clone())
 }
 
 /// G_D = B S_l B^T of the module docs, applied matrix-free in single

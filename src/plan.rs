@@ -22,6 +22,9 @@ pub(crate) struct Plan {
     pub sizes: Sizes,
     /// `Dense` or `MatrixFree`.
     pub form: DualForm,
+    /// The layered Dirichlet preconditioner's analysis, for a matrix-free
+    /// dual (None on the dense route, or where it does not pay).
+    pub layer: Option<crate::dirichlet::Plan>,
 }
 
 /// `BadArgument` unless d is 2 or 3.
@@ -84,8 +87,21 @@ pub(crate) fn info_of(
 
 /// The sizes of a problem's memory predictions, after K's analysis.
 pub(crate) fn sizes_of(k: &Csc, n: &Csc, t: &Csc, d: usize, factor: &Factor) -> Sizes {
+    sizes_and_layer(k, n, t, d, factor).0
+}
+
+/// [`sizes_of`], and the layered Dirichlet preconditioner's analysis that
+/// sized it (for a matrix-free dual to form without analysing it again).
+pub(crate) fn sizes_and_layer(
+    k: &Csc,
+    n: &Csc,
+    t: &Csc,
+    d: usize,
+    factor: &Factor,
+) -> (Sizes, Option<crate::dirichlet::Plan>) {
     let b = stack_rows(n, t);
-    Sizes {
+    let layer = crate::dirichlet::layer_of(k, &b, factor);
+    let sizes = Sizes {
         n: k.nrows,
         c: d * n.nrows,
         nc: factor.last().len(),
@@ -96,8 +112,9 @@ pub(crate) fn sizes_of(k: &Csc, n: &Csc, t: &Csc, d: usize, factor: &Factor) -> 
         blocks_work: crate::factor_tree::contact_blocks::work_bytes(factor, &b, n.nrows, d),
         lumped: crate::sparse::congruence_bytes(k, &b, &b.transpose()),
         own_solves: crate::dual::own_solves_bytes(factor, &b),
-        dirichlet: crate::dirichlet::plan_bytes(k, &b, factor),
-    }
+        dirichlet: layer.as_ref().map_or(0, |p| p.bytes()),
+    };
+    (sizes, layer)
 }
 
 /// How a solve with `opts` needs the dual, held as `now` (see `prepare_dual`).
@@ -163,14 +180,15 @@ pub(crate) fn route(
         // refuses it with OutOfMemory); AUTO falls back to the matrix-free one.
         if opts.dual_form == DualForm::Dense || limit.is_none_or(|l| sizes.setup(dense) <= l) {
             let form = DualForm::Dense;
-            return Ok((factor, Plan { sizes, form }, limit));
+            let layer = None;
+            return Ok((factor, Plan { sizes, form, layer }, limit));
         }
     }
     // The matrix-free dual works with the best plain factor of K.
     let factor = Factor::analyse(k, &[], opts.ordering, d == 3, threads, Ledger::new())?;
-    let sizes = sizes_of(k, n, t, d, &factor);
+    let (sizes, layer) = sizes_and_layer(k, n, t, d, &factor);
     let form = DualForm::MatrixFree;
-    Ok((factor, Plan { sizes, form }, limit))
+    Ok((factor, Plan { sizes, form, layer }, limit))
 }
 
 /// [`route`], refused with `OutOfMemory` before any numeric
@@ -183,7 +201,7 @@ pub(crate) fn analysed(
     opts: &Options,
 ) -> Result<(Factor, Plan)> {
     let (factor, plan, limit) = route(d, k, n, t, opts)?;
-    let (sizes, form) = (plan.sizes, plan.form);
+    let (sizes, form, layer) = (plan.sizes, plan.form, plan.layer);
     let how = Condensation::of(true, form, sizes.c);
     let need = sizes.setup(how);
     let free = Condensation::MatrixFree;
@@ -225,5 +243,5 @@ pub(crate) fn analysed(
         form.name()
     );
     memory::check(need, limit, opts.max_memory, &what, &hint)?;
-    Ok((factor, Plan { sizes, form }))
+    Ok((factor, Plan { sizes, form, layer }))
 }

@@ -307,20 +307,23 @@ impl Dual {
 
     /// Hands K over to a matrix-free dual, which forms G = B K B^T from it (the
     /// lumped preconditioner of Newton's reduced systems) and, where it pays,
-    /// the layered Dirichlet preconditioner (`dirichlet.rs`); nothing on a
-    /// dense dual.
-    pub(crate) fn set_lumped(&mut self, k: &Csc) {
+    /// the layered Dirichlet preconditioner (`dirichlet.rs`; `layer`: its
+    /// analysis where the caller made it for the memory prediction, else
+    /// analysed here); nothing on a dense dual.
+    pub(crate) fn set_lumped(&mut self, k: &Csc, layer: Option<crate::dirichlet::Plan>) {
         if let Some(f) = &mut self.free {
             let g = crate::sparse::congruence(k, &self.rows, &f.bt);
             let claim = self.ledger.claim(g.bytes());
             f.lumped = Some((g, claim));
-            let plan = crate::dirichlet::Plan::of(
-                k,
-                &self.rows,
-                &f.factor,
-                f.factor.threads().clone(),
-                self.ledger.clone(),
-            );
+            let plan = layer.or_else(|| {
+                crate::dirichlet::Plan::of(
+                    k,
+                    &self.rows,
+                    &f.factor,
+                    f.factor.threads().clone(),
+                    self.ledger.clone(),
+                )
+            });
             f.dirichlet = plan.and_then(|p| p.form(&self.ledger));
         }
     }

@@ -110,9 +110,10 @@ fn form_dual(
     d: usize,
     how: Condensation,
     shift: &[f64],
+    layer: Option<crate::dirichlet::Plan>,
 ) -> Result<Dual> {
     let mut dual = Dual::build_with(factor, n, t, d, how)?;
-    dual.set_lumped(k);
+    dual.set_lumped(k, layer);
     if !shift.is_empty() {
         dual.set_shift(shift);
     }
@@ -176,7 +177,7 @@ impl ContactProblem {
         factor.refactor(&k)?;
         let factor = Arc::new(factor);
         let how = Dual::condensation_for(&factor, &n, &t, d, plan.form);
-        let dual = form_dual(&factor, &k, (&n, &t), d, how, &[])?;
+        let dual = form_dual(&factor, &k, (&n, &t), d, how, &[], plan.layer)?;
         let ndof = k.nrows;
         let c = dual.c;
         let m = n.nrows;
@@ -293,7 +294,7 @@ impl ContactProblem {
         let fresh = Arc::new(fresh);
         let how = Dual::condensation_for(&fresh, &self.n, &self.t, self.d, self.current_form());
         let shift = self.compliance.shift(self.d);
-        self.dual = form_dual(&fresh, &k, (&self.n, &self.t), self.d, how, &shift)?;
+        self.dual = form_dual(&fresh, &k, (&self.n, &self.t), self.d, how, &shift, None)?;
         self.factor = fresh;
         self.k = k;
         self.history.forget_loads();
@@ -309,6 +310,7 @@ impl ContactProblem {
         let t = Csc::from_view(t, "T")?;
         check_shapes(self.factor.n(), self.d, &n, &t)?;
         let b = stack_rows(&n, &t);
+        let layer = crate::dirichlet::layer_of(&self.k, &b, &self.factor);
         let next = Sizes {
             c: self.d * n.nrows,
             inputs: self.k.bytes() + n.bytes() + t.bytes(),
@@ -320,7 +322,7 @@ impl ContactProblem {
             ),
             lumped: crate::sparse::congruence_bytes(&self.k, &b, &b.transpose()),
             own_solves: crate::dual::own_solves_bytes(&self.factor, &b),
-            dirichlet: crate::dirichlet::plan_bytes(&self.k, &b, &self.factor),
+            dirichlet: layer.as_ref().map_or(0, |p| p.bytes()),
             ..self.sizes
         };
         // The handle keeps its form (dense or matrix-free), as `refactor` does.
@@ -350,6 +352,7 @@ impl ContactProblem {
             self.d,
             how,
             &compliance.shift(self.d),
+            layer,
         )?;
         self.history.new_contacts(dual.c);
         self.compliance = compliance;

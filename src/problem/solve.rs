@@ -71,7 +71,7 @@ impl ContactProblem {
         if next != now {
             let shift = self.compliance.shift(self.d);
             let nt = (&self.n, &self.t);
-            self.dual = form_dual(&self.factor, &self.k, nt, self.d, next, &shift)?;
+            self.dual = form_dual(&self.factor, &self.k, nt, self.d, next, &shift, None)?;
         }
         Ok(need)
     }

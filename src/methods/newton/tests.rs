@@ -438,10 +438,10 @@ fn the_layered_dirichlet_preconditioner_saves_products() {
         (lam, out.inner)
     };
     let mut lumped = Dual::build_with(&factor, &nm, &tm, 3, Condensation::MatrixFree).unwrap();
-    lumped.set_lumped(&k);
+    lumped.set_lumped(&k, None);
     lumped.drop_dirichlet();
     let mut layered = Dual::build_with(&factor, &nm, &tm, 3, Condensation::MatrixFree).unwrap();
-    layered.set_lumped(&k);
+    layered.set_lumped(&k, None);
     assert!(layered.force_dirichlet(&k));
     let dense = Dual::build_with(&factor, &nm, &tm, 3, Condensation::Solves).unwrap();
     let (l_dense, _) = solve(&dense);
@@ -486,7 +486,7 @@ fn coulomb_steps_narrow_their_products_to_the_contact_zone() {
         (lam, out.outer, newton.krylov.narrowed)
     };
     let mut free = Dual::build_with(&factor, &nm, &tm, 3, Condensation::MatrixFree).unwrap();
-    free.set_lumped(&k);
+    free.set_lumped(&k, None);
     let dense = Dual::build_with(&factor, &nm, &tm, 3, Condensation::Solves).unwrap();
     let (l_dense, _, _) = solve(&dense);
     let (l_free, outer, narrowed) = solve(&free);
@@ -550,7 +550,7 @@ fn the_lumped_preconditioner_saves_products() {
     };
     let jacobi = Dual::build_with(&factor, &nm, &tm, 2, Condensation::MatrixFree).unwrap();
     let mut lumped = Dual::build_with(&factor, &nm, &tm, 2, Condensation::MatrixFree).unwrap();
-    lumped.set_lumped(&k);
+    lumped.set_lumped(&k, None);
     assert!(jacobi.lumped().is_none() && lumped.lumped().is_some());
     let dense = Dual::build_with(&factor, &nm, &tm, 2, Condensation::Solves).unwrap();
     let (l_dense, _, _) = solve(&dense, true);
