@@ -414,6 +414,20 @@ impl ContactProblem {
             .count()
     }
 
+    /// The checks every solve, step and dump makes of its data before any
+    /// work: the load (length n) and the gap (length m), named as the caller
+    /// names them, and the friction data.
+    fn check_data(
+        &self,
+        (f_name, f): (&str, &[f64]),
+        (g_name, g): (&str, &[f64]),
+        friction: Friction<'_>,
+    ) -> Result<()> {
+        check_vec(f_name, f, self.n_dofs())?;
+        check_vec(g_name, g, self.n_contacts())?;
+        self.check_friction(friction)
+    }
+
     fn check_friction(&self, friction: Friction<'_>) -> Result<()> {
         let m = self.n_contacts();
         let (name, x) = match friction {
@@ -491,14 +505,11 @@ impl ContactProblem {
         opts: &Options,
         monitor: Option<Monitor<'_>>,
     ) -> Result<Solution> {
-        let (ndof, m) = (self.n_dofs(), self.n_contacts());
-        check_vec("f", f, ndof)?;
-        check_vec("g", g, m)?;
-        self.check_friction(friction)?;
-        if let Some(lt) = lt_prev {
-            check_vec("lt_prev", lt, (self.d - 1) * m)?;
-        }
+        self.check_data(("f", f), ("g", g), friction)?;
         opts.check("")?;
+        if let Some(lt) = lt_prev {
+            check_vec("lt_prev", lt, (self.d - 1) * self.n_contacts())?;
+        }
         let predicted = self.prepare_dual(opts)?;
         let mut lam = vec![0.0; self.dual.c];
         let lt = lt_prev.unwrap_or(&[]);
@@ -543,11 +554,9 @@ impl ContactProblem {
         opts: &Options,
         monitor: Option<Monitor<'_>>,
     ) -> Result<Solution> {
-        let (ndof, m) = (self.n_dofs(), self.n_contacts());
-        check_vec("f_total", f_total, ndof)?;
-        check_vec("g0", g0, m)?;
-        self.check_friction(friction)?;
+        self.check_data(("f_total", f_total), ("g0", g0), friction)?;
         opts.check("")?;
+        let (ndof, m) = (self.n_dofs(), self.n_contacts());
         let predicted = self.prepare_dual(opts)?;
         // The effective f and K u_k.
         let _vectors = self.factor.ledger().claim_f64(2 * ndof);
@@ -615,9 +624,7 @@ impl ContactProblem {
         g: &[f64],
         friction: Friction<'_>,
     ) -> Result<()> {
-        check_vec("f", f, self.n_dofs())?;
-        check_vec("g", g, self.n_contacts())?;
-        self.check_friction(friction)?;
+        self.check_data(("f", f), ("g", g), friction)?;
         crate::mtx::write_problem(dir, self.d, &self.k, &self.n, &self.t, f, g, friction)?;
         crate::mtx::write_interface(dir, &self.interface())
     }
