@@ -177,14 +177,8 @@ impl Operator {
             ($work:expr, $t:ty, $values:expr, $own_work:ident, $solve:ident) => {{
                 let mut work = $work.borrow_mut();
                 let (z, mem) = &mut *work;
-                z.iter_mut().for_each(|v| *v = 0.0);
-                for (r, &xr) in x.iter().enumerate() {
-                    if xr != 0.0 {
-                        for k in bt.col_ptr[r]..bt.col_ptr[r + 1] {
-                            z[bt.row_idx[k]] += (bt.values[k] * xr) as $t;
-                        }
-                    }
-                }
+                z.iter_mut().for_each(|v| *v = <$t>::default());
+                scatter(bt, x, 0..x.len(), z);
                 match &self.own {
                     Some(own) => {
                         let mut scratch = own.$own_work.borrow_mut();
@@ -197,11 +191,7 @@ impl Operator {
                         factor.solve_values($values, zm, MemStack::new(mem));
                     }
                 }
-                for (r, yr) in y.iter_mut().enumerate() {
-                    *yr = (bt.col_ptr[r]..bt.col_ptr[r + 1])
-                        .map(|k| bt.values[k] * f64::from(z[bt.row_idx[k]]))
-                        .sum();
-                }
+                gather(bt, z, 0..y.len(), y);
             }};
         }
         if rough {
@@ -307,30 +297,60 @@ impl Operator {
         // rows' DOFs: z is cleared there (`TreeSolve::clear`), B^T x
         // scattered into it, and A x gathered at the rows.
         macro_rules! narrowed {
-            ($z:expr, $t:ty, $solve:ident, $values:expr, $scratch:expr) => {{
+            ($z:expr, $solve:ident, $values:expr, $scratch:expr) => {{
                 let z = $z;
                 split.clear(&self.factor, z);
-                for &r in rows.iter() {
-                    if x[r] != 0.0 {
-                        for k in bt.col_ptr[r]..bt.col_ptr[r + 1] {
-                            z[bt.row_idx[k]] += (bt.values[k] * x[r]) as $t;
-                        }
-                    }
-                }
+                scatter(bt, x, rows.iter().copied(), z);
                 split.$solve(&self.factor, $values, z, $scratch, threads);
-                for &r in rows.iter() {
-                    y[r] = (bt.col_ptr[r]..bt.col_ptr[r + 1])
-                        .map(|k| bt.values[k] * f64::from(z[bt.row_idx[k]]))
-                        .sum();
-                }
+                gather(bt, z, rows.iter().copied(), y);
             }};
         }
         if rough {
             let mut w = self.work_single.borrow_mut();
-            narrowed!(&mut w.0, f32, solve_single, &self.single, &mut work.single);
+            narrowed!(&mut w.0, solve_single, &self.single, &mut work.single);
         } else {
             let mut w = self.work.borrow_mut();
-            narrowed!(&mut w.0, f64, solve, self.factor.values(), &mut work.double);
+            narrowed!(&mut w.0, solve, self.factor.values(), &mut work.double);
         }
+    }
+}
+
+/// A precision the products' solves run in: f64, or f32 for the rough ones.
+pub(super) trait Real: Copy + Default + std::ops::AddAssign + Into<f64> {
+    /// v rounded to this precision.
+    fn of(v: f64) -> Self;
+}
+
+impl Real for f64 {
+    fn of(v: f64) -> f64 {
+        v
+    }
+}
+
+impl Real for f32 {
+    fn of(v: f64) -> f32 {
+        v as f32
+    }
+}
+
+/// z += B^T x over the rows in `rows` (x read there only): row r of B
+/// (column r of `bt`) scattered into z's DOFs, times x_r.
+fn scatter<T: Real>(bt: &Csc, x: &[f64], rows: impl Iterator<Item = usize>, z: &mut [T]) {
+    for r in rows {
+        let xr = x[r];
+        if xr != 0.0 {
+            for k in bt.col_ptr[r]..bt.col_ptr[r + 1] {
+                z[bt.row_idx[k]] += T::of(bt.values[k] * xr);
+            }
+        }
+    }
+}
+
+/// y_r := (B z)_r for the rows in `rows` (y untouched elsewhere).
+fn gather<T: Real>(bt: &Csc, z: &[T], rows: impl Iterator<Item = usize>, y: &mut [f64]) {
+    for r in rows {
+        y[r] = (bt.col_ptr[r]..bt.col_ptr[r + 1])
+            .map(|k| bt.values[k] * z[bt.row_idx[k]].into())
+            .sum();
     }
 }
