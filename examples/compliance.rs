@@ -25,6 +25,9 @@ mod baseline;
 #[path = "bench/scene.rs"]
 #[allow(dead_code)]
 mod scene;
+#[path = "bench/stats.rs"]
+#[allow(dead_code)]
+mod stats;
 
 use dualsplit::{ContactProblem, DualForm, Friction, Options, Solution, SolveStatus};
 use scene::{Scene, Spec};
@@ -35,11 +38,6 @@ const FACTOR_REPS: usize = 3;
 
 /// Steps of each history.
 const STEPS: usize = 10;
-
-fn median(mut x: Vec<f64>) -> f64 {
-    x.sort_by(f64::total_cmp);
-    x[x.len() / 2]
-}
 
 fn main() {
     let mut scenes = vec!["2d-400x50".to_string(), "3d-24x24x12".to_string()];
@@ -132,19 +130,10 @@ fn main() {
                 assert_eq!(r.status, SolveStatus::Converged, "{r:?}");
                 // The history: press in STEPS / 2, then shear.
                 pb.reset_history();
-                let half = STEPS / 2;
                 let (mut warm, mut outer) = (Vec::new(), 0);
                 for k in 1..=STEPS {
-                    let (a, b) = if k <= half {
-                        (k as f64 / half as f64, 0.0)
-                    } else {
-                        (1.0, (k - half) as f64 / (STEPS - half) as f64)
-                    };
-                    let f: Vec<f64> = press
-                        .iter()
-                        .zip(&shear)
-                        .map(|(p, q)| a * p + b * q)
-                        .collect();
+                    let f =
+                        stats::history_load(&press, &shear, stats::load_factors(k, STEPS, false));
                     let t0 = Instant::now();
                     let st = pb.step(&f, &sc.g, friction, &opts).expect("steps");
                     let t = t0.elapsed().as_secs_f64();
@@ -158,7 +147,7 @@ fn main() {
                 let mean = warm.iter().sum::<f64>() / warm.len() as f64;
                 rows.push(format!(
                     "| {name} | {law} | {label} | {:.3} | {} | {} | {} / {} / {} | {:.1e} | {:.3} | {:.1} |",
-                    median(times) / t_factor,
+                    stats::median(&times) / t_factor,
                     r.outer_iterations,
                     r.inner_iterations,
                     r.n_open,

@@ -12,6 +12,9 @@
 #[path = "bench/scene.rs"]
 #[allow(dead_code)]
 mod scene;
+#[path = "bench/stats.rs"]
+#[allow(dead_code)]
+mod stats;
 
 use dualsplit::Ordering;
 use dualsplit::internals::{Factor, Threads, stack_rows};
@@ -19,11 +22,6 @@ use faer::dyn_stack::{MemBuffer, MemStack};
 use scene::{Scene, Spec};
 use std::sync::Arc;
 use std::time::Instant;
-
-fn median(mut v: Vec<f64>) -> f64 {
-    v.sort_by(f64::total_cmp);
-    v[v.len() / 2]
-}
 
 fn main() {
     let mut scenes = vec!["3d-30x30x15".to_string(), "3d-64x64x6".to_string()];
@@ -67,7 +65,7 @@ fn main() {
                     t.elapsed().as_secs_f64()
                 })
                 .collect();
-            median(runs)
+            stats::median(&runs)
         };
         let (t1, t16) = (solve(1), solve(16));
         let b = stack_rows(&sc.n, &sc.t);

@@ -38,6 +38,9 @@ mod cholmod;
 #[path = "bench/scene.rs"]
 #[allow(dead_code)]
 mod scene;
+#[path = "bench/stats.rs"]
+#[allow(dead_code)]
+mod stats;
 
 use dualsplit::internals::{Factor, Threads, contact_dofs, stack_rows};
 use dualsplit::{ContactProblem, Options, Ordering};
@@ -107,11 +110,6 @@ struct Meas {
     flops: f64,
 }
 
-fn median(mut v: Vec<f64>) -> f64 {
-    v.sort_by(f64::total_cmp);
-    v[v.len() / 2]
-}
-
 /// `reps` factorisations of `k` with `last` ordered last.
 fn factor(
     what: &str,
@@ -139,9 +137,9 @@ fn factor(
     };
     Meas {
         what,
-        seconds: median(total),
-        analyse: median(analyse),
-        numeric: median(numeric),
+        seconds: stats::median(&total),
+        analyse: stats::median(&analyse),
+        numeric: stats::median(&numeric),
         nnz: nnz as f64,
         flops,
     }
@@ -223,9 +221,9 @@ fn main() {
             rows.push(Meas {
                 what: format!(
                     "setup (factor, contacts last + condense {:.2} s)",
-                    median(condense)
+                    stats::median(&condense)
                 ),
-                seconds: median(setup),
+                seconds: stats::median(&setup),
                 analyse: f64::NAN,
                 numeric: f64::NAN,
                 nnz: f64::NAN,

@@ -26,6 +26,9 @@ mod baseline;
 #[path = "bench/scene.rs"]
 #[allow(dead_code)]
 mod scene;
+#[path = "bench/stats.rs"]
+#[allow(dead_code)]
+mod stats;
 
 use dualsplit::{ContactProblem, DualForm, Friction, Options};
 use scene::{Scene, Spec};
@@ -116,22 +119,10 @@ fn main() {
                 "| step | press | shear | s | / factor | method | outer | inner | open / stick / slip | err |"
             );
             println!("|---|---|---|---|---|---|---|---|---|---|");
-            let half = steps / 2;
             let mut times = Vec::new();
             for k in 1..=steps {
-                let (a, b) = if proportional {
-                    let s = k as f64 / steps as f64;
-                    (s, s)
-                } else if k <= half {
-                    (k as f64 / half as f64, 0.0)
-                } else {
-                    (1.0, (k - half) as f64 / (steps - half) as f64)
-                };
-                let f: Vec<f64> = press
-                    .iter()
-                    .zip(&shear)
-                    .map(|(p, s)| a * p + b * s)
-                    .collect();
+                let (a, b) = stats::load_factors(k, steps, proportional);
+                let f = stats::history_load(&press, &shear, (a, b));
                 let t0 = Instant::now();
                 let sol = pb.step(&f, &sc.g, friction, &opts).expect("solves");
                 let t = t0.elapsed().as_secs_f64();

@@ -25,6 +25,9 @@ mod baseline;
 #[path = "bench/scene.rs"]
 #[allow(dead_code)]
 mod scene;
+#[path = "bench/stats.rs"]
+#[allow(dead_code)]
+mod stats;
 
 use dualsplit::{ContactProblem, DualForm, Friction, Method, Options};
 use scene::{Scene, Spec};
@@ -102,9 +105,8 @@ fn main() {
                     let f2: Vec<f64> = sc.f.iter().map(|v| scale * v).collect();
                     warm.push(pb.step(&f2, &sc.g, friction, &opts).expect("solves").report);
                 }
-                let mut times: Vec<f64> = warm.iter().map(|r| r.solve_seconds).collect();
-                times.sort_by(f64::total_cmp);
-                let warm_median = times[times.len() / 2];
+                let times: Vec<f64> = warm.iter().map(|r| r.solve_seconds).collect();
+                let warm_median = stats::median(&times);
                 let r = &sol.report;
                 let rw = &warm[0];
                 let total = t_setup + r.solve_seconds;

@@ -16,15 +16,14 @@ pub fn best_plain_factor(k: &Csc, threads: usize, reps: usize) -> f64 {
     [Ordering::Amd, Ordering::Metis]
         .into_iter()
         .map(|ordering| {
-            let mut t: Vec<f64> = (0..reps.max(1))
+            let t: Vec<f64> = (0..reps.max(1))
                 .map(|_| {
                     let t0 = Instant::now();
                     drop(Factor::with_last(k, &[], ordering, pool.clone()).expect("K is SPD"));
                     t0.elapsed().as_secs_f64()
                 })
                 .collect();
-            t.sort_by(f64::total_cmp);
-            t[t.len() / 2]
+            super::stats::median(&t)
         })
         .fold(f64::INFINITY, f64::min)
 }

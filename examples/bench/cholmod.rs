@@ -22,11 +22,7 @@ pub struct Cholmod {
     pub flops: f64,
 }
 
-fn median(v: &[f64]) -> f64 {
-    let mut v = v.to_vec();
-    v.sort_by(f64::total_cmp);
-    v[v.len() / 2]
-}
+use super::stats::median;
 
 /// The CHOLMOD shim, compiled once into `target/factor-bench`; the reason as
 /// the error where it cannot be built (no SuiteSparse, no C compiler).

@@ -53,12 +53,15 @@ mod plot;
 mod report;
 mod row;
 mod scene;
+#[allow(dead_code)]
+mod stats;
 
 use dualsplit::internals::{Condensation, Dual};
 use dualsplit::internals::{Factor, Threads};
 use dualsplit::{ContactProblem, DualForm, Friction, Method, Options, Ordering, SolveStatus};
-use row::{Part, Row, median, peak_mb, reset_peak, rss_mb};
+use row::{Part, Row, peak_mb, reset_peak, rss_mb};
 use scene::{Scene, Spec};
+use stats::median;
 use std::io::Write as _;
 use std::path::PathBuf;
 use std::process::Command;

@@ -221,15 +221,3 @@ pub fn load1() -> String {
         .and_then(|s| s.split_whitespace().next().map(String::from))
         .unwrap_or_default()
 }
-
-/// Median of a non-empty list.
-pub fn median(v: &[f64]) -> f64 {
-    let mut w = v.to_vec();
-    w.sort_by(|a, b| a.total_cmp(b));
-    let k = w.len();
-    if k % 2 == 1 {
-        w[k / 2]
-    } else {
-        0.5 * (w[k / 2 - 1] + w[k / 2])
-    }
-}
