@@ -41,7 +41,8 @@
 //!
 //! Warm-up: every solve on a dense A starts with up to PRESWEEPS projected
 //! Gauss-Seidel sweeps (cheap against a Newton step), so that the first active
-//! set Newton sees is near the answer; they, and the fallback's, read A in
+//! set Newton sees is near the answer (one chunk in the later rounds of Newton
+//! on a nonlinear law, which start at the last round's answer); they, and the fallback's, read A in
 //! single precision on a large dual (`sweeps::Rough`, `sweeps::ROUGH_MIN_C`). A
 //! matrix-free dual has no entries to sweep: a cold solve starts instead at the projection of alpha G b, G = B K B^T
 //! the lumped estimate of A^-1 (alpha minimising the dual energy along G b),
@@ -252,6 +253,10 @@ impl OuterStep for Newton {
         // Gauss-Seidel reads entries of A: no sweeps on a matrix-free dual.
         let presweeps = if problem.dual.is_matrix_free() {
             0
+        } else if problem.near {
+            // A later round of Newton on a nonlinear law starts at the last
+            // round's answer: one chunk.
+            self.presweeps.min(PRESWEEP_CHUNK)
         } else {
             self.presweeps
         };
