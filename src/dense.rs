@@ -1,6 +1,5 @@
 //! Dense factorisations with an explicit parallelism (faer's low-level calls), so
 //! that they run on the problem's threads and never on rayon's global pool.
-
 //!
 //! Their dense copies and work space are allocated fallibly: where the
 //! allocator refuses one, the call answers None (as for a matrix that is not
