@@ -71,7 +71,7 @@ fn main() {
         let mut f = std::fs::File::create(&p).expect("the csv file");
         writeln!(
             f,
-            "scene,threads,law,step,seconds,per_factor,outer,inner,open,stick,slip,err"
+            "scene,threads,law,step,seconds,per_factor,rhs_s,iterate_s,recover_s,outer,inner,open,stick,slip,err"
         )
         .unwrap();
         f
@@ -116,9 +116,9 @@ fn main() {
                 }
             );
             println!(
-                "| step | press | shear | s | / factor | method | outer | inner | open / stick / slip | err |"
+                "| step | press | shear | s | / factor | rhs / iterations / recovery, / factor | method | outer | inner | open / stick / slip | err |"
             );
-            println!("|---|---|---|---|---|---|---|---|---|---|");
+            println!("|---|---|---|---|---|---|---|---|---|---|---|");
             let mut times = Vec::new();
             for k in 1..=steps {
                 let (a, b) = stats::load_factors(k, steps, proportional);
@@ -130,8 +130,11 @@ fn main() {
                 let r = &sol.report;
                 assert_eq!(r.status, dualsplit::SolveStatus::Converged, "{r:?}");
                 println!(
-                    "| {k} | {a:.2} | {b:.2} | {t:.3} | {:.3} | {} | {} | {} | {} / {} / {} | {:.1e} |",
+                    "| {k} | {a:.2} | {b:.2} | {t:.3} | {:.3} | {:.3} / {:.3} / {:.3} | {} | {} | {} | {} / {} / {} | {:.1e} |",
                     t / t_factor,
+                    r.rhs_seconds / t_factor,
+                    r.iterate_seconds / t_factor,
+                    r.recover_seconds / t_factor,
                     r.method.name(),
                     r.outer_iterations,
                     r.inner_iterations,
@@ -143,8 +146,11 @@ fn main() {
                 if let Some(f) = csv.as_mut() {
                     writeln!(
                         f,
-                        "{name},{threads},{law},{k},{t},{},{},{},{},{},{},{}",
+                        "{name},{threads},{law},{k},{t},{},{},{},{},{},{},{},{},{},{}",
                         t / t_factor,
+                        r.rhs_seconds,
+                        r.iterate_seconds,
+                        r.recover_seconds,
                         r.outer_iterations,
                         r.inner_iterations,
                         r.n_open,

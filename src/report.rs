@@ -118,6 +118,18 @@ pub struct Report {
     /// Signorini-Coulomb (or Tresca) law. Where it is not 0, err is the natural
     /// map of the regularised conditions (docs/design.md section 8).
     pub compliant_contacts: usize,
+    /// Where `solve_seconds` went: the right-hand side b = B K^-1 f - [g; 0]
+    /// (a forward and a back solve with K's factor, or the back solve's
+    /// trailing part; a history step's start), ...
+    pub rhs_seconds: f64,
+    /// ... the method's iterations (every run, where the dual tolerance was
+    /// tightened or a nonlinear law took rounds: `inner_iterations` says what
+    /// they were), ...
+    pub iterate_seconds: f64,
+    /// ... and the recovery of u = K^-1 (f - B^T lambda) with the error measured
+    /// on it, after each run. The rest of `solve_seconds` is the report
+    /// (equilibrium residual, contact states).
+    pub recover_seconds: f64,
 }
 
 /// The natural-map error of docs/design.md section 5 for the dual unknowns

@@ -99,6 +99,14 @@ fn warm_against_cold(
             &sol.lambda_t,
         )
         .assert_ok(&format!("{what} ({name})"), 1e-8);
+        // The report's phases are parts of the solve's time.
+        let r = &sol.report;
+        let phases = r.rhs_seconds + r.iterate_seconds + r.recover_seconds;
+        assert!(
+            r.rhs_seconds > 0.0 && r.iterate_seconds > 0.0 && r.recover_seconds > 0.0,
+            "{what} ({name}): {r:?}"
+        );
+        assert!(phases <= r.solve_seconds, "{what} ({name}): {r:?}");
     };
     let du: Vec<f64> = warm.u.iter().zip(&s1.u).map(|(a, b)| a - b).collect();
     check("warm", &warm, &du);

@@ -125,6 +125,9 @@ OUTPUT (OUTDIR):
                             library's large allocations
         compliant_contacts  contacts with a compliant law (cn.txt or kt.txt
                             finite there; 0: the rigid problem was solved)
+        rhs_seconds, iterate_seconds, recover_seconds
+                            where solve_seconds went: the right-hand side, the
+                            method's iterations, the recovery of u and its error
     Numbers are written with full precision (shortest round-trip form). The four
     files left in OUTDIR by an earlier run are removed first; on an error only
     report.json is written (when OUTDIR can be written).
@@ -554,6 +557,9 @@ fn success_report(args: &SolveArgs, pf: &Sizes, r: &Report, read_s: f64) -> Stri
     j.integer("memory_predicted", r.memory_predicted);
     j.integer("memory_peak", r.memory_peak);
     j.integer("compliant_contacts", r.compliant_contacts);
+    j.number("rhs_seconds", r.rhs_seconds);
+    j.number("iterate_seconds", r.iterate_seconds);
+    j.number("recover_seconds", r.recover_seconds);
     j.finish()
 }
 

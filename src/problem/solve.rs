@@ -129,10 +129,7 @@ impl ContactProblem {
         let (ndof, m, c) = (self.n_dofs(), self.n_contacts(), self.dual.c);
         // y_f, K^-1 f, u, B^T lambda, K u and the residual below.
         let _vectors = self.factor.ledger().claim_f64(6 * ndof);
-        check_vec("f", f, ndof)?;
-        check_vec("g", g, m)?;
-        self.check_friction(friction)?;
-        opts.check("")?;
+        // (f, g, the friction data and opts were checked by the caller.)
         // b = B K^-1 f - [g; 0], with the forward half y_f = L^-1 P f kept for the
         // recovery of u.
         let mut y_f = vec![0.0; ndof];
@@ -211,6 +208,8 @@ impl ContactProblem {
         let deadline =
             (opts.max_seconds > 0.0).then(|| start + Duration::from_secs_f64(opts.max_seconds));
         let mut target = round_tol;
+        let rhs_seconds = start.elapsed().as_secs_f64();
+        let (mut iterate_seconds, mut recover_seconds) = (0.0, 0.0);
         let mut end = End::Converged;
         let mut outer = 0;
         let mut inner = 0;
@@ -251,7 +250,10 @@ impl ContactProblem {
                     max_outer: opts.max_outer.saturating_sub(outer),
                     ..*opts
                 };
+                let t0 = Instant::now();
                 let o = methods::run(&problem, lam, &local, target);
+                let t1 = Instant::now();
+                iterate_seconds += (t1 - t0).as_secs_f64();
                 outer += o.outer;
                 inner += o.inner;
                 unknowns = o.unknowns;
@@ -280,6 +282,7 @@ impl ContactProblem {
                 }
                 friction.bounds(&lam[..m], &mut p);
                 err = natural_map_error(lam, &v, &self.dual.rho, &b_round, &p, self.d);
+                recover_seconds += t1.elapsed().as_secs_f64();
                 if end == End::Infeasible {
                     // No u satisfies N u <= g: no error can be small (report.rs).
                     err = f64::INFINITY;
@@ -378,6 +381,9 @@ impl ContactProblem {
                 memory_predicted: predicted,
                 memory_peak: self.factor.ledger().peak(),
                 compliant_contacts: self.compliant_contacts(),
+                rhs_seconds,
+                iterate_seconds,
+                recover_seconds,
             },
         };
         Ok((sol, load))
