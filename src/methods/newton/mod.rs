@@ -41,8 +41,9 @@
 //!
 //! Warm-up: every solve on a dense A starts with up to PRESWEEPS projected
 //! Gauss-Seidel sweeps (cheap against a Newton step), so that the first active
-//! set Newton sees is near the answer (one chunk in the later rounds of Newton
-//! on a nonlinear law, which start at the last round's answer); they, and the fallback's, read A in
+//! set Newton sees is near the answer (one chunk where the start is near
+//! already: the later rounds of Newton on a nonlinear law, a 3D history step's
+//! prediction); they, and the fallback's, read A in
 //! single precision on a large dual (`sweeps::Rough`, `sweeps::ROUGH_MIN_C`). A
 //! matrix-free dual has no entries to sweep: a cold solve starts instead at the projection of alpha G b, G = B K B^T
 //! the lumped estimate of A^-1 (alpha minimising the dual energy along G b),
@@ -253,9 +254,14 @@ impl OuterStep for Newton {
         // Gauss-Seidel reads entries of A: no sweeps on a matrix-free dual.
         let presweeps = if problem.dual.is_matrix_free() {
             0
-        } else if problem.near {
-            // A later round of Newton on a nonlinear law starts at the last
-            // round's answer: one chunk.
+        } else if problem.near || (self.warm && problem.predicted && problem.dual.d == 3) {
+            // One chunk where the start is already near the answer: a later
+            // round of Newton on a nonlinear law (the last round's answer), and
+            // in 3D a history step's prediction. Measured (BENCHMARKS.md,
+            // "Quasistatic histories"): the 3D dense blocks' warm Tresca steps
+            // 0.139 -> 0.099 and 0.200 -> 0.167 of a factorisation; in 2D the
+            // strip's Newton steps went 0.7 -> 3.4 per warm step (0.170 ->
+            // 0.302), so 2D histories keep the 40 sweeps.
             self.presweeps.min(PRESWEEP_CHUNK)
         } else {
             self.presweeps
