@@ -29,6 +29,10 @@ pub enum ErrorKind {
     BadArgument,
     /// A file could not be read or written, or is malformed.
     Io,
+    /// The host's solver of K (a problem built on it: [`crate::KSolve`])
+    /// returned an error code, or a NaN or infinity; the message carries the
+    /// host's code.
+    HostSolve,
 }
 
 /// An error with a message that says which argument and which entry is at fault.

@@ -51,6 +51,10 @@ pub(crate) struct History {
     /// step ((d - 1) m), scaled where k_T changed since (`Compliance::carry`);
     /// empty for zero (before the first step, after a reset or a change of m).
     pub lt: Vec<f64>,
+    /// K u_k as the sum of the right-hand sides u_k was solved from (n):
+    /// f_total minus B^T lambda_k of the last converged step, kept by a
+    /// problem on the host's solves without K; zero otherwise.
+    pub ku: Vec<f64>,
 }
 
 impl History {
@@ -62,6 +66,7 @@ impl History {
             load: None,
             prev: None,
             lt: Vec::new(),
+            ku: vec![0.0; n],
         }
     }
 
@@ -70,6 +75,7 @@ impl History {
         self.u.iter_mut().for_each(|v| *v = 0.0);
         self.lam.iter_mut().for_each(|v| *v = 0.0);
         self.lt.clear();
+        self.ku.iter_mut().for_each(|v| *v = 0.0);
         self.forget_loads();
     }
 

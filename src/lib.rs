@@ -20,6 +20,7 @@ mod factor_tree;
 mod ffi;
 mod friction;
 mod history;
+mod host;
 mod info;
 mod memory;
 mod methods;
@@ -39,6 +40,7 @@ mod threads;
 
 pub use error::{Error, ErrorKind, Result};
 pub use friction::Friction;
+pub use host::KSolve;
 pub use info::Info;
 pub use methods::{Monitor, Progress};
 pub use options::{DENSE_MAX, DualForm, Method, Options, Ordering, STALL_FACTOR, STALL_WINDOW};

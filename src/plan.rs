@@ -245,3 +245,56 @@ pub(crate) fn analysed(
     memory::check(need, limit, opts.max_memory, &what, &hint)?;
     Ok((factor, Plan { sizes, form, layer }))
 }
+
+/// The sizes of a problem on the host's solves (`host.rs`): no factor of
+/// the library's; K where the host gave it (`k`), and the lumped
+/// preconditioner made of it; the contact blocks' [`BLOCK`] right-hand sides
+/// while they are formed.
+pub(crate) fn host_sizes(k: Option<&Csc>, n: &Csc, t: &Csc, d: usize) -> Sizes {
+    let b = stack_rows(n, t);
+    Sizes {
+        n: n.ncols,
+        c: d * n.nrows,
+        inputs: k.map_or(0, |k| k.bytes()) + n.bytes() + t.bytes(),
+        blocks_work: BLOCK.min(b.nrows) * n.ncols * F64,
+        lumped: k.map_or(0, |k| {
+            crate::sparse::congruence_bytes(k, &b, &b.transpose())
+        }),
+        ..Sizes::default()
+    }
+}
+
+/// The analysis report of a problem on the host's solves (see
+/// [`host_sizes`]): no ordering or factor of the library's, the dual
+/// matrix-free from creation on.
+pub(crate) fn host_info(
+    d: usize,
+    k: Option<&Csc>,
+    n: &Csc,
+    sizes: &Sizes,
+    opts: &Options,
+    limit: Option<usize>,
+) -> Info {
+    let free = Condensation::MatrixFree;
+    Info {
+        d,
+        n: n.ncols,
+        m: n.nrows,
+        c: sizes.c,
+        nnz_k: k.map_or(0, |k| k.nnz()),
+        ordering: crate::options::Ordering::Auto,
+        factor_nnz: 0,
+        factor_flops: 0.0,
+        setup_form: DualForm::MatrixFree,
+        method: opts.method,
+        solve_form: DualForm::MatrixFree,
+        setup_bytes: sizes.setup(free),
+        resident_bytes: sizes.resident(free),
+        refactor_bytes: 0,
+        solve_bytes: sizes.solve(free, free, opts.method.workspace(n.nrows, sizes.c, true)),
+        memory_limit: limit.unwrap_or(0),
+        analyse_seconds: 0.0,
+        compliant_contacts: 0,
+        power_law_contacts: 0,
+    }
+}

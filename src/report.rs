@@ -130,6 +130,12 @@ pub struct Report {
     /// on it, after each run. The rest of `solve_seconds` is the report
     /// (equilibrium residual, contact states).
     pub recover_seconds: f64,
+    /// On a problem made on the host's solver
+    /// ([`crate::ContactProblem::with_host_solver`]): right-hand sides the
+    /// host's solve took during this call (0 on the library's own factor).
+    pub host_solves: usize,
+    /// ... and the seconds inside the host's solve, part of `solve_seconds`.
+    pub host_seconds: f64,
 }
 
 /// The natural-map error of docs/design.md section 5 for the dual unknowns

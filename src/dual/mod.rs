@@ -240,6 +240,44 @@ impl Dual {
         })
     }
 
+    /// The matrix-free dual of (N, T) on the host's solves (`host.rs`), its
+    /// contacts' diagonal blocks formed by c solves, [`BLOCK`] at a time;
+    /// `threads` and `ledger` are the problem's.
+    ///
+    /// Errors: `BadSize` (shapes), `HostSolve`, `OutOfMemory`.
+    pub(crate) fn on_host(
+        host: &Arc<crate::host::Host>,
+        (n, t): (&Csc, &Csc),
+        d: usize,
+        threads: Arc<Threads>,
+        ledger: Arc<Ledger>,
+    ) -> Result<Dual> {
+        let start = Instant::now();
+        let m = n.nrows;
+        check_shapes(host.n(), d, n, t)?;
+        let b = stack_rows(n, t);
+        let c = b.nrows;
+        let free = Operator::on_host(host, &b, m, d)?;
+        let rho = rho_of(m, d, |j| free.diag[j]);
+        Ok(Dual {
+            _claim: ledger.claim_f64(d * c + host.n()),
+            ledger,
+            d,
+            m,
+            c,
+            a: Vec::new(),
+            free: Some(free),
+            rho,
+            rows: b,
+            condense_seconds: start.elapsed().as_secs_f64(),
+            condensation: Condensation::MatrixFree,
+            trailing: false,
+            threads,
+            shift: Vec::new(),
+            rigid_diag: Vec::new(),
+        })
+    }
+
     /// Makes the operator A + D for the compliance diagonal `shift` (length c;
     /// empty: A itself, every contact rigid), replacing the last one, and
     /// recomputes rho from the new diagonal. Exact: A's own diagonal is kept
@@ -315,12 +353,15 @@ impl Dual {
             let g = crate::sparse::congruence(k, &self.rows, &f.bt);
             let claim = self.ledger.claim(g.bytes());
             f.lumped = Some((g, claim));
+            // The layered Dirichlet preconditioner is weighed against the
+            // cost of a product with K's factor: none on the host's solves.
+            let Some(factor) = f.factor() else { return };
             let plan = layer.or_else(|| {
                 crate::dirichlet::Plan::of(
                     k,
                     &self.rows,
-                    &f.factor,
-                    f.factor.threads().clone(),
+                    factor,
+                    factor.threads().clone(),
                     self.ledger.clone(),
                 )
             });
@@ -365,7 +406,7 @@ impl Dual {
         let Some(f) = &mut self.free else {
             return false;
         };
-        let threads = f.factor.threads().clone();
+        let threads = self.threads.clone();
         f.dirichlet =
             crate::dirichlet::Plan::unguarded(k, &self.rows, threads, self.ledger.clone())
                 .and_then(|p| p.form(&self.ledger));
@@ -404,8 +445,12 @@ impl Dual {
 
     /// Ends a narrowing (see [`Dual::narrow_to`]).
     pub(crate) fn widen(&self) {
-        if let Some(f) = &self.free {
-            f.narrow.borrow_mut().split = None;
+        if let Some(Operator {
+            solves: Solves::Factor(fs),
+            ..
+        }) = &self.free
+        {
+            fs.narrow.borrow_mut().split = None;
         }
     }
 

@@ -1,16 +1,17 @@
 //! The matrix-free form of the dual: A applied by solves with K's factor
-//! (whole, narrowed to a Newton step's rows, in double or single precision),
-//! its contact blocks and diagonal, and the preconditioners Newton's reduced
-//! systems take (lumped, layered Dirichlet).
+//! (whole, narrowed to a Newton step's rows, in double or single precision)
+//! or by the host's solves (`host.rs`), its contact blocks and diagonal, and
+//! the preconditioners Newton's reduced systems take (lumped, layered
+//! Dirichlet).
 
 use super::*;
 
 /// The matrix-free form of A = B K^-1 B^T: each product is one solve with K's
-/// factor (whatever its ordering); nothing c x c is formed. The contacts' d x d
-/// diagonal blocks of A are computed once (`contact_blocks`), for rho, the
-/// diagonal and Newton's preconditioner.
+/// factor (whatever its ordering) or the host's; nothing c x c is formed. The
+/// contacts' d x d diagonal blocks of A are computed once (`contact_blocks`,
+/// or by the host's solves), for rho, the diagonal and Newton's
+/// preconditioner.
 pub(super) struct Operator {
-    pub(super) factor: Arc<Factor>,
     /// B^T, n x c: column r holds row r of B.
     pub(super) bt: Csc,
     /// A_jj, j < c.
@@ -18,6 +19,31 @@ pub(super) struct Operator {
     /// Per contact, its d x d diagonal block of A, row-major (see
     /// [`crate::factor_tree::contact_blocks::contact_blocks`]).
     pub(super) blocks: Vec<f64>,
+    /// G = B K B^T (c x c, sparse), the lumped approximation of A^-1 that
+    /// preconditions Newton's reduced systems, once K is handed over
+    /// ([`Dual::set_lumped`]), with its bytes on the ledger.
+    pub(super) lumped: Option<(Csc, Claim)>,
+    /// The layered Dirichlet preconditioner, where it pays (`dirichlet.rs`).
+    pub(super) dirichlet: Option<crate::dirichlet::Dirichlet>,
+    /// What solves with K.
+    pub(super) solves: Solves,
+}
+
+/// What a matrix-free dual's products solve with: K's factor, or the host.
+pub(super) enum Solves {
+    Factor(Box<FactorSolves>),
+    Host(HostSolves),
+}
+
+/// The host's solves (`host.rs`) with one product's n-vector.
+pub(super) struct HostSolves {
+    pub(super) host: Arc<crate::host::Host>,
+    pub(super) work: std::cell::RefCell<Vec<f64>>,
+}
+
+/// The products' solves with K's factor and their workspace.
+pub(super) struct FactorSolves {
+    pub(super) factor: Arc<Factor>,
     /// Workspace of one product: the n-vector and the solve's scratch.
     pub(super) work: std::cell::RefCell<(Vec<f64>, MemBuffer)>,
     /// L's values in single precision, for the rough products of
@@ -25,12 +51,6 @@ pub(super) struct Operator {
     pub(super) single: Vec<f32>,
     pub(super) work_single: std::cell::RefCell<(Vec<f32>, MemBuffer)>,
     pub(super) _single_claim: Claim,
-    /// G = B K B^T (c x c, sparse), the lumped approximation of A^-1 that
-    /// preconditions Newton's reduced systems, once K is handed over
-    /// ([`Dual::set_lumped`]), with its bytes on the ledger.
-    pub(super) lumped: Option<(Csc, Claim)>,
-    /// The layered Dirichlet preconditioner, where it pays (`dirichlet.rs`).
-    pub(super) dirichlet: Option<crate::dirichlet::Dirichlet>,
     /// The products' own solves (see [`OwnSolves`]); None on a dense
     /// factor: its plain solve.
     pub(super) own: Option<OwnSolves>,
@@ -120,36 +140,67 @@ impl Operator {
     /// single-precision copy of the factor.
     pub(super) fn new(factor: &Arc<Factor>, b: &Csc, m: usize, d: usize) -> Result<Operator> {
         let blocks = crate::factor_tree::contact_blocks::contact_blocks(factor, b, m, d);
-        let mut diag = vec![0.0; b.nrows];
-        for i in 0..m {
-            diag[i] = blocks[i * d * d];
-            for s in 0..d - 1 {
-                diag[m + (d - 1) * i + s] = blocks[i * d * d + (s + 1) * (d + 1)];
-            }
-        }
         let single = factor.single_values()?;
         let own = OwnSolves::of(factor, b);
         let what = "the matrix-free dual's work space";
         Ok(Operator {
-            factor: factor.clone(),
             bt: b.transpose(),
-            diag,
+            diag: diag_of(&blocks, m, d),
             blocks,
-            work: std::cell::RefCell::new((
-                try_zeros(factor.n(), what)?,
-                try_scratch(factor.solve_scratch(1), what)?,
-            )),
-            _single_claim: factor.ledger().claim(single.len() * 4),
             lumped: None,
             dirichlet: None,
-            own,
-            narrow: std::cell::RefCell::new(Narrow::default()),
-            single,
-            work_single: std::cell::RefCell::new((
-                try_zeros(factor.n(), what)?,
-                try_scratch(factor.solve_scratch_single(), what)?,
-            )),
+            solves: Solves::Factor(Box::new(FactorSolves {
+                factor: factor.clone(),
+                work: std::cell::RefCell::new((
+                    try_zeros(factor.n(), what)?,
+                    try_scratch(factor.solve_scratch(1), what)?,
+                )),
+                _single_claim: factor.ledger().claim(single.len() * 4),
+                own,
+                narrow: std::cell::RefCell::new(Narrow::default()),
+                single,
+                work_single: std::cell::RefCell::new((
+                    try_zeros(factor.n(), what)?,
+                    try_scratch(factor.solve_scratch_single(), what)?,
+                )),
+            })),
         })
+    }
+
+    /// The operator on the host's solves: the contacts' diagonal blocks by
+    /// blocked solves ([`host_blocks`]).
+    ///
+    /// Errors: `HostSolve` when a solve fails, `OutOfMemory`.
+    pub(super) fn on_host(
+        host: &Arc<crate::host::Host>,
+        b: &Csc,
+        m: usize,
+        d: usize,
+    ) -> Result<Operator> {
+        let bt = b.transpose();
+        let blocks = host_blocks(host, &bt, m, d)?;
+        Ok(Operator {
+            diag: diag_of(&blocks, m, d),
+            blocks,
+            bt,
+            lumped: None,
+            dirichlet: None,
+            solves: Solves::Host(HostSolves {
+                host: host.clone(),
+                work: std::cell::RefCell::new(try_zeros(
+                    host.n(),
+                    "the matrix-free dual's work space",
+                )?),
+            }),
+        })
+    }
+
+    /// K's factor, where the products solve with it (None on the host's).
+    pub(super) fn factor(&self) -> Option<&Arc<Factor>> {
+        match &self.solves {
+            Solves::Factor(s) => Some(&s.factor),
+            Solves::Host(_) => None,
+        }
     }
 
     /// y ~= A x with the solve in single precision (the products with B in
@@ -172,14 +223,19 @@ impl Operator {
             y.iter_mut().for_each(|v| *v = 0.0);
             return;
         }
-        let (bt, factor) = (&self.bt, &self.factor);
+        let bt = &self.bt;
+        let fs = match &self.solves {
+            Solves::Factor(fs) => fs,
+            Solves::Host(hs) => return hs.apply(bt, x, y),
+        };
+        let factor = &fs.factor;
         macro_rules! whole {
             ($work:expr, $t:ty, $values:expr, $own_work:ident, $solve:ident) => {{
                 let mut work = $work.borrow_mut();
                 let (z, mem) = &mut *work;
                 z.iter_mut().for_each(|v| *v = <$t>::default());
                 scatter(bt, x, 0..x.len(), z);
-                match &self.own {
+                match &fs.own {
                     Some(own) => {
                         let mut scratch = own.$own_work.borrow_mut();
                         own.split
@@ -195,15 +251,9 @@ impl Operator {
             }};
         }
         if rough {
-            whole!(
-                self.work_single,
-                f32,
-                &self.single,
-                work_single,
-                solve_single
-            );
+            whole!(fs.work_single, f32, &fs.single, work_single, solve_single);
         } else {
-            whole!(self.work, f64, factor.values(), work, solve);
+            whole!(fs.work, f64, factor.values(), work, solve);
         }
     }
 }
@@ -211,8 +261,11 @@ impl Operator {
 impl Operator {
     /// See [`Dual::narrow_to`].
     pub(super) fn narrow_to(&self, rows: &[usize]) -> bool {
-        let mut narrow = self.narrow.borrow_mut();
-        if self.factor.is_dense() {
+        let Solves::Factor(fs) = &self.solves else {
+            return false;
+        };
+        let mut narrow = fs.narrow.borrow_mut();
+        if fs.factor.is_dense() {
             return false;
         }
         let Narrow {
@@ -231,17 +284,15 @@ impl Operator {
         dofs.dedup();
         if claim.is_none() {
             *claim = Some(
-                self.factor
+                fs.factor
                     .ledger()
-                    .claim(narrow_bytes(&self.factor, self.bt.ncols)),
+                    .claim(narrow_bytes(&fs.factor, self.bt.ncols)),
             );
         }
         let tree =
-            tree.get_or_insert_with(|| crate::factor_tree::supernode_tree::Tree::of(&self.factor));
+            tree.get_or_insert_with(|| crate::factor_tree::supernode_tree::Tree::of(&fs.factor));
         *split = Some(crate::factor_tree::tree_solve::TreeSolve::on(
-            &self.factor,
-            tree,
-            dofs,
+            &fs.factor, tree, dofs,
         ))
         .filter(|s| s.restricted());
         let Some(split) = split else {
@@ -255,7 +306,7 @@ impl Operator {
                 split.refit(&mut work.single);
             }
             None => {
-                let n = self.factor.n();
+                let n = fs.factor.n();
                 *work = Some(NarrowWork {
                     double: split.scratch(n),
                     single: split.scratch(n),
@@ -267,7 +318,10 @@ impl Operator {
 
     /// See [`Dual::apply_narrow`].
     pub(super) fn apply_narrow(&self, x: &[f64], y: &mut [f64], rough: bool) {
-        let mut narrow = self.narrow.borrow_mut();
+        let Solves::Factor(fs) = &self.solves else {
+            return self.apply_in(x, y, rough);
+        };
+        let mut narrow = fs.narrow.borrow_mut();
         let Narrow {
             rows,
             split: Some(split),
@@ -292,25 +346,26 @@ impl Operator {
         if rows.iter().all(|&r| x[r] == 0.0) {
             return;
         }
-        let (bt, threads) = (&self.bt, self.factor.threads());
+        let (bt, factor) = (&self.bt, &fs.factor);
+        let threads = factor.threads();
         // The solve reads and writes z on the paths' columns, which hold the
         // rows' DOFs: z is cleared there (`TreeSolve::clear`), B^T x
         // scattered into it, and A x gathered at the rows.
         macro_rules! narrowed {
             ($z:expr, $solve:ident, $values:expr, $scratch:expr) => {{
                 let z = $z;
-                split.clear(&self.factor, z);
+                split.clear(factor, z);
                 scatter(bt, x, rows.iter().copied(), z);
-                split.$solve(&self.factor, $values, z, $scratch, threads);
+                split.$solve(factor, $values, z, $scratch, threads);
                 gather(bt, z, rows.iter().copied(), y);
             }};
         }
         if rough {
-            let mut w = self.work_single.borrow_mut();
-            narrowed!(&mut w.0, solve_single, &self.single, &mut work.single);
+            let mut w = fs.work_single.borrow_mut();
+            narrowed!(&mut w.0, solve_single, &fs.single, &mut work.single);
         } else {
-            let mut w = self.work.borrow_mut();
-            narrowed!(&mut w.0, solve, self.factor.values(), &mut work.double);
+            let mut w = fs.work.borrow_mut();
+            narrowed!(&mut w.0, solve, factor.values(), &mut work.double);
         }
     }
 }
@@ -353,4 +408,92 @@ fn gather<T: Real>(bt: &Csc, z: &[T], rows: impl Iterator<Item = usize>, y: &mut
             .map(|k| bt.values[k] * z[bt.row_idx[k]].into())
             .sum();
     }
+}
+
+impl HostSolves {
+    /// y := A x by one host solve; y is NaN where the solve failed (the
+    /// failure is latched on the host and ends the solve: `host.rs`).
+    fn apply(&self, bt: &Csc, x: &[f64], y: &mut [f64]) {
+        let mut z = self.work.borrow_mut();
+        z.iter_mut().for_each(|v| *v = 0.0);
+        scatter(bt, x, 0..x.len(), &mut z[..]);
+        match self.host.solve(&mut z, 1) {
+            Ok(()) => gather(bt, &z, 0..y.len(), y),
+            Err(_) => y.iter_mut().for_each(|v| *v = f64::NAN),
+        }
+    }
+}
+
+/// A's diagonal from the contacts' d x d blocks (row-major, contact by
+/// contact): the normal unknowns, then the tangential ones contact by contact.
+fn diag_of(blocks: &[f64], m: usize, d: usize) -> Vec<f64> {
+    let mut diag = vec![0.0; d * m];
+    for i in 0..m {
+        diag[i] = blocks[i * d * d];
+        for s in 0..d - 1 {
+            diag[m + (d - 1) * i + s] = blocks[i * d * d + (s + 1) * (d + 1)];
+        }
+    }
+    diag
+}
+
+/// The dual row of contact i's local unknown l (0 normal, 1.. tangential).
+fn row_of(i: usize, l: usize, m: usize, d: usize) -> usize {
+    if l == 0 { i } else { m + (d - 1) * i + l - 1 }
+}
+
+/// The contacts' d x d diagonal blocks of A = B K^-1 B^T (row-major, contact
+/// by contact) by the host's solves: the rows of B ([`BLOCK`] at a time, as
+/// columns of B^T, `bt`) solved with K, each solution read by its own
+/// contact's rows. c solves in all, exactly the blocks (up to the host's
+/// solve), and symmetrised.
+///
+/// Errors: `HostSolve`, `OutOfMemory`.
+pub(super) fn host_blocks(
+    host: &crate::host::Host,
+    bt: &Csc,
+    m: usize,
+    d: usize,
+) -> Result<Vec<f64>> {
+    let (n, c) = (host.n(), bt.ncols);
+    let mut blocks = try_zeros(m * d * d, "the contacts' diagonal blocks")?;
+    let mut x: Vec<f64> = try_zeros(
+        n * BLOCK.min(c.max(1)),
+        "the contact blocks' right-hand sides",
+    )?;
+    // The columns in order of contact: contact i's d rows together.
+    let order: Vec<(usize, usize)> = (0..m).flat_map(|i| (0..d).map(move |l| (i, l))).collect();
+    for chunk in order.chunks(BLOCK) {
+        let w = chunk.len();
+        let x = &mut x[..n * w];
+        x.iter_mut().for_each(|v| *v = 0.0);
+        for (k, &(i, l)) in chunk.iter().enumerate() {
+            let r = row_of(i, l, m, d);
+            for q in bt.col_ptr[r]..bt.col_ptr[r + 1] {
+                x[k * n + bt.row_idx[q]] += bt.values[q];
+            }
+        }
+        host.solve(x, w)?;
+        for (k, &(i, lb)) in chunk.iter().enumerate() {
+            let z = &x[k * n..(k + 1) * n];
+            for la in 0..d {
+                let r = row_of(i, la, m, d);
+                let v: f64 = (bt.col_ptr[r]..bt.col_ptr[r + 1])
+                    .map(|q| bt.values[q] * z[bt.row_idx[q]])
+                    .sum();
+                blocks[i * d * d + la * d + lb] = v;
+            }
+        }
+    }
+    for i in 0..m {
+        for la in 0..d {
+            for lb in 0..la {
+                let (p, q) = (i * d * d + la * d + lb, i * d * d + lb * d + la);
+                let s = 0.5 * (blocks[p] + blocks[q]);
+                blocks[p] = s;
+                blocks[q] = s;
+            }
+        }
+    }
+    Ok(blocks)
 }

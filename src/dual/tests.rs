@@ -113,7 +113,10 @@ fn matrix_free_products_on_two_threads_take_the_tree_solves() {
         let (one, own_one) = free_on(1);
         let (two, own_two) = free_on(2);
         fn own(d: &Dual) -> Option<&OwnSolves> {
-            d.free.as_ref().expect("matrix-free").own.as_ref()
+            match &d.free.as_ref().expect("matrix-free").solves {
+                Solves::Factor(fs) => fs.own.as_ref(),
+                Solves::Host(_) => None,
+            }
         }
         let on_one = &own(&one).expect("a sparse factor takes the tree").split;
         assert_eq!(on_one.restricted(), restricted);
@@ -230,7 +233,10 @@ fn matrix_free_products_and_diagonal_match_the_dense_a() {
     assert!(
         free.free
             .as_ref()
-            .and_then(|o| o.own.as_ref())
+            .and_then(|o| match &o.solves {
+                Solves::Factor(fs) => fs.own.as_ref(),
+                Solves::Host(_) => None,
+            })
             .is_some_and(|o| o.split.restricted())
     );
     let c = dense.c;

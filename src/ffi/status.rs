@@ -59,6 +59,11 @@ pub enum DsStatus {
     /// the iterate with the lowest err to u, lambda_n, lambda_t and the report; the
     /// history does not advance.
     TimeLimit = 15,
+    /// The host's solve of K (a problem made by ds_problem_new_host) returned
+    /// a nonzero code, or a NaN or infinity. The message gives the host's code
+    /// and which call failed; no output is written and the handle stays usable
+    /// (the history does not advance).
+    HostSolveFailed = 16,
 }
 
 impl From<ErrorKind> for DsStatus {
@@ -73,13 +78,14 @@ impl From<ErrorKind> for DsStatus {
             ErrorKind::OutOfMemory => DsStatus::OutOfMemory,
             ErrorKind::BadArgument => DsStatus::BadArgument,
             ErrorKind::Io => DsStatus::IoError,
+            ErrorKind::HostSolve => DsStatus::HostSolveFailed,
         }
     }
 }
 
 impl DsStatus {
     /// Every status, in the order of their values (index = value).
-    pub const ALL: [DsStatus; 16] = [
+    pub const ALL: [DsStatus; 17] = [
         DsStatus::Ok,
         DsStatus::NullPointer,
         DsStatus::BadSize,
@@ -96,6 +102,7 @@ impl DsStatus {
         DsStatus::Stopped,
         DsStatus::Stalled,
         DsStatus::TimeLimit,
+        DsStatus::HostSolveFailed,
     ];
 
     /// The status with C value `v`, if any.
@@ -124,6 +131,7 @@ impl DsStatus {
             DsStatus::Stopped => c"stopped by the caller (monitor callback)",
             DsStatus::Stalled => c"the iteration stopped making progress",
             DsStatus::TimeLimit => c"the time limit was reached before the tolerance",
+            DsStatus::HostSolveFailed => c"the host's solve of K failed",
         }
     }
 }
@@ -150,7 +158,7 @@ mod tests {
             assert_eq!(DsStatus::from_i32(i as i32), Some(*s));
         }
         assert_eq!(DsStatus::from_i32(-1), None);
-        assert_eq!(DsStatus::from_i32(16), None);
+        assert_eq!(DsStatus::from_i32(17), None);
     }
 
     #[test]
@@ -167,6 +175,7 @@ mod tests {
             ErrorKind::OutOfMemory,
             ErrorKind::BadArgument,
             ErrorKind::Io,
+            ErrorKind::HostSolve,
         ];
         let mapped: Vec<DsStatus> = kinds.iter().map(|&k| DsStatus::from(k)).collect();
         let c_only = [

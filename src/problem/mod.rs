@@ -9,6 +9,7 @@ use crate::error::{ErrorKind, Result, fail};
 use crate::factor::Factor;
 use crate::friction::Friction;
 use crate::history::History;
+use crate::host::KSolve;
 use crate::info::Info;
 use crate::memory::{self, Claim};
 use crate::methods::{self, DualProblem, End, Monitor, Progress};
@@ -22,6 +23,9 @@ use std::sync::Arc;
 use std::time::{Duration, Instant};
 
 mod solve;
+mod stiffness;
+
+use stiffness::Stiffness;
 
 /// The result of one solve.
 #[derive(Clone, Debug)]
@@ -40,11 +44,10 @@ pub struct Solution {
 /// history of a quasistatic simulation (the accumulated u and the last multipliers).
 pub struct ContactProblem {
     d: usize,
-    k: Csc,
+    /// K and its factor, or the host's solves.
+    stiff: Stiffness,
     n: Csc,
     t: Csc,
-    /// K's factor, shared with a matrix-free dual (which solves with it).
-    factor: Arc<Factor>,
     dual: Dual,
     /// The sizes memory predictions are made from.
     sizes: Sizes,
@@ -120,7 +123,129 @@ fn form_dual(
     Ok(dual)
 }
 
+/// The matrix-free dual of (N, T) on the host's solves of `stiff`, with the
+/// lumped preconditioner where K was given, its operator A + D for `shift`.
+fn host_dual(stiff: &Stiffness, nt: (&Csc, &Csc), d: usize, shift: &[f64]) -> Result<Dual> {
+    let Stiffness::Host {
+        host,
+        k,
+        threads,
+        ledger,
+    } = stiff
+    else {
+        unreachable!("the host's solves")
+    };
+    host.clear();
+    let mut dual = Dual::on_host(host, nt, d, threads.clone(), ledger.clone())?;
+    if let Some(k) = k {
+        dual.set_lumped(k, None);
+    }
+    if !shift.is_empty() {
+        dual.set_shift(shift);
+    }
+    Ok(dual)
+}
+
 impl ContactProblem {
+    /// A problem on the host's own solver of K (`solver`, see [`KSolve`])
+    /// instead of a factor of the library's: N (m x n) and T ((d-1) m x n) as
+    /// for [`ContactProblem::new`], n = `solver.n()`, and optionally K itself
+    /// (symmetric, any storage), which the problem then uses for the lumped
+    /// preconditioner B K B^T of Newton's reduced systems, for K u_k in a
+    /// history and for the report's equilibrium residual (without it: Jacobi
+    /// on the contacts' diagonal, K u_k = f_total - B^T lambda_k from the last
+    /// step's equilibrium, and a NaN residual, not measured).
+    ///
+    /// The dual is matrix-free: each product with A is one call of the
+    /// host's solve; the contacts' d x d diagonal blocks of A are formed here
+    /// by d m solves, 32 right-hand sides per call. The methods that read entries of A (and `DualForm::Dense`) are
+    /// refused with `BadArgument`; `refactor` too (refactor on the host's
+    /// side and create a new problem), and `write_folder` without K.
+    ///
+    /// Errors: `BadArgument` (d, options), `BadSize` (shapes against n),
+    /// `BadIndex`, `NotFinite`, `NotSymmetric` (K), `HostSolve` (a solve
+    /// failed or returned a NaN or infinity while the blocks were formed:
+    /// the host's code is in the message), `OutOfMemory`.
+    pub fn with_host_solver(
+        d: usize,
+        solver: Box<dyn KSolve>,
+        k: Option<&MatrixView<'_>>,
+        n: &MatrixView<'_>,
+        t: &MatrixView<'_>,
+        opts: &Options,
+    ) -> Result<Self> {
+        plan::check_d(d)?;
+        opts.check("")?;
+        if opts.dual_form == DualForm::Dense {
+            return fail(
+                ErrorKind::BadArgument,
+                "dual_form dense: a problem on the host's solver is matrix-free \
+                 (dual_form auto or matrix-free)",
+            );
+        }
+        let k = k.map(|k| Csc::symmetric_from_view(k, "K")).transpose()?;
+        let n = Csc::from_view(n, "N")?;
+        let t = Csc::from_view(t, "T")?;
+        let ndof = solver.n();
+        if let Some(k) = &k
+            && k.nrows != ndof
+        {
+            return fail(
+                ErrorKind::BadSize,
+                format!(
+                    "K is {0} x {0}, but the host's solver has n = {ndof}",
+                    k.nrows
+                ),
+            );
+        }
+        check_shapes(ndof, d, &n, &t)?;
+        let sizes = plan::host_sizes(k.as_ref(), &n, &t, d);
+        memory::check(
+            sizes.setup(Condensation::MatrixFree),
+            memory::limit(opts.max_memory),
+            opts.max_memory,
+            "creating a problem on the host's solver",
+            "a larger max_memory or a machine with more memory is needed",
+        )?;
+        let ledger = memory::Ledger::new();
+        let inputs = ledger.claim(sizes.inputs);
+        let stiff = Stiffness::Host {
+            host: Arc::new(crate::host::Host::new(solver)),
+            k,
+            threads: Arc::new(crate::threads::Threads::new(opts.threads)),
+            ledger,
+        };
+        let dual = host_dual(&stiff, (&n, &t), d, &[])?;
+        let (c, m) = (dual.c, n.nrows);
+        Ok(ContactProblem {
+            d,
+            stiff,
+            n,
+            t,
+            dual,
+            sizes,
+            inputs,
+            max_memory: opts.max_memory,
+            history: History::new(ndof, c),
+            compliance: Compliance::rigid(m),
+        })
+    }
+
+    /// A new dual of (N, T) on this problem's K, formed as `how`, for the
+    /// compliance diagonal `shift` (see [`form_dual`]).
+    fn new_dual(
+        &self,
+        nt: (&Csc, &Csc),
+        how: Condensation,
+        shift: &[f64],
+        layer: Option<crate::dirichlet::Plan>,
+    ) -> Result<Dual> {
+        match &self.stiff {
+            Stiffness::Own { k, factor } => form_dual(factor, k, nt, self.d, how, shift, layer),
+            Stiffness::Host { .. } => host_dual(&self.stiff, nt, self.d, shift),
+        }
+    }
+
     /// Validates K (symmetric, any storage), N (m x n) and T ((d-1) m x n), factors
     /// K and builds the condensed dual, with the default options (see
     /// [`ContactProblem::with_options`]). d must be 2 or 3.
@@ -183,10 +308,9 @@ impl ContactProblem {
         let m = n.nrows;
         Ok(ContactProblem {
             d,
-            k,
+            stiff: Stiffness::Own { k, factor },
             n,
             t,
-            factor,
             dual,
             sizes: plan.sizes,
             inputs,
@@ -249,21 +373,29 @@ impl ContactProblem {
     pub fn info(&self, opts: &Options) -> Info {
         let limit = memory::limit(opts.max_memory);
         let now = self.dual.condensation;
-        let trailing = Dual::trailing_available(&self.factor, &self.n, &self.t);
+        let base = match &self.stiff {
+            Stiffness::Own { k, factor } => {
+                let trailing = Dual::trailing_available(factor, &self.n, &self.t);
+                plan::info_of(
+                    self.d,
+                    k,
+                    &self.n,
+                    factor,
+                    &self.sizes,
+                    now,
+                    trailing,
+                    opts,
+                    limit,
+                )
+            }
+            Stiffness::Host { k, .. } => {
+                plan::host_info(self.d, k.as_ref(), &self.n, &self.sizes, opts, limit)
+            }
+        };
         Info {
             compliant_contacts: self.compliant_contacts(),
             power_law_contacts: self.compliance.nonlinear().len(),
-            ..plan::info_of(
-                self.d,
-                &self.k,
-                &self.n,
-                &self.factor,
-                &self.sizes,
-                now,
-                trailing,
-                opts,
-                limit,
-            )
+            ..base
         }
     }
 
@@ -272,8 +404,16 @@ impl ContactProblem {
     ///
     /// Errors: those of `new`, and `BadArgument` if the pattern differs.
     pub fn refactor(&mut self, k: &MatrixView<'_>) -> Result<()> {
+        let Stiffness::Own { factor, .. } = &self.stiff else {
+            return fail(
+                ErrorKind::BadArgument,
+                "this problem solves with the host's solver of K: refactor K on the \
+                 host's side and create a new problem",
+            );
+        };
+        let factor = factor.clone();
         let k = Csc::symmetric_from_view(k, "K")?;
-        if !self.factor.same_pattern(&k) {
+        if !factor.same_pattern(&k) {
             return fail(
                 ErrorKind::BadArgument,
                 "K: the sparsity pattern differs from the one the problem was created with",
@@ -289,14 +429,13 @@ impl ContactProblem {
         )?;
         // The new factor and dual are formed beside the old ones, which stay in
         // place until both succeeded.
-        let mut fresh = self.factor.unfactored_copy();
+        let mut fresh = factor.unfactored_copy();
         fresh.refactor(&k)?;
         let fresh = Arc::new(fresh);
         let how = Dual::condensation_for(&fresh, &self.n, &self.t, self.d, self.current_form());
         let shift = self.compliance.shift(self.d);
         self.dual = form_dual(&fresh, &k, (&self.n, &self.t), self.d, how, &shift, None)?;
-        self.factor = fresh;
-        self.k = k;
+        self.stiff = Stiffness::Own { k, factor: fresh };
         self.history.forget_loads();
         Ok(())
     }
@@ -308,25 +447,33 @@ impl ContactProblem {
     pub fn set_contacts(&mut self, n: &MatrixView<'_>, t: &MatrixView<'_>) -> Result<()> {
         let n = Csc::from_view(n, "N")?;
         let t = Csc::from_view(t, "T")?;
-        check_shapes(self.factor.n(), self.d, &n, &t)?;
+        check_shapes(self.n_dofs(), self.d, &n, &t)?;
         let b = stack_rows(&n, &t);
-        let layer = crate::dirichlet::layer_of(&self.k, &b, &self.factor);
-        let next = Sizes {
-            c: self.d * n.nrows,
-            inputs: self.k.bytes() + n.bytes() + t.bytes(),
-            blocks_work: crate::factor_tree::contact_blocks::work_bytes(
-                &self.factor,
-                &b,
-                n.nrows,
-                self.d,
-            ),
-            lumped: crate::sparse::congruence_bytes(&self.k, &b, &b.transpose()),
-            own_solves: crate::dual::own_solves_bytes(&self.factor, &b),
-            dirichlet: layer.as_ref().map_or(0, |p| p.bytes()),
-            ..self.sizes
+        let (next, how, layer) = match &self.stiff {
+            Stiffness::Own { k, factor } => {
+                let layer = crate::dirichlet::layer_of(k, &b, factor);
+                let next = Sizes {
+                    c: self.d * n.nrows,
+                    inputs: k.bytes() + n.bytes() + t.bytes(),
+                    blocks_work: crate::factor_tree::contact_blocks::work_bytes(
+                        factor, &b, n.nrows, self.d,
+                    ),
+                    lumped: crate::sparse::congruence_bytes(k, &b, &b.transpose()),
+                    own_solves: crate::dual::own_solves_bytes(factor, &b),
+                    dirichlet: layer.as_ref().map_or(0, |p| p.bytes()),
+                    ..self.sizes
+                };
+                // The handle keeps its form (dense or matrix-free), as
+                // `refactor` does.
+                let form = self.current_form();
+                let how = Dual::condensation_for(factor, &n, &t, self.d, form);
+                (next, how, layer)
+            }
+            Stiffness::Host { k, .. } => {
+                let next = plan::host_sizes(k.as_ref(), &n, &t, self.d);
+                (next, Condensation::MatrixFree, None)
+            }
         };
-        // The handle keeps its form (dense or matrix-free), as `refactor` does.
-        let how = Dual::condensation_for(&self.factor, &n, &t, self.d, self.current_form());
         let need =
             self.sizes
                 .replace_contacts(self.dual.condensation, n.bytes() + t.bytes(), &next, how);
@@ -345,15 +492,7 @@ impl ContactProblem {
         } else {
             Compliance::rigid(m)
         };
-        let dual = form_dual(
-            &self.factor,
-            &self.k,
-            (&n, &t),
-            self.d,
-            how,
-            &compliance.shift(self.d),
-            layer,
-        )?;
+        let dual = self.new_dual((&n, &t), how, &compliance.shift(self.d), layer)?;
         self.history.new_contacts(dual.c);
         self.compliance = compliance;
         self.sizes = next;
@@ -456,7 +595,7 @@ impl ContactProblem {
     /// The number of threads the problem's pool has (1: no pool, the calling
     /// thread only).
     pub fn threads(&self) -> usize {
-        self.factor.threads().count()
+        self.stiff.threads().count()
     }
 
     /// Solves one increment exactly as given (docs/design.md section 1): f (n), g (m),
@@ -559,9 +698,14 @@ impl ContactProblem {
         let (ndof, m) = (self.n_dofs(), self.n_contacts());
         let predicted = self.prepare_dual(opts)?;
         // The effective f and K u_k.
-        let _vectors = self.factor.ledger().claim_f64(2 * ndof);
+        let _vectors = self.stiff.ledger().claim_f64(2 * ndof);
+        // K u_k: by K where the problem holds it, else the sum of the
+        // right-hand sides u_k was solved from (`History::ku`).
         let mut ku = vec![0.0; ndof];
-        self.k.mul_vec(&self.history.u, &mut ku);
+        match self.stiff.k() {
+            Some(k) => k.mul_vec(&self.history.u, &mut ku),
+            None => ku.copy_from_slice(&self.history.ku),
+        }
         let f: Vec<f64> = (0..ndof).map(|i| f_total[i] - ku[i]).collect();
         let mut nu = vec![0.0; m];
         self.n.mul_vec(&self.history.u, &mut nu);
@@ -581,6 +725,13 @@ impl ContactProblem {
             let load = load.expect("a step's load");
             self.history.advance(&sol.u, &lam, load);
             self.history.lt = lam[m..].to_vec();
+            if self.stiff.k().is_none() {
+                // K u_k+1 = f_total - B^T lambda_k+1 (the step's equilibrium).
+                self.dual.rows.mul_t_vec(&lam, &mut self.history.ku);
+                for (ku, f) in self.history.ku.iter_mut().zip(f_total) {
+                    *ku = f - *ku;
+                }
+            }
         }
         Ok(sol)
     }
@@ -597,7 +748,7 @@ impl ContactProblem {
 
     /// Number of DOFs n.
     pub fn n_dofs(&self) -> usize {
-        self.k.nrows
+        self.stiff.n()
     }
 
     /// Number of contacts m.
@@ -625,7 +776,14 @@ impl ContactProblem {
         friction: Friction<'_>,
     ) -> Result<()> {
         self.check_data(("f", f), ("g", g), friction)?;
-        crate::mtx::write_problem(dir, self.d, &self.k, &self.n, &self.t, f, g, friction)?;
+        let Some(k) = self.stiff.k() else {
+            return fail(
+                ErrorKind::BadArgument,
+                "this problem solves with the host's solver and was given no K: \
+                 a problem folder needs K",
+            );
+        };
+        crate::mtx::write_problem(dir, self.d, k, &self.n, &self.t, f, g, friction)?;
         crate::mtx::write_interface(dir, &self.interface())
     }
 
@@ -671,6 +829,6 @@ impl ContactProblem {
     #[cfg(any(test, feature = "internals"))]
     #[doc(hidden)]
     pub fn factor(&self) -> &Factor {
-        &self.factor
+        self.stiff.factor().expect("the library's own factor")
     }
 }

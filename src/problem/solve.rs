@@ -40,7 +40,23 @@ impl ContactProblem {
                 ),
             );
         }
-        let trailing = Dual::trailing_available(&self.factor, &self.n, &self.t);
+        if self.stiff.host().is_some()
+            && (opts.dual_form == DualForm::Dense || opts.method.needs_entries())
+        {
+            return fail(
+                ErrorKind::BadArgument,
+                format!(
+                    "method {} with dual_form {}: a problem on the host's solver is \
+                     matrix-free (use auto, newton or mprgp, dual_form auto or matrix-free)",
+                    opts.method.name(),
+                    opts.dual_form.name()
+                ),
+            );
+        }
+        let trailing = self
+            .stiff
+            .factor()
+            .is_some_and(|f| Dual::trailing_available(f, &self.n, &self.t));
         let now = self.dual.condensation;
         let next = plan::solve_condensation(now, trailing, opts);
         let free = Condensation::MatrixFree;
@@ -67,11 +83,14 @@ impl ContactProblem {
             &format!("a solve with method {}", opts.method.name()),
             &hint,
         )?;
-        self.factor.ledger().reset_peak();
+        self.stiff.ledger().reset_peak();
+        if let Some(host) = self.stiff.host() {
+            host.clear();
+        }
         if next != now {
             let shift = self.compliance.shift(self.d);
             let nt = (&self.n, &self.t);
-            self.dual = form_dual(&self.factor, &self.k, nt, self.d, next, &shift, None)?;
+            self.dual = self.new_dual(nt, next, &shift, None)?;
         }
         Ok(need)
     }
@@ -86,26 +105,74 @@ impl ContactProblem {
     /// tests/hard_scenes.rs (cond(K) 1.6e9) their difference left an equilibrium
     /// residual of 3e-8 against 3e-12 here. For the same reason b's K^-1 f
     /// comes from the same substitution (`Factor::backward_to_last` repeats
-    /// `Factor::backward`'s arithmetic exactly).
-    pub(super) fn recover_u(&self, f: &[f64], y_f: &[f64], bt_lam: &[f64], u: &mut [f64]) {
+    /// `Factor::backward`'s arithmetic exactly). On the host's solves: one
+    /// solve of f - B^T lambda.
+    ///
+    /// Errors: `HostSolve` (the host's solve failed).
+    pub(super) fn recover_u(
+        &self,
+        f: &[f64],
+        y_f: &[f64],
+        bt_lam: &[f64],
+        u: &mut [f64],
+    ) -> Result<()> {
+        let factor = match &self.stiff {
+            Stiffness::Own { factor, .. } => factor,
+            Stiffness::Host { host, .. } => {
+                for i in 0..u.len() {
+                    u[i] = f[i] - bt_lam[i];
+                }
+                return host.solve(u, 1);
+            }
+        };
         if self.dual.condensation == Condensation::Solves {
             for i in 0..u.len() {
                 u[i] = f[i] - bt_lam[i];
             }
-            self.factor.solve_vec(u);
-            return;
+            factor.solve_vec(u);
+            return Ok(());
         }
         let mut y = vec![0.0; u.len()];
         if self.dual.trailing {
-            let r_last: Vec<f64> = self.factor.last().iter().map(|&j| bt_lam[j]).collect();
-            self.factor.forward_from_last(&r_last, &mut y);
+            let r_last: Vec<f64> = factor.last().iter().map(|&j| bt_lam[j]).collect();
+            factor.forward_from_last(&r_last, &mut y);
         } else {
-            self.factor.forward(bt_lam, &mut y);
+            factor.forward(bt_lam, &mut y);
         }
         for (yi, fi) in y.iter_mut().zip(y_f) {
             *yi = fi - *yi;
         }
-        self.factor.backward(&mut y, u);
+        factor.backward(&mut y, u);
+        Ok(())
+    }
+
+    /// y_f = L^-1 P f (the forward half, kept for [`Self::recover_u`]; empty
+    /// on the host's solves) and u0 = K^-1 f where B reads it: at the
+    /// trailing DOFs alone when B touches no other (their back substitution
+    /// needs the trailing block of L only), else everywhere.
+    ///
+    /// Errors: `HostSolve`.
+    fn solve_load(&self, f: &[f64], y_f: &mut Vec<f64>, u0: &mut [f64]) -> Result<()> {
+        let factor = match &self.stiff {
+            Stiffness::Own { factor, .. } => factor,
+            Stiffness::Host { host, .. } => {
+                y_f.clear();
+                u0.copy_from_slice(f);
+                return host.solve(u0, 1);
+            }
+        };
+        factor.forward(f, y_f);
+        if self.dual.trailing {
+            let last = factor.last();
+            let mut u_last = vec![0.0; last.len()];
+            factor.backward_to_last(y_f, &mut u_last);
+            for (&j, &v) in last.iter().zip(&u_last) {
+                u0[j] = v;
+            }
+        } else {
+            factor.backward(&mut y_f.clone(), u0);
+        }
+        Ok(())
     }
 
     /// The increment solve, starting from the multipliers in `lam`, or, for a
@@ -128,26 +195,15 @@ impl ContactProblem {
         let start = Instant::now();
         let (ndof, m, c) = (self.n_dofs(), self.n_contacts(), self.dual.c);
         // y_f, K^-1 f, u, B^T lambda, K u and the residual below.
-        let _vectors = self.factor.ledger().claim_f64(6 * ndof);
+        let _vectors = self.stiff.ledger().claim_f64(6 * ndof);
+        let host = self.stiff.host().cloned();
+        let counts = host.as_ref().map(|h| h.counts()).unwrap_or_default();
         // (f, g, the friction data and opts were checked by the caller.)
         // b = B K^-1 f - [g; 0], with the forward half y_f = L^-1 P f kept for the
         // recovery of u.
         let mut y_f = vec![0.0; ndof];
-        self.factor.forward(f, &mut y_f);
-        // u0 = K^-1 f where B reads it: at the trailing DOFs alone when B
-        // touches no other (their back substitution needs the trailing block
-        // of L only), else everywhere.
         let mut u0 = vec![0.0; ndof];
-        if self.dual.trailing {
-            let last = self.factor.last();
-            let mut u_last = vec![0.0; last.len()];
-            self.factor.backward_to_last(&y_f, &mut u_last);
-            for (&j, &v) in last.iter().zip(&u_last) {
-                u0[j] = v;
-            }
-        } else {
-            self.factor.backward(&mut y_f.clone(), &mut u0);
-        }
+        self.solve_load(f, &mut y_f, &mut u0)?;
         let mut b = vec![0.0; c];
         self.dual.rows.mul_vec(&u0, &mut b);
         for i in 0..m {
@@ -196,6 +252,10 @@ impl ContactProblem {
         // The monitor sees iteration numbers and times of the whole solve.
         let base = std::cell::Cell::new(0usize);
         let mut relay = |p: &Progress| -> bool {
+            // A failed host solve ends the run (the call returns its error).
+            if host.as_ref().is_some_and(|h| h.failure().is_some()) {
+                return false;
+            }
             match monitor.as_mut() {
                 Some(user) => user(&Progress {
                     iteration: base.get() + p.iteration,
@@ -252,6 +312,9 @@ impl ContactProblem {
                 };
                 let t0 = Instant::now();
                 let o = methods::run(&problem, lam, &local, target);
+                if let Some(e) = host.as_ref().and_then(|h| h.failure()) {
+                    return Err(e);
+                }
                 let t1 = Instant::now();
                 iterate_seconds += (t1 - t0).as_secs_f64();
                 outer += o.outer;
@@ -263,7 +326,7 @@ impl ContactProblem {
                 end = o.end;
                 // u = K^-1 (f - B^T lambda), and the error measured on it.
                 self.dual.rows.mul_t_vec(lam, &mut bt_lam);
-                self.recover_u(f, &y_f, &bt_lam, &mut u);
+                self.recover_u(f, &y_f, &bt_lam, &mut u)?;
                 self.dual.rows.mul_vec(&u, &mut v);
                 for i in 0..m {
                     v[i] -= g[i];
@@ -331,20 +394,10 @@ impl ContactProblem {
                 break;
             }
         }
-        // Equilibrium residual |K u - f + B^T lambda| / |f|.
-        let mut ku = vec![0.0; ndof];
-        self.k.mul_vec(&u, &mut ku);
-        let res: Vec<f64> = (0..ndof).map(|i| ku[i] - f[i] + bt_lam[i]).collect();
-        let denom = {
-            let nf = norm(f);
-            if nf > 0.0 {
-                nf
-            } else {
-                norm(&ku).max(norm(&bt_lam))
-            }
+        let equilibrium_residual = match self.stiff.k() {
+            Some(k) => equilibrium_residual(k, &u, f, &bt_lam),
+            None => f64::NAN,
         };
-        let rn = norm(&res);
-        let equilibrium_residual = if rn == 0.0 { 0.0 } else { rn / denom };
         let (n_open, n_stick, n_slip) = contact_states(lam, &v, &self.dual.rho, &p, self.d);
         let status = match end {
             End::Stopped => SolveStatus::Stopped,
@@ -353,7 +406,20 @@ impl ContactProblem {
             End::TimeLimit => SolveStatus::TimeLimit,
             End::Converged | End::Limit | End::Infeasible => SolveStatus::NotConverged,
         };
-        let (factor_nnz, factor_flops) = self.factor.nnz_and_flops();
+        let (factor_nnz, factor_flops, factor_seconds, ordering, analyse_seconds) =
+            match self.stiff.factor() {
+                Some(factor) => {
+                    let (nnz, flops) = factor.nnz_and_flops();
+                    let (fs, order, an) = (
+                        factor.factor_seconds,
+                        factor.ordering(),
+                        factor.analyse_seconds,
+                    );
+                    (nnz, flops, fs, order, an)
+                }
+                None => (0, 0.0, 0.0, crate::options::Ordering::Auto, 0.0),
+            };
+        let host_counts = host.as_ref().map(|h| h.counts()).unwrap_or_default();
         let sol = Solution {
             u,
             lambda_n: lam[..m].to_vec(),
@@ -370,22 +436,43 @@ impl ContactProblem {
                 n_open,
                 n_stick,
                 n_slip,
-                factor_seconds: self.factor.factor_seconds,
+                factor_seconds,
                 condense_seconds: self.dual.condense_seconds,
                 solve_seconds: start.elapsed().as_secs_f64(),
-                ordering: self.factor.ordering(),
+                ordering,
                 factor_nnz,
                 factor_flops,
                 threads: self.threads(),
-                analyse_seconds: self.factor.analyse_seconds,
+                analyse_seconds,
                 memory_predicted: predicted,
-                memory_peak: self.factor.ledger().peak(),
+                memory_peak: self.stiff.ledger().peak(),
                 compliant_contacts: self.compliant_contacts(),
                 rhs_seconds,
                 iterate_seconds,
                 recover_seconds,
+                host_solves: host_counts.columns - counts.columns,
+                host_seconds: host_counts.seconds - counts.seconds,
             },
         };
         Ok((sol, load))
     }
+}
+
+/// The equilibrium residual |K u - f + B^T lambda| / |f| (`bt_lam` = B^T
+/// lambda; the denominator |K u| or |B^T lambda| where f vanishes).
+fn equilibrium_residual(k: &Csc, u: &[f64], f: &[f64], bt_lam: &[f64]) -> f64 {
+    let ndof = u.len();
+    let mut ku = vec![0.0; ndof];
+    k.mul_vec(u, &mut ku);
+    let res: Vec<f64> = (0..ndof).map(|i| ku[i] - f[i] + bt_lam[i]).collect();
+    let denom = {
+        let nf = norm(f);
+        if nf > 0.0 {
+            nf
+        } else {
+            norm(&ku).max(norm(bt_lam))
+        }
+    };
+    let rn = norm(&res);
+    if rn == 0.0 { 0.0 } else { rn / denom }
 }

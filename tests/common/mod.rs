@@ -845,6 +845,20 @@ impl Owned {
         }
     }
 
+    /// The Rust API's view of the arrays.
+    pub fn view(&self) -> dualsplit::MatrixView<'_> {
+        dualsplit::MatrixView {
+            format: dualsplit::Format::Csc,
+            storage: dualsplit::Storage::Full,
+            base: 0,
+            nrows: self.nrows as usize,
+            ncols: self.ncols as usize,
+            p: dualsplit::Indices::I64(&self.p),
+            i: dualsplit::Indices::I64(&self.i),
+            x: &self.x,
+        }
+    }
+
     pub fn ds(&self) -> DsMatrix {
         DsMatrix {
             format: DsFormat::Csc as i32,

@@ -1,0 +1,219 @@
+//! The host's own solver of K (issue 31): a problem built on the solves a
+//! host code already has (a CHOLMOD factor it holds, a distributed Krylov
+//! solve) instead of a factor of the library's. Every matrix-free method needs
+//! K only through solves: the products A x = B K^-1 B^T x, the right-hand side
+//! B K^-1 f - g, the recovery u = K^-1 (f - B^T lambda), and the contacts' d x d
+//! diagonal blocks of A, which the library obtains by blocked solves.
+//!
+//! A failed solve (an error code from the host, or a non-finite value in what
+//! it returned) is latched on [`Host`]: later products return NaN without
+//! calling the host, the solve stops at its next outer iteration, and the
+//! call that ran it returns `ErrorKind::HostSolve` with the host's code.
+
+use crate::error::{Error, ErrorKind, Result};
+use std::sync::Mutex;
+use std::time::Instant;
+
+/// K^-1 applied by the host code. The library calls it only from the thread
+/// that calls into the problem, never concurrently.
+pub trait KSolve: Send {
+    /// The number of DOFs n (K is n x n, symmetric positive definite).
+    fn n(&self) -> usize;
+
+    /// Overwrites `x` (n x `ncols`, column-major, leading dimension n) with
+    /// K^-1 x. `Err(code)` reports a failure with the host's own code, which
+    /// the library passes on in its error message.
+    fn solve(&mut self, x: &mut [f64], ncols: usize) -> std::result::Result<(), i32>;
+}
+
+/// What the host's solver did for one problem: calls, right-hand sides,
+/// seconds inside it, and the failure latched since the last [`Host::clear`].
+#[derive(Default)]
+struct Ledger {
+    calls: usize,
+    columns: usize,
+    seconds: f64,
+    failure: Option<Error>,
+}
+
+/// The host's solver as a problem holds it: the callback, behind a lock (it
+/// takes `&mut self`), and what it did (see [`Ledger`]).
+pub(crate) struct Host {
+    n: usize,
+    solver: Mutex<Box<dyn KSolve>>,
+    ledger: Mutex<Ledger>,
+}
+
+/// Counters of the host's solves (see [`Host::counts`]).
+#[derive(Copy, Clone, Debug, Default, PartialEq)]
+pub(crate) struct Counts {
+    /// Calls of the host's solve.
+    pub calls: usize,
+    /// Right-hand sides solved, over all calls.
+    pub columns: usize,
+    /// Seconds inside the host's solve.
+    pub seconds: f64,
+}
+
+impl Host {
+    pub(crate) fn new(solver: Box<dyn KSolve>) -> Host {
+        Host {
+            n: solver.n(),
+            solver: Mutex::new(solver),
+            ledger: Mutex::new(Ledger::default()),
+        }
+    }
+
+    /// The number of DOFs n.
+    pub(crate) fn n(&self) -> usize {
+        self.n
+    }
+
+    /// x (n x ncols, column-major) := K^-1 x by the host. On a failure (the
+    /// host's code, or a non-finite value in its output) the failure is
+    /// latched and returned; while one is latched the host is not called
+    /// again and x is left as given.
+    pub(crate) fn solve(&self, x: &mut [f64], ncols: usize) -> Result<()> {
+        debug_assert_eq!(x.len(), self.n * ncols);
+        let mut ledger = self.ledger.lock().unwrap_or_else(|e| e.into_inner());
+        if let Some(e) = &ledger.failure {
+            return Err(e.clone());
+        }
+        let start = Instant::now();
+        let outcome = {
+            let mut solver = self.solver.lock().unwrap_or_else(|e| e.into_inner());
+            solver.solve(x, ncols)
+        };
+        ledger.seconds += start.elapsed().as_secs_f64();
+        ledger.calls += 1;
+        ledger.columns += ncols;
+        let failure = match outcome {
+            Err(code) => Some(format!(
+                "the host's solve of K failed with its code {code} (call {} of this \
+                 problem, {ncols} right-hand sides)",
+                ledger.calls
+            )),
+            Ok(()) => x.iter().position(|v| !v.is_finite()).map(|p| {
+                format!(
+                    "the host's solve of K returned {} at row {} of right-hand side {} \
+                     (call {} of this problem)",
+                    x[p],
+                    p % self.n.max(1),
+                    p / self.n.max(1),
+                    ledger.calls
+                )
+            }),
+        };
+        match failure {
+            Some(message) => {
+                let e = Error::new(ErrorKind::HostSolve, message);
+                ledger.failure = Some(e.clone());
+                Err(e)
+            }
+            None => Ok(()),
+        }
+    }
+
+    /// The failure latched since the last [`Host::clear`], if any.
+    pub(crate) fn failure(&self) -> Option<Error> {
+        self.ledger
+            .lock()
+            .unwrap_or_else(|e| e.into_inner())
+            .failure
+            .clone()
+    }
+
+    /// Forgets a latched failure (each solve of the problem starts afresh).
+    pub(crate) fn clear(&self) {
+        self.ledger
+            .lock()
+            .unwrap_or_else(|e| e.into_inner())
+            .failure = None;
+    }
+
+    /// What the host's solver did so far.
+    pub(crate) fn counts(&self) -> Counts {
+        let l = self.ledger.lock().unwrap_or_else(|e| e.into_inner());
+        Counts {
+            calls: l.calls,
+            columns: l.columns,
+            seconds: l.seconds,
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// K = diag(1..=n), failing with code 7 on call `fail_at`, or returning
+    /// NaN there when `nan`.
+    struct Diagonal {
+        n: usize,
+        calls: usize,
+        fail_at: usize,
+        nan: bool,
+    }
+
+    impl KSolve for Diagonal {
+        fn n(&self) -> usize {
+            self.n
+        }
+        fn solve(&mut self, x: &mut [f64], ncols: usize) -> std::result::Result<(), i32> {
+            self.calls += 1;
+            if self.calls == self.fail_at && !self.nan {
+                return Err(7);
+            }
+            for j in 0..ncols {
+                for i in 0..self.n {
+                    x[i + j * self.n] /= (i + 1) as f64;
+                }
+            }
+            if self.calls == self.fail_at {
+                x[1] = f64::NAN;
+            }
+            Ok(())
+        }
+    }
+
+    fn host(fail_at: usize, nan: bool) -> Host {
+        Host::new(Box::new(Diagonal {
+            n: 3,
+            calls: 0,
+            fail_at,
+            nan,
+        }))
+    }
+
+    #[test]
+    fn solves_are_counted_and_a_failure_is_latched_until_cleared() {
+        let h = host(2, false);
+        let mut x = vec![2.0, 4.0, 6.0, 1.0, 1.0, 1.0];
+        h.solve(&mut x, 2).unwrap();
+        assert_eq!(x, vec![2.0, 2.0, 2.0, 1.0, 0.5, 1.0 / 3.0]);
+        let mut y = vec![1.0; 3];
+        let e = h.solve(&mut y, 1).unwrap_err();
+        assert_eq!(e.kind, ErrorKind::HostSolve);
+        assert!(e.message.contains("code 7"), "{}", e.message);
+        // Latched: the host is not called again, y stays as given.
+        let mut z = vec![3.0; 3];
+        assert!(h.solve(&mut z, 1).is_err());
+        assert_eq!(z, vec![3.0; 3]);
+        assert_eq!(h.counts().calls, 2);
+        assert_eq!(h.counts().columns, 3);
+        h.clear();
+        assert!(h.failure().is_none());
+        h.solve(&mut z, 1).unwrap();
+        assert_eq!(z, vec![3.0, 1.5, 1.0]);
+    }
+
+    #[test]
+    fn a_non_finite_output_is_a_failure_naming_its_place() {
+        let h = host(1, true);
+        let mut x = vec![1.0; 3];
+        let e = h.solve(&mut x, 1).unwrap_err();
+        assert_eq!(e.kind, ErrorKind::HostSolve);
+        assert!(e.message.contains("NaN at row 1"), "{}", e.message);
+        assert_eq!(h.failure(), Some(e));
+    }
+}

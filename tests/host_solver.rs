@@ -1,0 +1,409 @@
+//! A problem on the host's own solver of K (`ContactProblem::with_host_solver`,
+//! issue 31): the host here is a callback written in the test that factors K
+//! itself. Its answers must pass the KKT check and agree with the library's
+//! own path (same K, N, T) for Newton and MPRGP, 2D and 3D, Tresca and
+//! Coulomb, single solves and histories, with and without K handed over; a
+//! solve that fails or returns NaN must give `HostSolve` with the host's
+//! code, leave the history where it was and the problem usable; bad sizes
+//! and the methods that need A's entries are refused.
+
+mod common;
+
+use common::{Mesh, Owned, Scene, assert_converged, kkt_of, max_diff, norm_inf};
+use dualsplit::internals::Factor;
+use dualsplit::{
+    ContactProblem, DualForm, ErrorKind, Friction, KSolve, Method, Options, Solution, SolveStatus,
+};
+use std::sync::Arc;
+use std::sync::atomic::{AtomicUsize, Ordering};
+
+/// The host: K's Cholesky factor, one right-hand side at a time; call number
+/// `fail_at` (counted from 1, 0 never) fails with code -42, or returns a NaN
+/// where `nan` is set.
+struct Host {
+    factor: Arc<Factor>,
+    n: usize,
+    calls: Arc<AtomicUsize>,
+    fail_at: Arc<AtomicUsize>,
+    nan: bool,
+}
+
+impl KSolve for Host {
+    fn n(&self) -> usize {
+        self.n
+    }
+
+    fn solve(&mut self, x: &mut [f64], ncols: usize) -> Result<(), i32> {
+        assert_eq!(x.len(), self.n * ncols, "the block is n x ncols");
+        let call = self.calls.fetch_add(1, Ordering::SeqCst) + 1;
+        if call == self.fail_at.load(Ordering::SeqCst) && !self.nan {
+            x.iter_mut().for_each(|v| *v = 1e300);
+            return Err(-42);
+        }
+        for col in x.chunks_mut(self.n) {
+            self.factor.solve_vec(col);
+        }
+        if call == self.fail_at.load(Ordering::SeqCst) {
+            x[self.n / 2] = f64::NAN;
+        }
+        Ok(())
+    }
+}
+
+struct Handles {
+    calls: Arc<AtomicUsize>,
+    fail_at: Arc<AtomicUsize>,
+}
+
+fn host(scene: &Scene, nan: bool) -> (Box<dyn KSolve>, Handles) {
+    let calls = Arc::new(AtomicUsize::new(0));
+    let fail_at = Arc::new(AtomicUsize::new(0));
+    let h = Host {
+        factor: Factor::new(&scene.k).expect("K factors"),
+        n: scene.k.nrows,
+        calls: calls.clone(),
+        fail_at: fail_at.clone(),
+        nan,
+    };
+    (Box::new(h), Handles { calls, fail_at })
+}
+
+fn on_host(scene: &Scene, with_k: bool, nan: bool, opts: &Options) -> (ContactProblem, Handles) {
+    let (solver, handles) = host(scene, nan);
+    let k_owned = Owned::of(&scene.k);
+    let k = k_owned.view();
+    let pb = ContactProblem::with_host_solver(
+        scene.d,
+        solver,
+        with_k.then_some(&k),
+        &Owned::of(&scene.n).view(),
+        &Owned::of(&scene.t).view(),
+        opts,
+    )
+    .expect("a valid host problem");
+    (pb, handles)
+}
+
+fn scene_2d() -> Scene {
+    let mesh = Mesh::grid2d(24, 6, 2.0, 1.0);
+    let mut prescribed = Vec::new();
+    for &a in &mesh.top_nodes() {
+        prescribed.push((2 * a, 0.006));
+        prescribed.push((2 * a + 1, -0.02));
+    }
+    let f_ext = vec![0.0; mesh.n_dofs()];
+    let bottom = mesh.bottom_nodes();
+    Scene::build(mesh, 100.0, 0.3, &prescribed, &f_ext, &bottom, |x| {
+        0.05 * (x[0] - 1.0).powi(2)
+    })
+}
+
+fn scene_3d() -> Scene {
+    let mesh = Mesh::grid3d(6, 6, 2, 2.0, 2.0, 1.0);
+    let mut prescribed = Vec::new();
+    for &a in &mesh.top_nodes() {
+        prescribed.push((3 * a, 0.006));
+        prescribed.push((3 * a + 1, 0.003));
+        prescribed.push((3 * a + 2, -0.03));
+    }
+    let f_ext = vec![0.0; mesh.n_dofs()];
+    let bottom = mesh.bottom_nodes();
+    Scene::build(mesh, 100.0, 0.3, &prescribed, &f_ext, &bottom, |x| {
+        0.05 * ((x[0] - 1.0).powi(2) + (x[1] - 1.0).powi(2))
+    })
+}
+
+fn with(method: Method) -> Options {
+    Options {
+        method,
+        dual_form: DualForm::MatrixFree,
+        ..Options::default()
+    }
+}
+
+fn lambda(s: &Solution) -> Vec<f64> {
+    s.lambda_n.iter().chain(&s.lambda_t).copied().collect()
+}
+
+fn assert_agree(name: &str, own: &Solution, host: &Solution, rel: f64) {
+    let (l0, l1) = (lambda(own), lambda(host));
+    let dl = max_diff(&l0, &l1);
+    assert!(
+        dl <= rel * norm_inf(&l0),
+        "{name}: lambda differs by {dl:.2e}"
+    );
+    let du = max_diff(&own.u, &host.u);
+    assert!(
+        du <= rel * norm_inf(&own.u),
+        "{name}: u differs by {du:.2e}"
+    );
+}
+
+/// One solve on the host's solves against the library's own matrix-free
+/// path: both converge, pass the KKT check and agree.
+fn agree(name: &str, scene: &Scene, friction: Friction<'_>, method: Method, with_k: bool) {
+    let opts = with(method);
+    let own = scene
+        .problem()
+        .solve(&scene.f, &scene.g, friction, &opts)
+        .unwrap();
+    let (mut pb, handles) = on_host(scene, with_k, false, &opts);
+    assert!(pb.is_matrix_free());
+    let blocks = handles.calls.load(Ordering::SeqCst);
+    // The contact blocks: d m right-hand sides, 32 per call.
+    assert_eq!(
+        blocks,
+        pb.dual_unknowns().div_ceil(32),
+        "{name}: block solves"
+    );
+    let sol = pb.solve(&scene.f, &scene.g, friction, &opts).unwrap();
+    let r = &sol.report;
+    println!(
+        "{name}: {:?} err {:.2e}, outer {}, inner {}, host solves {} ({:.3} s); own inner {}",
+        r.status,
+        r.err,
+        r.outer_iterations,
+        r.inner_iterations,
+        r.host_solves,
+        r.host_seconds,
+        own.report.inner_iterations
+    );
+    assert_converged(name, &sol);
+    kkt_of(scene, friction, &sol).assert_ok(name, 1e-8);
+    assert_agree(name, &own, &sol, 1e-8);
+    let calls = handles.calls.load(Ordering::SeqCst) - blocks;
+    assert_eq!(r.host_solves, calls, "{name}: one right-hand side per call");
+    assert!(r.host_solves >= 2 && r.host_seconds > 0.0);
+    assert_eq!(r.factor_nnz, 0, "{name}: no factor of the library's");
+    if with_k {
+        assert!(r.equilibrium_residual < 1e-10, "{name}");
+    } else {
+        assert!(r.equilibrium_residual.is_nan(), "{name}: not measured");
+    }
+}
+
+#[test]
+fn newton_and_mprgp_on_the_hosts_solves_match_the_own_path() {
+    let s2 = scene_2d();
+    let (mu2, p2) = (vec![0.3; s2.m()], vec![0.02; s2.m()]);
+    let s3 = scene_3d();
+    let (mu3, p3) = (vec![0.3; s3.m()], vec![0.05; s3.m()]);
+    for with_k in [true, false] {
+        for method in [Method::Newton, Method::Mprgp, Method::Auto] {
+            let tag = format!("{} with_k {with_k}", method.name());
+            agree(
+                &format!("2D Coulomb {tag}"),
+                &s2,
+                Friction::Coulomb(&mu2),
+                method,
+                with_k,
+            );
+            agree(
+                &format!("2D Tresca {tag}"),
+                &s2,
+                Friction::Tresca(&p2),
+                method,
+                with_k,
+            );
+            agree(
+                &format!("3D Coulomb {tag}"),
+                &s3,
+                Friction::Coulomb(&mu3),
+                method,
+                with_k,
+            );
+            agree(
+                &format!("3D Tresca {tag}"),
+                &s3,
+                Friction::Tresca(&p3),
+                method,
+                with_k,
+            );
+        }
+    }
+}
+
+/// A press-then-shear history of 6 steps: the host's problem (with K and
+/// without it, where K u_k comes from the last step's equilibrium) gives the
+/// own path's u and multipliers at every step.
+#[test]
+fn a_history_on_the_hosts_solves_matches_the_own_path() {
+    let scene = scene_3d();
+    let mu = vec![0.3; scene.m()];
+    let friction = Friction::Coulomb(&mu);
+    let opts = with(Method::Auto);
+    let mut own = scene.problem();
+    let (mut with_k, _) = on_host(&scene, true, false, &opts);
+    let (mut without_k, _) = on_host(&scene, false, false, &opts);
+    let n = scene.k.nrows;
+    for step in 1..=6 {
+        // Press, then shear: the load's tangential part grows after step 3.
+        let s = step as f64 / 6.0;
+        let shear = (step as f64 - 3.0).max(0.0) / 3.0;
+        let f: Vec<f64> = (0..n)
+            .map(|i| scene.f[i] * s * if i % 3 == 2 { 1.0 } else { 1.0 + shear })
+            .collect();
+        let a = own.step(&f, &scene.g, friction, &opts).unwrap();
+        assert_converged(&format!("own step {step}"), &a);
+        for (name, pb) in [("with K", &mut with_k), ("without K", &mut without_k)] {
+            let b = pb.step(&f, &scene.g, friction, &opts).unwrap();
+            let w = format!("host {name}, step {step}");
+            assert_converged(&w, &b);
+            assert_agree(&w, &a, &b, 1e-8);
+        }
+    }
+}
+
+/// A solve whose host fails mid-solve (code -42, or a NaN): `HostSolve`
+/// naming the code, the history where it was, and the next solve as if
+/// nothing had happened.
+#[test]
+fn a_failing_host_solve_is_an_error_and_the_problem_stays_usable() {
+    let scene = scene_3d();
+    let mu = vec![0.3; scene.m()];
+    let friction = Friction::Coulomb(&mu);
+    let opts = with(Method::Auto);
+    for nan in [false, true] {
+        let (mut pb, handles) = on_host(&scene, false, nan, &opts);
+        let first = pb.step(&scene.f, &scene.g, friction, &opts).unwrap();
+        assert_converged("first step", &first);
+        // The second step fails at its third host call (a product, after the
+        // right-hand side's solve).
+        let done = handles.calls.load(Ordering::SeqCst);
+        handles.fail_at.store(done + 3, Ordering::SeqCst);
+        let f2: Vec<f64> = scene.f.iter().map(|v| 1.5 * v).collect();
+        let e = pb.step(&f2, &scene.g, friction, &opts).unwrap_err();
+        assert_eq!(e.kind, ErrorKind::HostSolve, "{e}");
+        let what = if nan { "returned NaN" } else { "code -42" };
+        assert!(e.message.contains(what), "{}", e.message);
+        // Nothing was called after the failure within that step.
+        assert_eq!(handles.calls.load(Ordering::SeqCst), done + 3);
+        // The history did not advance: the step redone now gives what a
+        // fresh problem gives after one step.
+        handles.fail_at.store(0, Ordering::SeqCst);
+        let again = pb.step(&f2, &scene.g, friction, &opts).unwrap();
+        let mut own = scene.problem();
+        own.step(&scene.f, &scene.g, friction, &opts).unwrap();
+        let want = own.step(&f2, &scene.g, friction, &opts).unwrap();
+        assert_converged("the step redone", &again);
+        assert_agree("the step redone", &want, &again, 1e-8);
+        assert_eq!(again.report.status, SolveStatus::Converged);
+    }
+}
+
+/// A failure while the contact blocks are formed fails the creation.
+#[test]
+fn a_failure_while_forming_the_blocks_fails_the_creation() {
+    let scene = scene_2d();
+    let (solver, handles) = host(&scene, false);
+    handles.fail_at.store(1, Ordering::SeqCst);
+    let e = ContactProblem::with_host_solver(
+        2,
+        solver,
+        None,
+        &Owned::of(&scene.n).view(),
+        &Owned::of(&scene.t).view(),
+        &Options::default(),
+    )
+    .err()
+    .expect("the first solve fails");
+    assert_eq!(e.kind, ErrorKind::HostSolve);
+    assert!(e.message.contains("code -42"), "{}", e.message);
+}
+
+#[test]
+fn bad_sizes_and_methods_that_need_entries_are_refused() {
+    let scene = scene_2d();
+    let opts = Options::default();
+    // K of another size than the host's n.
+    let small = scene_3d();
+    let (solver, _) = host(&scene, false);
+    let k_owned = Owned::of(&small.k);
+    let k = k_owned.view();
+    let e = ContactProblem::with_host_solver(
+        2,
+        solver,
+        Some(&k),
+        &Owned::of(&scene.n).view(),
+        &Owned::of(&scene.t).view(),
+        &opts,
+    )
+    .err()
+    .unwrap();
+    assert_eq!(e.kind, ErrorKind::BadSize, "{e}");
+    // N with another column count.
+    let (solver, _) = host(&scene, false);
+    let e = ContactProblem::with_host_solver(
+        2,
+        solver,
+        None,
+        &Owned::of(&small.n).view(),
+        &Owned::of(&small.t).view(),
+        &opts,
+    )
+    .err()
+    .unwrap();
+    assert_eq!(e.kind, ErrorKind::BadSize, "{e}");
+    // d = 4, and the dense form.
+    let (solver, _) = host(&scene, false);
+    let e = ContactProblem::with_host_solver(
+        4,
+        solver,
+        None,
+        &Owned::of(&scene.n).view(),
+        &Owned::of(&scene.t).view(),
+        &opts,
+    )
+    .err()
+    .unwrap();
+    assert_eq!(e.kind, ErrorKind::BadArgument, "{e}");
+    let (solver, _) = host(&scene, false);
+    let dense = Options {
+        dual_form: DualForm::Dense,
+        ..opts
+    };
+    let e = ContactProblem::with_host_solver(
+        2,
+        solver,
+        None,
+        &Owned::of(&scene.n).view(),
+        &Owned::of(&scene.t).view(),
+        &dense,
+    )
+    .err()
+    .unwrap();
+    assert_eq!(e.kind, ErrorKind::BadArgument, "{e}");
+    // On a valid problem: the methods that read A's entries, the dense form,
+    // refactor and a folder without K are refused; a solve still works.
+    let (mut pb, _) = on_host(&scene, false, false, &opts);
+    let mu = vec![0.3; scene.m()];
+    let friction = Friction::Coulomb(&mu);
+    for bad in [
+        Options {
+            method: Method::Split,
+            ..opts
+        },
+        dense,
+    ] {
+        let e = pb.solve(&scene.f, &scene.g, friction, &bad).unwrap_err();
+        assert_eq!(e.kind, ErrorKind::BadArgument, "{e}");
+        assert!(e.message.contains("host"), "{}", e.message);
+    }
+    let e = pb.refactor(&Owned::of(&scene.k).view()).unwrap_err();
+    assert_eq!(e.kind, ErrorKind::BadArgument);
+    let dir = std::env::temp_dir().join("dualsplit_host_folder");
+    let e = pb
+        .write_folder(&dir, &scene.f, &scene.g, friction)
+        .unwrap_err();
+    assert_eq!(e.kind, ErrorKind::BadArgument);
+    let sol = pb.solve(&scene.f, &scene.g, friction, &opts).unwrap();
+    assert_converged("after the refusals", &sol);
+    kkt_of(&scene, friction, &sol).assert_ok("after the refusals", 1e-8);
+    // The analysis report: no factor, matrix-free.
+    let info = pb.info(&opts);
+    assert_eq!(
+        (info.factor_nnz, info.n, info.m),
+        (0, scene.k.nrows, scene.m())
+    );
+    assert_eq!(info.setup_form, DualForm::MatrixFree);
+}
