@@ -74,6 +74,7 @@ module dualsplit
    integer(c_int32_t), parameter, public :: DS_STATUS_STOPPED = 13
    integer(c_int32_t), parameter, public :: DS_STATUS_STALLED = 14
    integer(c_int32_t), parameter, public :: DS_STATUS_TIME_LIMIT = 15
+   integer(c_int32_t), parameter, public :: DS_STATUS_HOST_SOLVE_FAILED = 16
 
    !> DsFormat: layout of a DsMatrix (CSparse naming).
    integer(c_int32_t), parameter, public :: DS_FORMAT_CSR = 0
@@ -218,6 +219,20 @@ module dualsplit
       real(c_double)     :: elapsed_seconds
    end type DsProgress
 
+   !> The host's own solver of K for ds_problem_new_host (0.9): set struct_size
+   !> to DS_HOST_SOLVER_SIZE, n, solve = c_funloc(a BIND(C) function with the
+   !> interface ds_host_solve_fn) and context (c_null_ptr, or c_loc of the
+   !> host's data, valid until the handle is freed).
+   type, bind(C), public :: DsHostSolver
+      integer(c_int32_t) :: struct_size   !< uint32_t in C: sizeof(DsHostSolver)
+      integer(c_int64_t) :: n             !< DOFs of K, >= 1
+      type(c_funptr)     :: solve         !< DsHostSolveFn: x := K^-1 x (required)
+      type(c_ptr)        :: context       !< passed back to solve unchanged
+   end type DsHostSolver
+
+   !> sizeof(DsHostSolver) in C (tests/fortran.rs checks it).
+   integer(c_int32_t), parameter, public :: DS_HOST_SOLVER_SIZE = 32
+
    ! ---------------------------------------------------------------------------------
    ! Callbacks (DsMonitorFn, DsLogFn): write them as BIND(C) procedures of a module
    ! with these interfaces, e.g.
@@ -249,6 +264,18 @@ module dualsplit
          type(c_ptr), value :: message
          type(c_ptr), value :: user_data
       end subroutine ds_log_fn
+
+      !> typedef int32_t (*DsHostSolveFn)(void *context, int64_t n, int64_t ncols,
+      !>     double *x, int64_t ld);
+      !> x(ld, ncols) := K^-1 x; return 0, or an error code of the host's
+      !> (ds_solve / ds_step then return DS_STATUS_HOST_SOLVE_FAILED).
+      function ds_host_solve_fn(context, n, ncols, x, ld) result(code) bind(C)
+         import :: c_int32_t, c_int64_t, c_double, c_ptr
+         type(c_ptr), value :: context
+         integer(c_int64_t), value :: n, ncols, ld
+         real(c_double), intent(inout) :: x(ld, *)
+         integer(c_int32_t) :: code
+      end function ds_host_solve_fn
    end interface
    public :: ds_monitor_fn, ds_log_fn
 
@@ -258,6 +285,7 @@ module dualsplit
 
    public :: ds_last_error_message, ds_status_string, ds_options_default, ds_options_init
    public :: ds_version
+   public :: ds_problem_new_host
    public :: ds_problem_new, ds_problem_new_opts, ds_problem_free, ds_problem_refactor, ds_problem_set_contacts
    public :: ds_problem_sizes, ds_solve, ds_step, ds_history_reset, ds_problem_set_compliance
    public :: ds_analyse, ds_problem_info, ds_info_init
@@ -344,6 +372,22 @@ module dualsplit
          type(c_ptr), intent(inout) :: out
          integer(c_int) :: status
       end function c_ds_problem_new_opts
+
+      ! enum DsStatus ds_problem_new_host(int32_t d, const struct DsHostSolver *solver,
+      !     const struct DsMatrix *k, const struct DsMatrix *n,
+      !     const struct DsMatrix *t, const struct DsOptions *opts,
+      !     struct DsProblem **out);
+      function c_ds_problem_new_host(d, solver, k, n, t, opts, out) result(status) &
+            bind(C, name="ds_problem_new_host")
+         import :: c_int, c_int32_t, c_ptr, DsMatrix, DsOptions, DsHostSolver
+         integer(c_int32_t), value :: d
+         type(DsHostSolver), intent(in) :: solver
+         type(c_ptr), value :: k
+         type(DsMatrix), intent(in) :: n, t
+         type(DsOptions), intent(in) :: opts
+         type(c_ptr), intent(inout) :: out
+         integer(c_int) :: status
+      end function c_ds_problem_new_host
 
       ! enum DsStatus ds_analyse(int32_t d, const struct DsMatrix *k,
       !     const struct DsMatrix *n, const struct DsMatrix *t,
@@ -601,6 +645,23 @@ contains
       integer(c_int32_t) :: status
       status = int(c_ds_problem_new_opts(d, k, n, t, opts, problem), c_int32_t)
    end function ds_problem_new_opts
+
+   !> A problem on the host's own solver of K (see ds_problem_new_host in
+   !> dualsplit.h): solver as DsHostSolver says; k optional (the lumped
+   !> preconditioner, K u_k in a history and the equilibrium residual).
+   function ds_problem_new_host(d, solver, n, t, opts, problem, k) result(status)
+      integer(c_int32_t), intent(in) :: d
+      type(DsHostSolver), intent(in) :: solver
+      type(DsMatrix), intent(in) :: n, t
+      type(DsOptions), intent(in) :: opts
+      type(c_ptr), intent(inout) :: problem
+      type(DsMatrix), intent(in), optional, target :: k
+      integer(c_int32_t) :: status
+      type(c_ptr) :: kp
+      kp = c_null_ptr
+      if (present(k)) kp = c_loc(k)
+      status = int(c_ds_problem_new_host(d, solver, kp, n, t, opts, problem), c_int32_t)
+   end function ds_problem_new_host
 
    !> Sets info%struct_size to DS_INFO_SIZE (and the other fields to 0): call before
    !> ds_analyse or ds_problem_info.

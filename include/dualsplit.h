@@ -124,6 +124,13 @@ typedef enum DsStatus {
    history does not advance.
    */
   DS_STATUS_TIME_LIMIT = 15,
+  /*
+   The host's solve of K (a problem made by ds_problem_new_host) returned
+   a nonzero code, or a NaN or infinity. The message gives the host's code
+   and which call failed; no output is written and the handle stays usable
+   (the history does not advance).
+   */
+  DS_STATUS_HOST_SOLVE_FAILED = 16,
 } DsStatus;
 
 /*
@@ -314,6 +321,45 @@ typedef enum DsFriction {
  but by one thread at a time.
  */
 typedef struct DsProblem DsProblem;
+
+/*
+ The host's solve with K: overwrite x (n x ncols, column-major, leading
+ dimension ld, ld = n) with K^-1 x, for the `context` given in
+ DsHostSolver. Return 0 on success; any other value is an error code of the
+ host's, which the library reports as DS_STATUS_HOST_SOLVE_FAILED with the
+ code in ds_last_error_message(). A NaN or infinity in x afterwards is
+ reported the same way. The library calls it only from the thread that
+ called into the handle, one call at a time; it must not call into the same
+ handle, and must not longjmp out of (or throw a C++ exception through) the
+ library. Under MPI every rank calls it the same number of times, in the
+ same order (a collective solve may be used).
+ */
+typedef int32_t (*DsHostSolveFn)(void *context, int64_t n, int64_t ncols, double *x, int64_t ld);
+
+/*
+ The host's solver of K, handed to ds_problem_new_host. Set struct_size =
+ sizeof(DsHostSolver): later versions may add optional callbacks at the end
+ and will accept this size.
+ */
+typedef struct DsHostSolver {
+  /*
+   sizeof(DsHostSolver) as the caller's header defines it.
+   */
+  uint32_t struct_size;
+  /*
+   The number of DOFs n (K is n x n, symmetric positive definite), >= 1.
+   */
+  int64_t n;
+  /*
+   K^-1 applied to a block of right-hand sides (required).
+   */
+  DsHostSolveFn solve;
+  /*
+   Passed to `solve` unchanged; the library never reads it. Must stay
+   valid until the handle is freed.
+   */
+  void *context;
+} DsHostSolver;
 
 /*
  A sparse matrix borrowed from the caller, with CSparse naming. The library reads
@@ -771,6 +817,52 @@ extern "C" {
 #endif // __cplusplus
 
 /*
+ Creates a contact problem on the host's own solver of K (a CHOLMOD, MUMPS
+ or PARDISO factor it holds, a PETSc KSP over MPI) instead of a factor of
+ the library's. The dual is matrix-free: every product with the condensed
+ operator, the right-hand side and the recovery of u is one call of
+ solver->solve; the contacts' d x d diagonal blocks of A are formed here by
+ d m solves, 32 right-hand sides per call. ds_solve and ds_step then work
+ as on any handle, with the methods that need no entries of A (AUTO, NEWTON,
+ MPRGP; the others, and dual_form DENSE, return DS_STATUS_BAD_ARGUMENT);
+ ds_problem_refactor returns DS_STATUS_BAD_ARGUMENT (refactor on the host's
+ side and create a new handle), and so does ds_problem_dump without K.
+
+ - d: contact dimension, 2 or 3.
+ - solver: the callback, its context and n (see DsHostSolver).
+ - k: K itself, optional (NULL: none), as ds_problem_new takes it. Where
+   given it serves the lumped preconditioner B K B^T of Newton's reduced
+   systems (about half the products of Jacobi), K u_k in a history and the
+   report's equilibrium residual; without it the residual is NaN (not
+   measured) and K u_k is taken from the last step's equilibrium,
+   f_total - N^T lambda_N - T^T lambda_T.
+ - n, t: N (m x n) and T ((d-1) m x n), FULL storage, as ds_problem_new.
+ - opts: NULL or options as ds_problem_new_opts (threads for the library's
+   own contact-space work; ordering unused).
+ - out: receives the new handle on success; untouched on error.
+
+ Returns DS_STATUS_OK, or DS_STATUS_NULL_POINTER (solver, solver->solve,
+ n, t, out), DS_STATUS_BAD_ARGUMENT (d, struct_size, options, dual_form
+ DENSE), DS_STATUS_BAD_SIZE (n < 1, N or T not n columns, K not n x n),
+ DS_STATUS_BAD_INDEX, DS_STATUS_NOT_FINITE, DS_STATUS_NOT_SYMMETRIC (K),
+ DS_STATUS_HOST_SOLVE_FAILED (a solve for the contact blocks failed),
+ DS_STATUS_OUT_OF_MEMORY. Added in version 0.9.
+
+ # Safety
+ Each pointer must be NULL or valid: solver points to a DsHostSolver whose
+ callback and context stay valid until the handle is freed; k (if not
+ NULL), n, t point to DsMatrix structs whose arrays match their fields; opts
+ as for ds_problem_new_opts; out points to a writable DsProblem*.
+ */
+enum DsStatus ds_problem_new_host(int32_t d,
+                                  const struct DsHostSolver *solver,
+                                  const struct DsMatrix *k,
+                                  const struct DsMatrix *n,
+                                  const struct DsMatrix *t,
+                                  const struct DsOptions *opts,
+                                  struct DsProblem **out);
+
+/*
  The analysis alone: validates K, N, T and the options, orders K and computes
  its symbolic factorisation, decides the route the options lead to and
  predicts its memory, and fills *info; no handle is made and nothing is
@@ -1163,7 +1255,7 @@ const char *ds_version(void);
 /* The version of dualsplit this header belongs to (ds_version() gives the one a
  * program runs against; tests/header.rs checks these against Cargo.toml). */
 #define DS_VERSION_MAJOR 0
-#define DS_VERSION_MINOR 8
+#define DS_VERSION_MINOR 9
 #define DS_VERSION_PATCH 0
 
 #ifndef DS_NO_OPTIONS_DEFAULT_MACRO

@@ -153,6 +153,7 @@ fn fortran_type_of(c_type: &str) -> &'static str {
         "int32_t" | "uint32_t" => "integer(c_int32_t)",
         "int64_t" | "uint64_t" => "integer(c_int64_t)",
         "double" => "real(c_double)",
+        "DsHostSolveFn" => "type(c_funptr)",
         other => panic!("no Fortran type known for the C field type {other}"),
     }
 }
@@ -425,6 +426,7 @@ const LAYOUT_F90: &str = r#"program layout
    type(DsReport), target :: r
    type(DsProgress), target :: g
    type(DsInfo), target :: i
+   type(DsHostSolver), target :: h
    write (*, '(a,99(1x,i0))') 'DsMatrix', c_sizeof(m), off(c_loc(m), c_loc(m%format)), &
       off(c_loc(m), c_loc(m%index_type)), off(c_loc(m), c_loc(m%base)), &
       off(c_loc(m), c_loc(m%storage)), off(c_loc(m), c_loc(m%nrows)), &
@@ -464,6 +466,9 @@ const LAYOUT_F90: &str = r#"program layout
       off(c_loc(i), c_loc(i%analyse_seconds)), &
       off(c_loc(i), c_loc(i%compliant_contacts)), off(c_loc(i), c_loc(i%power_law_contacts))
    write (*, '(a,99(1x,i0))') 'DS_INFO_SIZE', DS_INFO_SIZE
+   write (*, '(a,99(1x,i0))') 'DsHostSolver', c_sizeof(h), off(c_loc(h), c_loc(h%struct_size)), &
+      off(c_loc(h), c_loc(h%n)), off(c_loc(h), c_loc(h%solve)), off(c_loc(h), c_loc(h%context))
+   write (*, '(a,99(1x,i0))') 'DS_HOST_SOLVER_SIZE', DS_HOST_SOLVER_SIZE
 contains
    integer function off(base, field)
       type(c_ptr), intent(in) :: base, field
@@ -508,6 +513,10 @@ int main(void)
            O(DsInfo, analyse_seconds), O(DsInfo, compliant_contacts),
            O(DsInfo, power_law_contacts));
     printf("DS_INFO_SIZE %d\n", (int)sizeof(DsInfo));
+    printf("DsHostSolver %d %d %d %d %d\n", (int)sizeof(DsHostSolver),
+           O(DsHostSolver, struct_size), O(DsHostSolver, n), O(DsHostSolver, solve),
+           O(DsHostSolver, context));
+    printf("DS_HOST_SOLVER_SIZE %d\n", (int)sizeof(DsHostSolver));
     return 0;
 }
 "#;

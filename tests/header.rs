@@ -91,6 +91,7 @@ fn header_has_the_spec_names() {
         "typedef struct DsMatrix {",
         "typedef struct DsOptions {",
         "typedef struct DsReport {",
+        "typedef struct DsHostSolver {",
         "const char *ds_status_string(int32_t status);",
         "const char *ds_last_error_message(void);",
         "void ds_options_default(struct DsOptions *opts);",
@@ -106,6 +107,7 @@ fn header_has_the_spec_names() {
     }
     for f in [
         "ds_problem_new",
+        "ds_problem_new_host",
         "ds_problem_refactor",
         "ds_problem_set_contacts",
         "ds_problem_set_compliance",
@@ -159,6 +161,8 @@ fn header_compiles_and_matches_the_rust_layout() {
     }
     offsets!(DsMatrix: format, index_type, base, storage, nrows, ncols, nnz, p, i, x);
     check("sizeof(DsProgress)".into(), size_of::<DsProgress>());
+    check("sizeof(DsHostSolver)".into(), size_of::<DsHostSolver>());
+    offsets!(DsHostSolver: struct_size, n, solve, context);
     offsets!(DsOptions: struct_size, method, tol, max_outer, max_inner, dual_form,
         max_seconds, stall_window, stall_factor);
     offsets!(DsReport: status, method, err, equilibrium_residual, outer_iterations,
@@ -183,6 +187,7 @@ fn header_compiles_and_matches_the_rust_layout() {
         "STOPPED",
         "STALLED",
         "TIME_LIMIT",
+        "HOST_SOLVE_FAILED",
     ];
     assert_eq!(statuses.len(), DsStatus::ALL.len());
     for (name, status) in statuses.iter().zip(DsStatus::ALL) {

@@ -143,7 +143,7 @@ impl Watch {
                 LOG_SUMMARY,
                 &format!(
                     "{}: {status}, err {:.3e}, {} outer / {} inner iterations, open {} stick {} slip {}, \
-                     equilibrium {:.1e}, solve {:.3e} s{}",
+                     equilibrium {:.1e}, solve {:.3e} s{}{}",
                     r.method.name(),
                     r.err,
                     r.outer_iterations,
@@ -155,6 +155,14 @@ impl Watch {
                     r.solve_seconds,
                     if r.compliant_contacts > 0 {
                         format!(", compliant interface on {} contacts", r.compliant_contacts)
+                    } else {
+                        String::new()
+                    },
+                    if r.host_solves > 0 {
+                        format!(
+                            ", {} host solves taking {:.3e} s",
+                            r.host_solves, r.host_seconds
+                        )
                     } else {
                         String::new()
                     }

@@ -1,0 +1,191 @@
+//! The host's own solver of K across the C boundary: `DsHostSolver` (the
+//! callback and its context) and `ds_problem_new_host`, a handle whose every
+//! solve with K is the host's (the Rust side: `host.rs`,
+//! [`crate::ContactProblem::with_host_solver`]).
+
+use super::boundary::{entry, ref_in, ref_mut};
+use super::error::{CError as Error, CResult as Result};
+use super::matrix::DsMatrix;
+use super::monitor::Watch;
+use super::options::DsOptions;
+use super::problem::{DsProblem, dimension};
+use super::status::DsStatus;
+use crate::host::KSolve;
+use crate::problem::ContactProblem;
+use std::ffi::c_void;
+
+/// The host's solve with K: overwrite x (n x ncols, column-major, leading
+/// dimension ld, ld = n) with K^-1 x, for the `context` given in
+/// DsHostSolver. Return 0 on success; any other value is an error code of the
+/// host's, which the library reports as DS_STATUS_HOST_SOLVE_FAILED with the
+/// code in ds_last_error_message(). A NaN or infinity in x afterwards is
+/// reported the same way. The library calls it only from the thread that
+/// called into the handle, one call at a time; it must not call into the same
+/// handle, and must not longjmp out of (or throw a C++ exception through) the
+/// library. Under MPI every rank calls it the same number of times, in the
+/// same order (a collective solve may be used).
+pub type DsHostSolveFn = Option<
+    unsafe extern "C" fn(context: *mut c_void, n: i64, ncols: i64, x: *mut f64, ld: i64) -> i32,
+>;
+
+/// The host's solver of K, handed to ds_problem_new_host. Set struct_size =
+/// sizeof(DsHostSolver): later versions may add optional callbacks at the end
+/// and will accept this size.
+#[repr(C)]
+#[derive(Copy, Clone, Debug)]
+pub struct DsHostSolver {
+    /// sizeof(DsHostSolver) as the caller's header defines it.
+    pub struct_size: u32,
+    /// The number of DOFs n (K is n x n, symmetric positive definite), >= 1.
+    pub n: i64,
+    /// K^-1 applied to a block of right-hand sides (required).
+    pub solve: DsHostSolveFn,
+    /// Passed to `solve` unchanged; the library never reads it. Must stay
+    /// valid until the handle is freed.
+    pub context: *mut c_void,
+}
+
+/// The callback as the safe core sees it.
+struct CHost {
+    n: usize,
+    solve: unsafe extern "C" fn(*mut c_void, i64, ncols: i64, *mut f64, i64) -> i32,
+    context: *mut c_void,
+}
+
+// SAFETY: the context pointer is only passed back to the host's callback, which
+// the library calls from the thread that calls into the handle, one call at a
+// time; DsHostSolver's documentation makes the same promise to the caller.
+unsafe impl Send for CHost {}
+
+impl KSolve for CHost {
+    fn n(&self) -> usize {
+        self.n
+    }
+
+    fn solve(&mut self, x: &mut [f64], ncols: usize) -> std::result::Result<(), i32> {
+        let n = self.n as i64;
+        // SAFETY: x holds n x ncols doubles, column-major with leading
+        // dimension n, as the callback's contract states; the context is the
+        // caller's, passed back unchanged.
+        let rc = unsafe { (self.solve)(self.context, n, ncols as i64, x.as_mut_ptr(), n) };
+        if rc == 0 { Ok(()) } else { Err(rc) }
+    }
+}
+
+/// Checks the caller's DsHostSolver and wraps its callback.
+fn host_of(s: &DsHostSolver) -> Result<CHost> {
+    let size = std::mem::size_of::<DsHostSolver>();
+    if s.struct_size as usize != size {
+        return Err(Error::new(
+            DsStatus::BadArgument,
+            format!(
+                "solver->struct_size = {}: set it to sizeof(DsHostSolver) = {size}",
+                s.struct_size
+            ),
+        ));
+    }
+    if s.n < 1 {
+        return Err(Error::new(
+            DsStatus::BadSize,
+            format!("solver->n = {}: the host's K must have n >= 1", s.n),
+        ));
+    }
+    let Some(solve) = s.solve else {
+        return Err(Error::new(
+            DsStatus::NullPointer,
+            "solver->solve is NULL: the host's solve callback is required",
+        ));
+    };
+    let n = usize::try_from(s.n).map_err(|_| {
+        Error::new(
+            DsStatus::BadSize,
+            format!("solver->n = {} is too large", s.n),
+        )
+    })?;
+    Ok(CHost {
+        n,
+        solve,
+        context: s.context,
+    })
+}
+
+/// Creates a contact problem on the host's own solver of K (a CHOLMOD, MUMPS
+/// or PARDISO factor it holds, a PETSc KSP over MPI) instead of a factor of
+/// the library's. The dual is matrix-free: every product with the condensed
+/// operator, the right-hand side and the recovery of u is one call of
+/// solver->solve; the contacts' d x d diagonal blocks of A are formed here by
+/// d m solves, 32 right-hand sides per call. ds_solve and ds_step then work
+/// as on any handle, with the methods that need no entries of A (AUTO, NEWTON,
+/// MPRGP; the others, and dual_form DENSE, return DS_STATUS_BAD_ARGUMENT);
+/// ds_problem_refactor returns DS_STATUS_BAD_ARGUMENT (refactor on the host's
+/// side and create a new handle), and so does ds_problem_dump without K.
+///
+/// - d: contact dimension, 2 or 3.
+/// - solver: the callback, its context and n (see DsHostSolver).
+/// - k: K itself, optional (NULL: none), as ds_problem_new takes it. Where
+///   given it serves the lumped preconditioner B K B^T of Newton's reduced
+///   systems (about half the products of Jacobi), K u_k in a history and the
+///   report's equilibrium residual; without it the residual is NaN (not
+///   measured) and K u_k is taken from the last step's equilibrium,
+///   f_total - N^T lambda_N - T^T lambda_T.
+/// - n, t: N (m x n) and T ((d-1) m x n), FULL storage, as ds_problem_new.
+/// - opts: NULL or options as ds_problem_new_opts (threads for the library's
+///   own contact-space work; ordering unused).
+/// - out: receives the new handle on success; untouched on error.
+///
+/// Returns DS_STATUS_OK, or DS_STATUS_NULL_POINTER (solver, solver->solve,
+/// n, t, out), DS_STATUS_BAD_ARGUMENT (d, struct_size, options, dual_form
+/// DENSE), DS_STATUS_BAD_SIZE (n < 1, N or T not n columns, K not n x n),
+/// DS_STATUS_BAD_INDEX, DS_STATUS_NOT_FINITE, DS_STATUS_NOT_SYMMETRIC (K),
+/// DS_STATUS_HOST_SOLVE_FAILED (a solve for the contact blocks failed),
+/// DS_STATUS_OUT_OF_MEMORY. Added in version 0.9.
+///
+/// # Safety
+/// Each pointer must be NULL or valid: solver points to a DsHostSolver whose
+/// callback and context stay valid until the handle is freed; k (if not
+/// NULL), n, t point to DsMatrix structs whose arrays match their fields; opts
+/// as for ds_problem_new_opts; out points to a writable DsProblem*.
+#[unsafe(no_mangle)]
+pub unsafe extern "C" fn ds_problem_new_host(
+    d: i32,
+    solver: *const DsHostSolver,
+    k: *const DsMatrix,
+    n: *const DsMatrix,
+    t: *const DsMatrix,
+    opts: *const DsOptions,
+    out: *mut *mut DsProblem,
+) -> DsStatus {
+    entry("ds_problem_new_host", || {
+        // SAFETY: pointer validity is this function's contract; NULL is
+        // rejected (k may be NULL: no K).
+        let (solver, n, t, out) = unsafe {
+            (
+                ref_in(solver, "solver")?,
+                ref_in(n, "n")?,
+                ref_in(t, "t")?,
+                ref_mut(out, "out")?,
+            )
+        };
+        let k = if k.is_null() {
+            None // no K
+        } else {
+            // SAFETY: k is a valid DsMatrix (contract), not NULL.
+            Some(unsafe { ref_in(k, "k")? })
+        };
+        // SAFETY: opts is NULL or a readable DsOptions prefix (contract).
+        let opts = unsafe { DsOptions::read(opts)? };
+        let d = dimension(d)?;
+        let host = host_of(solver)?;
+        // SAFETY: the matrices' arrays match their fields (contract).
+        let (nv, tv) = unsafe { (n.view("N")?, t.view("T")?) };
+        // SAFETY: as above, for K where given.
+        let kv = unsafe { k.map(|k| k.view("K")).transpose()? };
+        let inner =
+            ContactProblem::with_host_solver(d, Box::new(host), kv.as_ref(), &nv, &tv, &opts)?;
+        *out = Box::into_raw(Box::new(DsProblem {
+            inner,
+            watch: Watch::default(),
+        }));
+        Ok(())
+    })
+}
