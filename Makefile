@@ -64,6 +64,10 @@ clean-c:
 #   make fortran-minimal                  build and run c_examples/minimal.f90 (gfortran)
 #   make suitesparse-demo [DEMO_ARGS=...] build and run c_examples/suitesparse_block2d.c
 #                                         (CHOLMOD + CXSparse: libsuitesparse-dev)
+#   make cholmod-operator-demo [DEMO_ARGS=...] build and run c_examples/cholmod_operator.c
+#                                         (the library on CHOLMOD's solves)
+#   make petsc-operator-demo [NP=2] [DEMO_ARGS=...] build and run c_examples/petsc_operator.c
+#                                         (K in PETSc over MPI: petsc-dev, openmpi-bin)
 #   make mumps-demo [DEMO_ARGS=...]       build and run c_examples/mumps_schur.c: K
 #                                         factored by the sequential MUMPS, the library
 #                                         on its Schur complement (libmumps-seq-dev)
@@ -108,7 +112,7 @@ MPICC              ?= mpicc
 MPIRUN             ?= OMPI_ALLOW_RUN_AS_ROOT=1 OMPI_ALLOW_RUN_AS_ROOT_CONFIRM=1 mpirun --oversubscribe
 NP                 ?= 2
 
-.PHONY: install install-lib uninstall fortran-demo fortran-minimal suitesparse-demo \
+.PHONY: install install-lib uninstall fortran-demo fortran-minimal suitesparse-demo cholmod-operator-demo petsc-operator-demo \
         mumps-demo mumps-mpi-demo
 
 # Builds libdualsplit.{so,a,rlib} in one rustc call; the link argument only affects
@@ -169,6 +173,23 @@ suitesparse-demo: $(OUTDIR)/suitesparse_block2d
 $(OUTDIR)/mumps_schur: c_examples/mumps_schur.c c_examples/block2d_scene.h include/dualsplit.h $(LIBDS) | $(OUTDIR)
 	$(CC) $(CPPFLAGS) $(MUMPS_SEQ_CFLAGS) $(CFLAGS) -o $@ c_examples/mumps_schur.c \
 	    $(LIBDS) $(MUMPS_SEQ_LIBS) $(LDFLAGS) $(LDLIBS)
+
+$(OUTDIR)/cholmod_operator: c_examples/cholmod_operator.c c_examples/block2d_scene.h include/dualsplit.h $(LIBDS) | $(OUTDIR)
+	$(CC) $(CPPFLAGS) $(SUITESPARSE_CFLAGS) $(CFLAGS) -o $@ c_examples/cholmod_operator.c \
+	    $(LIBDS) $(SUITESPARSE_LIBS) $(LDFLAGS) $(LDLIBS)
+
+cholmod-operator-demo: $(OUTDIR)/cholmod_operator
+	$(abspath $(OUTDIR)/cholmod_operator) $(DEMO_ARGS)
+
+PETSC_CFLAGS ?= $(shell pkg-config --cflags PETSc)
+PETSC_LIBS   ?= $(shell pkg-config --libs PETSc)
+
+$(OUTDIR)/petsc_operator: c_examples/petsc_operator.c include/dualsplit.h $(LIBDS) | $(OUTDIR)
+	$(MPICC) $(CPPFLAGS) $(PETSC_CFLAGS) -O2 -std=c99 -o $@ c_examples/petsc_operator.c \
+	    $(LIBDS) $(PETSC_LIBS) $(LDFLAGS) $(LDLIBS)
+
+petsc-operator-demo: $(OUTDIR)/petsc_operator
+	$(MPIRUN) -np $(NP) $(abspath $(OUTDIR)/petsc_operator) $(DEMO_ARGS)
 
 mumps-demo: $(OUTDIR)/mumps_schur
 	$(abspath $(OUTDIR)/mumps_schur) $(DEMO_ARGS)

@@ -331,8 +331,17 @@ typedef struct DsProblem DsProblem;
  reported the same way. The library calls it only from the thread that
  called into the handle, one call at a time; it must not call into the same
  handle, and must not longjmp out of (or throw a C++ exception through) the
- library. Under MPI every rank calls it the same number of times, in the
- same order (a collective solve may be used).
+ library.
+
+ SPMD over MPI: every rank creates its handle with the same N, T, K (or
+ none), options and load, and runs the same calls. The library's contact
+ iteration then takes the same branches on every rank and calls `solve` the
+ same number of times, in the same order, so the callback may be a
+ collective distributed solve (a PETSc KSP); given bitwise identical
+ outputs of the callback on every rank, and threads = 1 in the options,
+ every rank computes bitwise identical multipliers and u
+ (c_examples/petsc_operator.c checks it on 2 ranks). With more threads the
+ library's own parallel kernels may sum in another order on each rank.
  */
 typedef int32_t (*DsHostSolveFn)(void *context, int64_t n, int64_t ncols, double *x, int64_t ld);
 

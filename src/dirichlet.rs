@@ -65,8 +65,20 @@ impl Plan {
         threads: Arc<Threads>,
         ledger: Arc<Ledger>,
     ) -> Option<Plan> {
-        let (of_k_nnz, _) = of_k.nnz_and_flops();
-        let budget = MAX_COST * 2.0 * of_k_nnz as f64;
+        Self::within(k, b, of_k.nnz_and_flops().0, threads, ledger)
+    }
+
+    /// As [`Plan::of`], for a solve with K that reads `l_nnz` entries of a
+    /// factor (on the host's solves, whose factor the library does not know:
+    /// the entries of K's lower triangle, which every factor of K holds).
+    pub(crate) fn within(
+        k: &Csc,
+        b: &Csc,
+        l_nnz: usize,
+        threads: Arc<Threads>,
+        ledger: Arc<Ledger>,
+    ) -> Option<Plan> {
+        let budget = MAX_COST * 2.0 * l_nnz as f64;
         let plan = Self::with_layers(k, b, LAYERS, budget, threads, ledger)?;
         let (nnz, _) = plan.factor.nnz_and_flops();
         ((plan.k_loc.nnz() + 2 * nnz) as f64 <= budget).then_some(plan)

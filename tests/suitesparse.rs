@@ -10,7 +10,12 @@
 //! - `frictionless_u_matches_cholmod_reference`: on three scenes, u from the library
 //!   (K factored by faer) equals, to 1e-10 relative, the solution of the
 //!   equality-constrained system on the final active set solved with CHOLMOD
-//!   ([K N_a^T; N_a 0] by its Schur complement), and that solution is feasible.
+//!   ([K N_a^T; N_a 0] by its Schur complement), and that solution is feasible;
+//! - `cholmod_operator_history_matches_the_own_path`: c_examples/cholmod_operator.c,
+//!   the demo's history on CHOLMOD's solves (ds_problem_new_host), with and
+//!   without K handed over, deviates from the library's own path by at most
+//!   1e-10, and a callback failing mid-history gives DS_STATUS_HOST_SOLVE_FAILED
+//!   with its code, outputs untouched, and a usable handle.
 //!
 //! Compiler and linker flags: $SUITESPARSE_CFLAGS / $SUITESPARSE_LIBS when set (as in
 //! the Makefile), else pkg-config's CHOLMOD and CXSparse (SuiteSparse >= 7), else
@@ -71,10 +76,25 @@ fn suitesparse_flags() -> Option<(Vec<String>, Vec<String>)> {
 /// SuiteSparse.
 fn example(test: &str) -> Option<&'static Path> {
     static EXE: OnceLock<Option<PathBuf>> = OnceLock::new();
-    let exe = EXE.get_or_init(|| {
+    built(&EXE, "suitesparse_block2d", test)
+}
+
+/// c_examples/cholmod_operator.c, built once per run (as [`example`]).
+fn operator_example(test: &str) -> Option<&'static Path> {
+    static EXE: OnceLock<Option<PathBuf>> = OnceLock::new();
+    built(&EXE, "cholmod_operator", test)
+}
+
+/// c_examples/`name`.c built against SuiteSparse into `cell`, once.
+fn built(
+    cell: &'static OnceLock<Option<PathBuf>>,
+    name: &str,
+    test: &str,
+) -> Option<&'static Path> {
+    let exe = cell.get_or_init(|| {
         let (cflags, libs) = suitesparse_flags()?;
         let root = manifest_dir();
-        let exe = out_dir("suitesparse").join("suitesparse_block2d");
+        let exe = out_dir("suitesparse").join(name);
         let t = Instant::now();
         run_ok(
             c_compiler()
@@ -82,13 +102,13 @@ fn example(test: &str) -> Option<&'static Path> {
                 .arg("-I")
                 .arg(root.join("include"))
                 .args(&cflags)
-                .arg(root.join("c_examples/suitesparse_block2d.c"))
+                .arg(root.join(format!("c_examples/{name}.c")))
                 .arg(static_lib())
                 .args(&libs)
                 .args(SYSTEM_LIBS)
                 .arg("-o")
                 .arg(&exe),
-            "compiling c_examples/suitesparse_block2d.c",
+            &format!("compiling c_examples/{name}.c"),
         );
         println!("built in {:.2} s", t.elapsed().as_secs_f64());
         Some(exe)
@@ -255,4 +275,49 @@ fn c_demo_output(args: &[&str]) -> String {
         "compiling block2d.c",
     );
     stdout_of(&run_ok(Command::new(&exe).args(args), "block2d"))
+}
+
+#[test]
+fn cholmod_operator_history_matches_the_own_path() {
+    let test = "suitesparse::cholmod_operator_history_matches_the_own_path";
+    let Some(exe) = operator_example(test) else {
+        return;
+    };
+    for args in [
+        &["--nx", "40", "--ny", "20"][..],
+        &["--nx", "40", "--ny", "20", "--no-k", "--quiet"],
+        &["--nx", "80", "--ny", "40", "--quiet"],
+    ] {
+        let t = Instant::now();
+        let stdout = stdout_of(&run_ok(
+            Command::new(exe).args(args),
+            &format!("cholmod_operator {args:?}"),
+        ));
+        println!("{stdout}{args:?} ran in {:.2} s", t.elapsed().as_secs_f64());
+        let s = key_values(line_with(&stdout, "SUMMARY "));
+        assert_eq!(s["steps"], "15", "{stdout}");
+        assert_eq!(s["check"], "ok", "{stdout}");
+        assert!(num(&s, "max_dev") <= 1e-10, "{stdout}");
+        assert_eq!(
+            s["with_k"],
+            if args.contains(&"--no-k") { "0" } else { "1" }
+        );
+    }
+    // A callback failing on its 300th call (within the fifth step).
+    let stdout = stdout_of(&run_ok(
+        Command::new(exe).args(["--fail-at", "300", "--quiet"]),
+        "cholmod_operator --fail-at 300",
+    ));
+    let f = key_values(line_with(&stdout, "FAILURE "));
+    assert_eq!(
+        (f["named"].as_str(), f["untouched"].as_str()),
+        ("1", "1"),
+        "{stdout}"
+    );
+    assert!(stdout.contains("code 77"), "{stdout}");
+    let s = key_values(line_with(&stdout, "SUMMARY "));
+    assert_eq!(
+        s["check"], "ok",
+        "the history goes on after the failure: {stdout}"
+    );
 }

@@ -354,8 +354,16 @@ impl Dual {
             let claim = self.ledger.claim(g.bytes());
             f.lumped = Some((g, claim));
             // The layered Dirichlet preconditioner is weighed against the
-            // cost of a product with K's factor: none on the host's solves.
-            let Some(factor) = f.factor() else { return };
+            // cost of a product with K's factor.
+            let Some(factor) = f.factor() else {
+                // On the host's solves: weighed against a solve that reads
+                // at least K's lower triangle.
+                let l_nnz = (k.nnz() + k.nrows) / 2;
+                let (threads, ledger) = (self.threads.clone(), self.ledger.clone());
+                f.dirichlet = crate::dirichlet::Plan::within(k, &self.rows, l_nnz, threads, ledger)
+                    .and_then(|p| p.form(&self.ledger));
+                return;
+            };
             let plan = layer.or_else(|| {
                 crate::dirichlet::Plan::of(
                     k,

@@ -22,8 +22,17 @@ use std::ffi::c_void;
 /// reported the same way. The library calls it only from the thread that
 /// called into the handle, one call at a time; it must not call into the same
 /// handle, and must not longjmp out of (or throw a C++ exception through) the
-/// library. Under MPI every rank calls it the same number of times, in the
-/// same order (a collective solve may be used).
+/// library.
+///
+/// SPMD over MPI: every rank creates its handle with the same N, T, K (or
+/// none), options and load, and runs the same calls. The library's contact
+/// iteration then takes the same branches on every rank and calls `solve` the
+/// same number of times, in the same order, so the callback may be a
+/// collective distributed solve (a PETSc KSP); given bitwise identical
+/// outputs of the callback on every rank, and threads = 1 in the options,
+/// every rank computes bitwise identical multipliers and u
+/// (c_examples/petsc_operator.c checks it on 2 ranks). With more threads the
+/// library's own parallel kernels may sum in another order on each rank.
 pub type DsHostSolveFn = Option<
     unsafe extern "C" fn(context: *mut c_void, n: i64, ncols: i64, x: *mut f64, ld: i64) -> i32,
 >;
