@@ -64,6 +64,8 @@ clean-c:
 #   make fortran-minimal                  build and run c_examples/minimal.f90 (gfortran)
 #   make suitesparse-demo [DEMO_ARGS=...] build and run c_examples/suitesparse_block2d.c
 #                                         (CHOLMOD + CXSparse: libsuitesparse-dev)
+#   make fortran-host                     build and run c_examples/host_solver.f90 (the
+#                                         library on a Fortran callback's solves)
 #   make cholmod-operator-demo [DEMO_ARGS=...] build and run c_examples/cholmod_operator.c
 #                                         (the library on CHOLMOD's solves)
 #   make petsc-operator-demo [NP=2] [DEMO_ARGS=...] build and run c_examples/petsc_operator.c
@@ -112,7 +114,7 @@ MPICC              ?= mpicc
 MPIRUN             ?= OMPI_ALLOW_RUN_AS_ROOT=1 OMPI_ALLOW_RUN_AS_ROOT_CONFIRM=1 mpirun --oversubscribe
 NP                 ?= 2
 
-.PHONY: install install-lib uninstall fortran-demo fortran-minimal suitesparse-demo cholmod-operator-demo petsc-operator-demo \
+.PHONY: install install-lib uninstall fortran-demo fortran-minimal fortran-host suitesparse-demo cholmod-operator-demo petsc-operator-demo \
         mumps-demo mumps-mpi-demo
 
 # Builds libdualsplit.{so,a,rlib} in one rustc call; the link argument only affects
@@ -162,6 +164,9 @@ fortran-demo: $(FOUTDIR)/block2d_f
 
 fortran-minimal: $(FOUTDIR)/minimal_f
 	$(abspath $(FOUTDIR)/minimal_f)
+
+fortran-host: $(FOUTDIR)/host_solver_f
+	$(abspath $(FOUTDIR)/host_solver_f)
 
 $(OUTDIR)/suitesparse_block2d: c_examples/suitesparse_block2d.c c_examples/block2d_scene.h include/dualsplit.h $(LIBDS) | $(OUTDIR)
 	$(CC) $(CPPFLAGS) $(SUITESPARSE_CFLAGS) $(CFLAGS) -o $@ c_examples/suitesparse_block2d.c \

@@ -521,6 +521,54 @@ int main(void)
 }
 "#;
 
+/// c_examples/host_solver.f90: the library on a Fortran BIND(C) callback's
+/// solves of K gives the hand-derived answer (lambda_N = 8, lambda_T = 0.4,
+/// u = (0.3, -0.5)), a callback returning 5 gives DS_STATUS_HOST_SOLVE_FAILED
+/// (16) with the code in the message and the outputs untouched, and the same
+/// handle solves again.
+#[test]
+fn host_solver_example_runs() {
+    let src = manifest_dir().join("c_examples/host_solver.f90");
+    let Some(exe) = build_fortran(
+        "fortran::host_solver_example_runs",
+        &src,
+        "host_solver_f",
+        &[],
+        Link::Library,
+    ) else {
+        return;
+    };
+    let stdout = stdout_of(&run_ok(&mut Command::new(&exe), "host_solver_f"));
+    println!("{stdout}");
+    assert!(stdout.contains("host_solver_f: ok"), "{stdout}");
+    let result: Vec<f64> = stdout
+        .lines()
+        .find_map(|l| l.strip_prefix("RESULT"))
+        .expect("a RESULT line")
+        .split_whitespace()
+        .map(|t| t.parse().expect("a number"))
+        .collect();
+    for (k, w) in [8.0, 0.4, 0.3, -0.5].iter().enumerate() {
+        assert!(
+            (result[k] - w).abs() <= 1e-12,
+            "RESULT[{k}] = {}",
+            result[k]
+        );
+    }
+    let failed = stdout
+        .lines()
+        .find_map(|l| l.strip_prefix("FAILED "))
+        .expect("a FAILED line");
+    assert!(
+        failed.starts_with("16 ") && failed.contains("code 5"),
+        "{failed}"
+    );
+    assert!(
+        stdout.lines().any(|l| l.starts_with("AGAIN 0 ")),
+        "{stdout}"
+    );
+}
+
 #[test]
 fn minimal_example_runs() {
     let src = manifest_dir().join("c_examples/minimal.f90");
