@@ -50,7 +50,7 @@ end module host_callbacks
 program host_solver_f
    use dualsplit
    use host_callbacks
-   use, intrinsic :: iso_c_binding, only: c_int32_t, c_loc, c_funloc
+   use, intrinsic :: iso_c_binding, only: c_int32_t, c_loc, c_funloc, c_null_funptr
    implicit none
 
    integer, target :: nia(2) = [1, 2], nja(1) = [2]   ! N = [0 -1], 1-based CSR
@@ -75,6 +75,7 @@ program host_solver_f
    solver%n = 2
    solver%solve = c_funloc(diagonal_solve)
    solver%context = c_loc(host)
+   solver%inverse_entries = c_null_funptr     ! the contact blocks by solves
    n = ds_matrix_csr(1, 2, nia, nja, na)
    t = ds_matrix_csr(1, 2, tia, tja, ta)
    call ds_options_default(opts)

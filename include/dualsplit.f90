@@ -221,17 +221,19 @@ module dualsplit
 
    !> The host's own solver of K for ds_problem_new_host (0.9): set struct_size
    !> to DS_HOST_SOLVER_SIZE, n, solve = c_funloc(a BIND(C) function with the
-   !> interface ds_host_solve_fn) and context (c_null_ptr, or c_loc of the
-   !> host's data, valid until the handle is freed).
+   !> interface ds_host_solve_fn), context (c_null_ptr, or c_loc of the
+   !> host's data, valid until the handle is freed) and inverse_entries
+   !> (c_null_funptr, or a function with the interface ds_host_inverse_fn).
    type, bind(C), public :: DsHostSolver
       integer(c_int32_t) :: struct_size   !< uint32_t in C: sizeof(DsHostSolver)
       integer(c_int64_t) :: n             !< DOFs of K, >= 1
       type(c_funptr)     :: solve         !< DsHostSolveFn: x := K^-1 x (required)
       type(c_ptr)        :: context       !< passed back to solve unchanged
+      type(c_funptr)     :: inverse_entries !< DsHostInverseFn or c_null_funptr (optional)
    end type DsHostSolver
 
    !> sizeof(DsHostSolver) in C (tests/fortran.rs checks it).
-   integer(c_int32_t), parameter, public :: DS_HOST_SOLVER_SIZE = 32
+   integer(c_int32_t), parameter, public :: DS_HOST_SOLVER_SIZE = 40
 
    ! ---------------------------------------------------------------------------------
    ! Callbacks (DsMonitorFn, DsLogFn): write them as BIND(C) procedures of a module
@@ -276,6 +278,18 @@ module dualsplit
          real(c_double), intent(inout) :: x(ld, *)
          integer(c_int32_t) :: code
       end function ds_host_solve_fn
+
+      !> typedef int32_t (*DsHostInverseFn)(void *context, int64_t count,
+      !>     const int64_t *rows, const int64_t *cols, double *values);
+      !> values(k) := (K^-1)(rows(k) + 1, cols(k) + 1): 0-based DOFs.
+      function ds_host_inverse_fn(context, count, rows, cols, values) result(code) bind(C)
+         import :: c_int32_t, c_int64_t, c_double, c_ptr
+         type(c_ptr), value :: context
+         integer(c_int64_t), value :: count
+         integer(c_int64_t), intent(in) :: rows(*), cols(*)
+         real(c_double), intent(out) :: values(*)
+         integer(c_int32_t) :: code
+      end function ds_host_inverse_fn
    end interface
    public :: ds_monitor_fn, ds_log_fn
 

@@ -346,6 +346,22 @@ typedef struct DsProblem DsProblem;
 typedef int32_t (*DsHostSolveFn)(void *context, int64_t n, int64_t ncols, double *x, int64_t ld);
 
 /*
+ Optional: the entries of K^-1 at given positions, as a direct solver with
+ selected inversion computes them (MUMPS's ICNTL(30), PETSc's
+ MatMumpsGetInverse, PARDISO's selected inversion): entry k of values :=
+ the entry of K^-1 at row (entry k of rows) and column (entry k of cols),
+ for k < count, 0-based DOFs, row <= column.
+ Called once at creation (and by ds_problem_set_contacts) for the DOFs of
+ each contact with each other, instead of d m solves. Return 0, or an error
+ code as DsHostSolveFn does; the same rules of calling apply.
+ */
+typedef int32_t (*DsHostInverseFn)(void *context,
+                                   int64_t count,
+                                   const int64_t *rows,
+                                   const int64_t *cols,
+                                   double *values);
+
+/*
  The host's solver of K, handed to ds_problem_new_host. Set struct_size =
  sizeof(DsHostSolver): later versions may add optional callbacks at the end
  and will accept this size.
@@ -368,6 +384,10 @@ typedef struct DsHostSolver {
    valid until the handle is freed.
    */
   void *context;
+  /*
+   Entries of K^-1 (optional, NULL: the contacts' blocks by solves).
+   */
+  DsHostInverseFn inverse_entries;
 } DsHostSolver;
 
 /*
@@ -830,8 +850,9 @@ extern "C" {
  or PARDISO factor it holds, a PETSc KSP over MPI) instead of a factor of
  the library's. The dual is matrix-free: every product with the condensed
  operator, the right-hand side and the recovery of u is one call of
- solver->solve; the contacts' d x d diagonal blocks of A are formed here by
- d m solves, 32 right-hand sides per call. ds_solve and ds_step then work
+ solver->solve; the contacts' d x d diagonal blocks of A are formed here
+ from solver->inverse_entries where given (one call), else by d m solves,
+ 32 right-hand sides per call. ds_solve and ds_step then work
  as on any handle, with the methods that need no entries of A (AUTO, NEWTON,
  MPRGP; the others, and dual_form DENSE, return DS_STATUS_BAD_ARGUMENT);
  ds_problem_refactor returns DS_STATUS_BAD_ARGUMENT (refactor on the host's

@@ -24,6 +24,22 @@ pub trait KSolve: Send {
     /// K^-1 x. `Err(code)` reports a failure with the host's own code, which
     /// the library passes on in its error message.
     fn solve(&mut self, x: &mut [f64], ncols: usize) -> std::result::Result<(), i32>;
+
+    /// Optional: entry k of `values` := the entry of K^-1 at (entry k of
+    /// `rows`, entry k of `cols`) for every k (0-based
+    /// DOFs, as MUMPS's selected inversion, ICNTL(30), or PETSc's
+    /// MatMumpsGetInverse compute them). `None` (the default): not offered;
+    /// the library then forms the contacts' blocks by solves. `Some(Err(code))`
+    /// reports a failure as [`KSolve::solve`] does.
+    fn inverse_entries(
+        &mut self,
+        rows: &[usize],
+        cols: &[usize],
+        values: &mut [f64],
+    ) -> Option<std::result::Result<(), i32>> {
+        let _ = (rows, cols, values);
+        None
+    }
 }
 
 /// What the host's solver did for one problem: calls, right-hand sides,
@@ -32,6 +48,7 @@ pub trait KSolve: Send {
 struct Ledger {
     calls: usize,
     columns: usize,
+    entries: usize,
     seconds: f64,
     failure: Option<Error>,
 }
@@ -51,6 +68,8 @@ pub(crate) struct Counts {
     pub calls: usize,
     /// Right-hand sides solved, over all calls.
     pub columns: usize,
+    /// Entries of K^-1 the host gave (`KSolve::inverse_entries`).
+    pub entries: usize,
     /// Seconds inside the host's solve.
     pub seconds: f64,
 }
@@ -114,6 +133,47 @@ impl Host {
         }
     }
 
+    /// The entries of K^-1 at (`rows`, `cols`) into `values` by the host where it offers
+    /// them (None where it does not); failures as for [`Host::solve`].
+    pub(crate) fn inverse_entries(
+        &self,
+        rows: &[usize],
+        cols: &[usize],
+        values: &mut [f64],
+    ) -> Option<Result<()>> {
+        let mut ledger = self.ledger.lock().unwrap_or_else(|e| e.into_inner());
+        if let Some(e) = &ledger.failure {
+            return Some(Err(e.clone()));
+        }
+        let start = Instant::now();
+        let outcome = {
+            let mut solver = self.solver.lock().unwrap_or_else(|e| e.into_inner());
+            solver.inverse_entries(rows, cols, values)?
+        };
+        ledger.seconds += start.elapsed().as_secs_f64();
+        ledger.entries += rows.len();
+        let failure = match outcome {
+            Err(code) => Some(format!(
+                "the host's entries of K^-1 failed with its code {code} ({} entries asked)",
+                rows.len()
+            )),
+            Ok(()) => values.iter().position(|v| !v.is_finite()).map(|p| {
+                format!(
+                    "the host's entry ({}, {}) of K^-1 is {}",
+                    rows[p], cols[p], values[p]
+                )
+            }),
+        };
+        Some(match failure {
+            Some(message) => {
+                let e = Error::new(ErrorKind::HostSolve, message);
+                ledger.failure = Some(e.clone());
+                Err(e)
+            }
+            None => Ok(()),
+        })
+    }
+
     /// The failure latched since the last [`Host::clear`], if any.
     pub(crate) fn failure(&self) -> Option<Error> {
         self.ledger
@@ -137,6 +197,7 @@ impl Host {
         Counts {
             calls: l.calls,
             columns: l.columns,
+            entries: l.entries,
             seconds: l.seconds,
         }
     }

@@ -153,7 +153,7 @@ fn fortran_type_of(c_type: &str) -> &'static str {
         "int32_t" | "uint32_t" => "integer(c_int32_t)",
         "int64_t" | "uint64_t" => "integer(c_int64_t)",
         "double" => "real(c_double)",
-        "DsHostSolveFn" => "type(c_funptr)",
+        "DsHostSolveFn" | "DsHostInverseFn" => "type(c_funptr)",
         other => panic!("no Fortran type known for the C field type {other}"),
     }
 }
@@ -467,7 +467,8 @@ const LAYOUT_F90: &str = r#"program layout
       off(c_loc(i), c_loc(i%compliant_contacts)), off(c_loc(i), c_loc(i%power_law_contacts))
    write (*, '(a,99(1x,i0))') 'DS_INFO_SIZE', DS_INFO_SIZE
    write (*, '(a,99(1x,i0))') 'DsHostSolver', c_sizeof(h), off(c_loc(h), c_loc(h%struct_size)), &
-      off(c_loc(h), c_loc(h%n)), off(c_loc(h), c_loc(h%solve)), off(c_loc(h), c_loc(h%context))
+      off(c_loc(h), c_loc(h%n)), off(c_loc(h), c_loc(h%solve)), off(c_loc(h), c_loc(h%context)), &
+      off(c_loc(h), c_loc(h%inverse_entries))
    write (*, '(a,99(1x,i0))') 'DS_HOST_SOLVER_SIZE', DS_HOST_SOLVER_SIZE
 contains
    integer function off(base, field)
@@ -513,9 +514,9 @@ int main(void)
            O(DsInfo, analyse_seconds), O(DsInfo, compliant_contacts),
            O(DsInfo, power_law_contacts));
     printf("DS_INFO_SIZE %d\n", (int)sizeof(DsInfo));
-    printf("DsHostSolver %d %d %d %d %d\n", (int)sizeof(DsHostSolver),
+    printf("DsHostSolver %d %d %d %d %d %d\n", (int)sizeof(DsHostSolver),
            O(DsHostSolver, struct_size), O(DsHostSolver, n), O(DsHostSolver, solve),
-           O(DsHostSolver, context));
+           O(DsHostSolver, context), O(DsHostSolver, inverse_entries));
     printf("DS_HOST_SOLVER_SIZE %d\n", (int)sizeof(DsHostSolver));
     return 0;
 }

@@ -50,12 +50,61 @@ impl KSolve for Host {
     }
 }
 
+/// A host that also gives entries of K^-1 (as a direct solver's selected
+/// inversion does), here column by column from its factor; `fail` makes
+/// that call fail with code 9.
+struct WithEntries {
+    host: Host,
+    entries: Arc<AtomicUsize>,
+    fail: bool,
+}
+
+impl KSolve for WithEntries {
+    fn n(&self) -> usize {
+        self.host.n
+    }
+
+    fn solve(&mut self, x: &mut [f64], ncols: usize) -> Result<(), i32> {
+        self.host.solve(x, ncols)
+    }
+
+    fn inverse_entries(
+        &mut self,
+        rows: &[usize],
+        cols: &[usize],
+        values: &mut [f64],
+    ) -> Option<Result<(), i32>> {
+        if self.fail {
+            return Some(Err(9));
+        }
+        let n = self.host.n;
+        let mut e = vec![0.0; n];
+        let mut last = usize::MAX;
+        for k in 0..rows.len() {
+            if cols[k] != last {
+                e.iter_mut().for_each(|v| *v = 0.0);
+                e[cols[k]] = 1.0;
+                self.host.factor.solve_vec(&mut e);
+                last = cols[k];
+            }
+            values[k] = e[rows[k]];
+        }
+        self.entries.fetch_add(rows.len(), Ordering::SeqCst);
+        Some(Ok(()))
+    }
+}
+
 struct Handles {
     calls: Arc<AtomicUsize>,
     fail_at: Arc<AtomicUsize>,
 }
 
 fn host(scene: &Scene, nan: bool) -> (Box<dyn KSolve>, Handles) {
+    let (h, handles) = concrete_host(scene, nan);
+    (Box::new(h), handles)
+}
+
+fn concrete_host(scene: &Scene, nan: bool) -> (Host, Handles) {
     let calls = Arc::new(AtomicUsize::new(0));
     let fail_at = Arc::new(AtomicUsize::new(0));
     let h = Host {
@@ -65,7 +114,7 @@ fn host(scene: &Scene, nan: bool) -> (Box<dyn KSolve>, Handles) {
         fail_at: fail_at.clone(),
         nan,
     };
-    (Box::new(h), Handles { calls, fail_at })
+    (h, Handles { calls, fail_at })
 }
 
 fn on_host(scene: &Scene, with_k: bool, nan: bool, opts: &Options) -> (ContactProblem, Handles) {
@@ -406,4 +455,62 @@ fn bad_sizes_and_methods_that_need_entries_are_refused() {
         (0, scene.k.nrows, scene.m())
     );
     assert_eq!(info.setup_form, DualForm::MatrixFree);
+}
+
+/// A host that gives entries of K^-1: the blocks come from one call of it
+/// (no solve at creation), and the answers are the own path's; a failing
+/// entries call fails the creation with its code.
+#[test]
+fn the_contact_blocks_from_the_hosts_entries_of_the_inverse() {
+    let scene = scene_3d();
+    let mu = vec![0.3; scene.m()];
+    let friction = Friction::Coulomb(&mu);
+    let opts = with(Method::Auto);
+    let own = scene
+        .problem()
+        .solve(&scene.f, &scene.g, friction, &opts)
+        .unwrap();
+    let (n_owned, t_owned) = (Owned::of(&scene.n), Owned::of(&scene.t));
+    for fail in [false, true] {
+        let (inner, handles) = concrete_host(&scene, false);
+        let entries = Arc::new(AtomicUsize::new(0));
+        let with = WithEntries {
+            host: inner,
+            entries: entries.clone(),
+            fail,
+        };
+        let made = ContactProblem::with_host_solver(
+            3,
+            Box::new(with),
+            None,
+            &n_owned.view(),
+            &t_owned.view(),
+            &opts,
+        );
+        if fail {
+            let e = made.err().expect("the entries call fails");
+            assert_eq!(e.kind, ErrorKind::HostSolve);
+            assert!(e.message.contains("code 9"), "{}", e.message);
+            continue;
+        }
+        let mut pb = made.unwrap();
+        assert_eq!(
+            handles.calls.load(Ordering::SeqCst),
+            0,
+            "no solve at creation"
+        );
+        // Node-to-node contacts: 3 DOFs each, 6 pairs p <= q.
+        assert_eq!(entries.load(Ordering::SeqCst), 6 * scene.m());
+        let sol = pb.solve(&scene.f, &scene.g, friction, &opts).unwrap();
+        assert_converged("blocks from entries", &sol);
+        kkt_of(&scene, friction, &sol).assert_ok("blocks from entries", 1e-8);
+        assert_agree("blocks from entries", &own, &sol, 1e-8);
+        // The same blocks as by solves (to rounding): the same iterations.
+        let (mut by_solves, _) = on_host(&scene, false, false, &opts);
+        let b = by_solves
+            .solve(&scene.f, &scene.g, friction, &opts)
+            .unwrap();
+        assert_eq!(sol.report.outer_iterations, b.report.outer_iterations);
+        assert_eq!(sol.report.inner_iterations, b.report.inner_iterations);
+    }
 }

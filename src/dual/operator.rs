@@ -443,7 +443,8 @@ fn row_of(i: usize, l: usize, m: usize, d: usize) -> usize {
 }
 
 /// The contacts' d x d diagonal blocks of A = B K^-1 B^T (row-major, contact
-/// by contact) by the host's solves: the rows of B ([`BLOCK`] at a time, as
+/// by contact) from the host: from its entries of K^-1 where it offers them
+/// ([`blocks_from_entries`]), else by its solves: the rows of B ([`BLOCK`] at a time, as
 /// columns of B^T, `bt`) solved with K, each solution read by its own
 /// contact's rows. c solves in all, exactly the blocks (up to the host's
 /// solve), and symmetrised.
@@ -455,6 +456,9 @@ pub(super) fn host_blocks(
     m: usize,
     d: usize,
 ) -> Result<Vec<f64>> {
+    if let Some(blocks) = blocks_from_entries(host, bt, m, d) {
+        return blocks;
+    }
     let (n, c) = (host.n(), bt.ncols);
     let mut blocks = try_zeros(m * d * d, "the contacts' diagonal blocks")?;
     let mut x: Vec<f64> = try_zeros(
@@ -496,4 +500,82 @@ pub(super) fn host_blocks(
         }
     }
     Ok(blocks)
+}
+
+/// The contacts' blocks from the host's entries of K^-1 (None where it
+/// offers none): per contact i, the DOFs S_i its d rows touch, the entries
+/// (p, q) of K^-1 for p <= q in S_i asked in one call, and block (la, lb) =
+/// sum over p, q in S_i of B_la,p (K^-1)_pq B_lb,q.
+fn blocks_from_entries(
+    host: &crate::host::Host,
+    bt: &Csc,
+    m: usize,
+    d: usize,
+) -> Option<Result<Vec<f64>>> {
+    // Each contact's DOFs, sorted, and the pairs p <= q among them.
+    let mut dofs: Vec<Vec<usize>> = Vec::with_capacity(m);
+    let (mut rows, mut cols) = (Vec::new(), Vec::new());
+    for i in 0..m {
+        let mut s: Vec<usize> = (0..d)
+            .flat_map(|l| {
+                let r = row_of(i, l, m, d);
+                bt.row_idx[bt.col_ptr[r]..bt.col_ptr[r + 1]].iter().copied()
+            })
+            .collect();
+        s.sort_unstable();
+        s.dedup();
+        for (a, &p) in s.iter().enumerate() {
+            for &q in &s[a..] {
+                rows.push(p);
+                cols.push(q);
+            }
+        }
+        dofs.push(s);
+    }
+    let mut values = vec![0.0; rows.len()];
+    if let Err(e) = host.inverse_entries(&rows, &cols, &mut values)? {
+        return Some(Err(e));
+    }
+    let mut blocks = vec![0.0; m * d * d];
+    let mut at = 0;
+    let (mut dense, mut ca, mut cb) = (Vec::new(), Vec::new(), Vec::new());
+    for (i, s) in dofs.iter().enumerate() {
+        // K^-1 on S_i, dense and symmetric.
+        let k = s.len();
+        dense.clear();
+        dense.resize(k * k, 0.0);
+        for a in 0..k {
+            for b in a..k {
+                dense[a * k + b] = values[at];
+                dense[b * k + a] = values[at];
+                at += 1;
+            }
+        }
+        for la in 0..d {
+            row_on_dofs(bt, row_of(i, la, m, d), s, &mut ca);
+            for lb in 0..d {
+                row_on_dofs(bt, row_of(i, lb, m, d), s, &mut cb);
+                let mut v = 0.0;
+                for a in 0..k {
+                    for b in 0..k {
+                        v += ca[a] * dense[a * k + b] * cb[b];
+                    }
+                }
+                blocks[i * d * d + la * d + lb] = v;
+            }
+        }
+    }
+    Some(Ok(blocks))
+}
+
+/// Row r of B (column r of `bt`) on the sorted DOFs `s`, which hold its
+/// nonzeros, into `coef`.
+fn row_on_dofs(bt: &Csc, r: usize, s: &[usize], coef: &mut Vec<f64>) {
+    coef.clear();
+    coef.resize(s.len(), 0.0);
+    for q in bt.col_ptr[r]..bt.col_ptr[r + 1] {
+        if let Ok(pos) = s.binary_search(&bt.row_idx[q]) {
+            coef[pos] += bt.values[q];
+        }
+    }
 }

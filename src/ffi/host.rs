@@ -37,6 +37,24 @@ pub type DsHostSolveFn = Option<
     unsafe extern "C" fn(context: *mut c_void, n: i64, ncols: i64, x: *mut f64, ld: i64) -> i32,
 >;
 
+/// Optional: the entries of K^-1 at given positions, as a direct solver with
+/// selected inversion computes them (MUMPS's ICNTL(30), PETSc's
+/// MatMumpsGetInverse, PARDISO's selected inversion): entry k of values :=
+/// the entry of K^-1 at row (entry k of rows) and column (entry k of cols),
+/// for k < count, 0-based DOFs, row <= column.
+/// Called once at creation (and by ds_problem_set_contacts) for the DOFs of
+/// each contact with each other, instead of d m solves. Return 0, or an error
+/// code as DsHostSolveFn does; the same rules of calling apply.
+pub type DsHostInverseFn = Option<
+    unsafe extern "C" fn(
+        context: *mut c_void,
+        count: i64,
+        rows: *const i64,
+        cols: *const i64,
+        values: *mut f64,
+    ) -> i32,
+>;
+
 /// The host's solver of K, handed to ds_problem_new_host. Set struct_size =
 /// sizeof(DsHostSolver): later versions may add optional callbacks at the end
 /// and will accept this size.
@@ -52,12 +70,15 @@ pub struct DsHostSolver {
     /// Passed to `solve` unchanged; the library never reads it. Must stay
     /// valid until the handle is freed.
     pub context: *mut c_void,
+    /// Entries of K^-1 (optional, NULL: the contacts' blocks by solves).
+    pub inverse_entries: DsHostInverseFn,
 }
 
 /// The callback as the safe core sees it.
 struct CHost {
     n: usize,
     solve: unsafe extern "C" fn(*mut c_void, i64, ncols: i64, *mut f64, i64) -> i32,
+    inverse: DsHostInverseFn,
     context: *mut c_void,
 }
 
@@ -78,6 +99,29 @@ impl KSolve for CHost {
         // caller's, passed back unchanged.
         let rc = unsafe { (self.solve)(self.context, n, ncols as i64, x.as_mut_ptr(), n) };
         if rc == 0 { Ok(()) } else { Err(rc) }
+    }
+
+    fn inverse_entries(
+        &mut self,
+        rows: &[usize],
+        cols: &[usize],
+        values: &mut [f64],
+    ) -> Option<std::result::Result<(), i32>> {
+        let f = self.inverse?;
+        let r: Vec<i64> = rows.iter().map(|&v| v as i64).collect();
+        let c: Vec<i64> = cols.iter().map(|&v| v as i64).collect();
+        // SAFETY: rows, cols and values hold `count` entries each, as the
+        // callback's contract states; the context is the caller's.
+        let rc = unsafe {
+            f(
+                self.context,
+                r.len() as i64,
+                r.as_ptr(),
+                c.as_ptr(),
+                values.as_mut_ptr(),
+            )
+        };
+        Some(if rc == 0 { Ok(()) } else { Err(rc) })
     }
 }
 
@@ -114,6 +158,7 @@ fn host_of(s: &DsHostSolver) -> Result<CHost> {
     Ok(CHost {
         n,
         solve,
+        inverse: s.inverse_entries,
         context: s.context,
     })
 }
@@ -122,8 +167,9 @@ fn host_of(s: &DsHostSolver) -> Result<CHost> {
 /// or PARDISO factor it holds, a PETSc KSP over MPI) instead of a factor of
 /// the library's. The dual is matrix-free: every product with the condensed
 /// operator, the right-hand side and the recovery of u is one call of
-/// solver->solve; the contacts' d x d diagonal blocks of A are formed here by
-/// d m solves, 32 right-hand sides per call. ds_solve and ds_step then work
+/// solver->solve; the contacts' d x d diagonal blocks of A are formed here
+/// from solver->inverse_entries where given (one call), else by d m solves,
+/// 32 right-hand sides per call. ds_solve and ds_step then work
 /// as on any handle, with the methods that need no entries of A (AUTO, NEWTON,
 /// MPRGP; the others, and dual_form DENSE, return DS_STATUS_BAD_ARGUMENT);
 /// ds_problem_refactor returns DS_STATUS_BAD_ARGUMENT (refactor on the host's

@@ -37,7 +37,7 @@ mod status;
 mod types;
 mod version;
 
-pub use host::{DsHostSolveFn, DsHostSolver, ds_problem_new_host};
+pub use host::{DsHostInverseFn, DsHostSolveFn, DsHostSolver, ds_problem_new_host};
 pub use info::{DsInfo, ds_analyse, ds_problem_info};
 pub use last_error::ds_last_error_message;
 pub use matrix::DsMatrix;
