@@ -19,7 +19,9 @@
  * (default 1e-8; 1e-10 with the direct solve measured 1e-13).
  *
  * Options: --nx N --ny N --nz N (default 24 x 24 x 4), --iterative (CG + GAMG,
- * rtol 1e-13, instead of MUMPS's Cholesky), --no-k (K not handed over to the
+ * rtol 1e-13, instead of MUMPS's Cholesky), --mumps-inverse (the contacts'
+ * blocks from MUMPS's selected entries of K^-1, DsHostSolver.inverse_entries,
+ * instead of d m solves; direct solve only), --no-k (K not handed over to the
  * library), --no-serial (skip the own-path check: large blocks), --check-tol t,
  * --quiet.
  *
@@ -54,9 +56,12 @@
 #define N_HIST (N_PRESS + N_SHEAR)
 
 /* What the callback needs: the KSP, its vectors, the scatter of a solution to
-   every rank, and what it did. */
+   every rank, and what it did; with --mumps-inverse the MUMPS factor for the
+   entries of K^-1 (MatMumpsGetInverseTranspose). */
 typedef struct {
     KSP ksp;
+    Mat factor;
+    long entries;
     Vec b, x, all;
     VecScatter to_all;
     PetscInt lo, hi;
@@ -90,6 +95,53 @@ static int32_t ksp_solve_cb(void *context, int64_t n, int64_t ncols, double *x, 
         if (VecRestoreArrayRead(h->all, &pa)) return -3;
     }
     h->solves += (long)ncols;
+    h->seconds += MPI_Wtime() - t0;
+    return 0;
+}
+
+/* DsHostInverseFn: values[k] := entry (rows[k], cols[k]) of K^-1 by MUMPS's
+   selected inversion (ICNTL(30)); collective. The requested pattern goes in
+   as a sparse matrix held by rank 0, which receives the entries in place
+   and broadcasts them. */
+static int32_t mumps_inverse_cb(void *context, int64_t count, const int64_t *rows,
+                                const int64_t *cols, double *values)
+{
+    Host *h = (Host *)context;
+    double t0 = MPI_Wtime();
+    PetscMPIInt rank;
+    PetscInt nglob, k;
+    Mat spt;
+    MPI_Comm_rank(PETSC_COMM_WORLD, &rank);
+    if (MatGetSize(h->factor, &nglob, NULL)) return -10;
+    if (MatCreate(PETSC_COMM_WORLD, &spt)) return -10;
+    if (MatSetSizes(spt, rank == 0 ? nglob : 0, rank == 0 ? nglob : 0, nglob, nglob)) return -10;
+    if (MatSetType(spt, MATAIJ) || MatSetUp(spt)) return -10;
+    MatSetOption(spt, MAT_NEW_NONZERO_ALLOCATION_ERR, PETSC_FALSE);
+    if (rank == 0)
+        for (k = 0; k < count; k++) {
+            PetscInt r = (PetscInt)rows[k], c = (PetscInt)cols[k];
+            if (MatSetValue(spt, r, c, 1.0, INSERT_VALUES)) return -11;
+        }
+    if (MatAssemblyBegin(spt, MAT_FINAL_ASSEMBLY) || MatAssemblyEnd(spt, MAT_FINAL_ASSEMBLY))
+        return -11;
+    if (MatMumpsGetInverseTranspose(h->factor, spt)) return -12;
+    /* Back to plain solves: dense right-hand side, the solution distributed
+       over the ranks as PETSc's MatSolve_MUMPS expects it. */
+    {
+        PetscMPIInt size;
+        MPI_Comm_size(PETSC_COMM_WORLD, &size);
+        if (MatMumpsSetIcntl(h->factor, 30, 0) || MatMumpsSetIcntl(h->factor, 20, 0) ||
+            MatMumpsSetIcntl(h->factor, 21, size > 1 ? 1 : 0))
+            return -12;
+    }
+    if (rank == 0)
+        for (k = 0; k < count; k++) {
+            PetscInt r = (PetscInt)rows[k], c = (PetscInt)cols[k];
+            if (MatGetValues(spt, 1, &r, 1, &c, &values[k])) return -13;
+        }
+    (void)MPI_Bcast(values, (int)count, MPI_DOUBLE, 0, PETSC_COMM_WORLD);
+    MatDestroy(&spt);
+    h->entries += (long)count;
     h->seconds += MPI_Wtime() - t0;
     return 0;
 }
@@ -157,7 +209,7 @@ int main(int argc, char **argv)
 {
     long nx = 24, ny = 24, nz = 4, nnode, nelem, ndof, neq, m, i, k, e, a, b, step;
     int rank, size, quiet = 0, iterative = 0, with_k = 1, serial = 1, exit_code = 0;
-    int identical = 1;
+    int identical = 1, mumps_inverse = 0;
     double check_tol = 1e-8, hx, hy, hz, lz, ke[24][24], delta, max_err = 0.0, max_dev = 0.0;
     double su = 0.0, sl = 0.0, library_seconds = 0.0, create_seconds, create_host;
     long create_solves;
@@ -185,6 +237,7 @@ int main(int argc, char **argv)
         else if (!strcmp(o, "--iterative")) iterative = 1;
         else if (!strcmp(o, "--no-k")) with_k = 0;
         else if (!strcmp(o, "--no-serial")) serial = 0;
+        else if (!strcmp(o, "--mumps-inverse")) mumps_inverse = 1;
         else if (k + 1 < argc && !strcmp(o, "--nx")) nx = atol(argv[++k]);
         else if (k + 1 < argc && !strcmp(o, "--ny")) ny = atol(argv[++k]);
         else if (k + 1 < argc && !strcmp(o, "--nz")) nz = atol(argv[++k]);
@@ -195,7 +248,7 @@ int main(int argc, char **argv)
             return 3;
         }
     }
-    if (nx < 1 || ny < 1 || nz < 1 || !(check_tol > 0)) {
+    if (nx < 1 || ny < 1 || nz < 1 || !(check_tol > 0) || (mumps_inverse && iterative)) {
         if (rank == 0) fprintf(stderr, "petsc_operator: bad sizes or tolerance\n");
         MPI_Finalize();
         return 3;
@@ -320,6 +373,9 @@ int main(int argc, char **argv)
         PCFactorSetMatSolverType(pc, MATSOLVERMUMPS);
     }
     if (KSPSetUp(host.ksp)) return 2;
+    host.factor = NULL;
+    host.entries = 0;
+    if (mumps_inverse && PCFactorGetMatrix(pc, &host.factor)) return 2;
     MatCreateVecs(A, &host.x, &host.b);
     if (VecScatterCreateToAll(host.x, &host.to_all, &host.all)) return 2;
     host.solves = 0;
@@ -336,6 +392,7 @@ int main(int argc, char **argv)
     solver.n = neq;
     solver.solve = ksp_solve_cb;
     solver.context = &host;
+    solver.inverse_entries = mumps_inverse ? mumps_inverse_cb : NULL;
     {
         double t0 = MPI_Wtime();
         st = ds_problem_new_host(3, &solver, with_k ? &km : NULL, &nm, &tm, &opts, &pb);
@@ -432,8 +489,9 @@ int main(int argc, char **argv)
     }
     if (rank == 0) {
         int ok = identical && max_err <= 1e-10 && max_dev <= check_tol;
-        printf("CREATE seconds=%.3f host_solves=%ld host_seconds=%.3f (the contact blocks)\n",
-               create_seconds, create_solves, create_host);
+        printf("CREATE seconds=%.3f host_solves=%ld host_entries=%ld host_seconds=%.3f "
+               "(the contact blocks)\n",
+               create_seconds, create_solves, host.entries, create_host);
         printf("SUMMARY ranks=%d dofs=%ld contacts=%ld dual=%ld steps=%d max_err=%.3e "
                "max_dev=%.3e identical=%d host_solves=%ld host_seconds=%.3f "
                "library_seconds=%.3f check=%s\n",

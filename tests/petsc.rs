@@ -6,7 +6,9 @@
 //! multipliers and u are bitwise those of rank 0 at every step, every step
 //! converged to err <= 1e-10, the answer is the library's own path on the
 //! whole K (rank 0, within 1e-8 relative: both solve to err 1e-10), and
-//! contacts open, stick and slip along the history.
+//! contacts open, stick and slip along the history; with the contacts'
+//! blocks from MUMPS's selected inversion (DsHostSolver.inverse_entries) the
+//! creation takes no solve.
 //!
 //! Needs PETSc and OpenMPI (Debian: petsc-dev openmpi-bin libopenmpi-dev).
 //! Without them the test prints SKIPPED with the install line and passes,
@@ -158,6 +160,25 @@ fn petsc_ksp_on_two_ranks_gives_bitwise_equal_ranks_and_the_own_answer() {
     check(
         &run(exe, &["--nx", "16", "--ny", "16", "--nz", "4"]),
         "direct",
+    );
+    // The contacts' blocks from MUMPS's selected entries of K^-1 instead of
+    // d m solves: no solve at creation.
+    let stdout = run(
+        exe,
+        &["--nx", "16", "--ny", "16", "--nz", "4", "--mumps-inverse"],
+    );
+    check(&stdout, "mumps-inverse");
+    let create = key_values(
+        stdout
+            .lines()
+            .find(|l| l.starts_with("CREATE "))
+            .expect("a CREATE line"),
+    );
+    assert_eq!(create["host_solves"], "0", "{stdout}");
+    assert_eq!(
+        create["host_entries"],
+        (6 * 17 * 17).to_string(),
+        "{stdout}"
     );
     // CG with algebraic multigrid, K not handed over (Jacobi in Newton's
     // reduced systems, K u_k from the last equilibrium).
