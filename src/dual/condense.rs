@@ -4,11 +4,6 @@
 
 use super::*;
 
-/// A zeroed rows x cols column-major array, or `OutOfMemory` naming `what`.
-pub(super) fn alloc_zeroed(rows: usize, cols: usize, what: &str) -> Result<Vec<f64>> {
-    crate::memory::try_zeros(rows.saturating_mul(cols), what)
-}
-
 /// A := B K^-1 B^T by blocks of solves with K's factor (c x c, column-major).
 /// Errors: `OutOfMemory` when the block of right-hand sides cannot be allocated.
 pub(super) fn a_by_solves(factor: &Factor, b: &Csc, a: &mut [f64]) -> Result<()> {

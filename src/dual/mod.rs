@@ -206,7 +206,7 @@ impl Dual {
                 rigid_diag: Vec::new(),
             });
         }
-        let mut a = alloc_zeroed(c, c, "condensed dual")?;
+        let mut a = try_zeros(c.saturating_mul(c), "condensed dual")?;
         let claim = ledger.claim_f64(c * c);
         match how {
             Condensation::Solves => a_by_solves(factor, &b, &mut a)?,
