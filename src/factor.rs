@@ -658,17 +658,13 @@ impl Factor {
     ///
     /// Errors: `OutOfMemory` when the copy cannot be allocated.
     pub(crate) fn single_values(&self) -> Result<Vec<f32>> {
-        let mut v = Vec::new();
-        if v.try_reserve_exact(self.l_values.len()).is_err() {
-            return fail(
-                ErrorKind::OutOfMemory,
-                format!(
-                    "the single-precision copy of the factor: the allocation of {} bytes failed",
-                    self.l_values.len() * 4
-                ),
-            );
+        let mut v: Vec<f32> = crate::memory::try_zeros(
+            self.l_values.len(),
+            "the single-precision copy of the factor",
+        )?;
+        for (s, &d) in v.iter_mut().zip(&self.l_values) {
+            *s = d as f32;
         }
-        v.extend(self.l_values.iter().map(|&v| v as f32));
         Ok(v)
     }
 
