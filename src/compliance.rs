@@ -55,6 +55,12 @@ fn check(
     Ok(())
 }
 
+/// Whether a contact with normal compliance `cn` and tangential stiffness
+/// `kt` is compliant: either is finite (+inf is the rigid law).
+pub(crate) fn compliant(cn: f64, kt: f64) -> bool {
+    cn.is_finite() || kt.is_finite()
+}
+
 impl Compliance {
     /// Rigid contacts (Signorini, rigid stick), m of them.
     pub fn rigid(m: usize) -> Compliance {
@@ -169,6 +175,13 @@ impl Compliance {
             s[i] = x.max(0.0) * (1.0 - 1.0 / e);
         }
         (shift, s)
+    }
+
+    /// The number of contacts with a compliant law ([`compliant`]).
+    pub fn compliant_count(&self) -> usize {
+        (0..self.cn.len())
+            .filter(|&i| compliant(self.cn[i], self.kt[i]))
+            .count()
     }
 
     /// True when every contact is rigid (D = 0).

@@ -722,13 +722,7 @@ fn info(args: &SolveArgs) -> ExitCode {
     };
     let mb = |b: usize| format!("{:.1} MB", b as f64 / 1e6);
     println!("{}", args.dir.display());
-    let law = &pf.interface;
-    let compliant = (0..i.m)
-        .filter(|&c| {
-            let finite = |v: &Option<Vec<f64>>| v.as_ref().is_some_and(|v| v[c].is_finite());
-            finite(&law.cn) || finite(&law.kt)
-        })
-        .count();
+    let compliant = pf.interface.compliant_contacts(i.m);
     println!(
         "  n = {}, m = {}, d = {}, c = {} dual unknowns, nnz(K) = {}",
         i.n, i.m, i.d, i.c, i.nnz_k

@@ -150,6 +150,15 @@ impl Interface {
     pub fn is_empty(&self) -> bool {
         self == &Interface::default()
     }
+
+    /// The number of the m contacts with a compliant law (a finite c_N or
+    /// k_T; a missing file is rigid), as a problem counts them.
+    pub fn compliant_contacts(&self, m: usize) -> usize {
+        let at = |v: &Option<Vec<f64>>, i: usize| v.as_ref().map_or(f64::INFINITY, |v| v[i]);
+        (0..m)
+            .filter(|&i| crate::compliance::compliant(at(&self.cn, i), at(&self.kt, i)))
+            .count()
+    }
 }
 
 /// One problem read from a folder by [`read_problem`].
