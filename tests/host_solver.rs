@@ -514,3 +514,53 @@ fn the_contact_blocks_from_the_hosts_entries_of_the_inverse() {
         assert_eq!(sol.report.inner_iterations, b.report.inner_iterations);
     }
 }
+
+/// `set_contacts` on the host's solves: the blocks are formed again for the
+/// new contacts (the first half of the bottom nodes), and the answer is the
+/// own path's with the same contacts.
+#[test]
+fn set_contacts_on_the_hosts_solves_matches_the_own_path() {
+    let scene = scene_2d();
+    let opts = with(Method::Auto);
+    let (mut pb, handles) = on_host(&scene, true, false, &opts);
+    let m = scene.m();
+    let half = m / 2;
+    // The first `half` rows of N and T (one tangent row per contact in 2D).
+    let keep = |a: &dualsplit::Csc| {
+        let mut b = a.clone();
+        b.nrows = half;
+        let mut p = vec![0usize];
+        let (mut ri, mut vx) = (Vec::new(), Vec::new());
+        for j in 0..a.ncols {
+            for k in a.col_ptr[j]..a.col_ptr[j + 1] {
+                if a.row_idx[k] < half {
+                    ri.push(a.row_idx[k]);
+                    vx.push(a.values[k]);
+                }
+            }
+            p.push(ri.len());
+        }
+        b.col_ptr = p;
+        b.row_idx = ri;
+        b.values = vx;
+        b
+    };
+    let (n2, t2) = (keep(&scene.n), keep(&scene.t));
+    let before = handles.calls.load(Ordering::SeqCst);
+    pb.set_contacts(&Owned::of(&n2).view(), &Owned::of(&t2).view())
+        .unwrap();
+    // d half right-hand sides, 32 per call.
+    let blocks = handles.calls.load(Ordering::SeqCst) - before;
+    assert_eq!(blocks, (2 * half).div_ceil(32));
+    let g = &scene.g[..half];
+    let mu = vec![0.3; half];
+    let friction = Friction::Coulomb(&mu);
+    let sol = pb.solve(&scene.f, g, friction, &opts).unwrap();
+    assert_converged("set_contacts on the host", &sol);
+    let mut own =
+        dualsplit::ContactProblem::from_csc_with(2, scene.k.clone(), n2.clone(), t2.clone(), &opts)
+            .unwrap();
+    let want = own.solve(&scene.f, g, friction, &opts).unwrap();
+    assert_converged("the own path", &want);
+    assert_agree("set_contacts on the host", &want, &sol, 1e-8);
+}

@@ -158,9 +158,12 @@ impl ContactProblem {
     ///
     /// The dual is matrix-free: each product with A is one call of the
     /// host's solve; the contacts' d x d diagonal blocks of A are formed here
-    /// by d m solves, 32 right-hand sides per call. The methods that read entries of A (and `DualForm::Dense`) are
-    /// refused with `BadArgument`; `refactor` too (refactor on the host's
-    /// side and create a new problem), and `write_folder` without K.
+    /// from the host's entries of K^-1 where it gives them
+    /// ([`KSolve::inverse_entries`], one call), else by d m solves, 32
+    /// right-hand sides per call. The methods that read entries of A (and
+    /// `DualForm::Dense`) are refused with `BadArgument`; `refactor` too
+    /// (refactor on the host's side and create a new problem), and
+    /// `write_folder` without K.
     ///
     /// Errors: `BadArgument` (d, options), `BadSize` (shapes against n),
     /// `BadIndex`, `NotFinite`, `NotSymmetric` (K), `HostSolve` (a solve
@@ -547,10 +550,7 @@ impl ContactProblem {
 
     /// The number of contacts with a compliant law (finite c_N or k_T).
     pub fn compliant_contacts(&self) -> usize {
-        let law = &self.compliance;
-        (0..law.cn.len())
-            .filter(|&i| law.cn[i].is_finite() || law.kt[i].is_finite())
-            .count()
+        self.compliance.compliant_count()
     }
 
     /// The checks every solve, step and dump makes of its data before any
