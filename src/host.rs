@@ -46,11 +46,23 @@ pub trait KSolve: Send {
 /// seconds inside it, and the failure latched since the last [`Host::clear`].
 #[derive(Default)]
 struct Ledger {
-    calls: usize,
-    columns: usize,
-    entries: usize,
-    seconds: f64,
+    counts: Counts,
     failure: Option<Error>,
+}
+
+impl Ledger {
+    /// Ok where `failure` is None; else latches it as a `HostSolve` error
+    /// and returns it.
+    fn latch(&mut self, failure: Option<String>) -> Result<()> {
+        match failure {
+            Some(message) => {
+                let e = Error::new(ErrorKind::HostSolve, message);
+                self.failure = Some(e.clone());
+                Err(e)
+            }
+            None => Ok(()),
+        }
+    }
 }
 
 /// The host's solver as a problem holds it: the callback, behind a lock (it
@@ -88,13 +100,18 @@ impl Host {
         self.n
     }
 
+    /// The ledger, locked (a poisoned lock still holds valid counters).
+    fn ledger(&self) -> std::sync::MutexGuard<'_, Ledger> {
+        self.ledger.lock().unwrap_or_else(|e| e.into_inner())
+    }
+
     /// x (n x ncols, column-major) := K^-1 x by the host. On a failure (the
     /// host's code, or a non-finite value in its output) the failure is
     /// latched and returned; while one is latched the host is not called
     /// again and x is left as given.
     pub(crate) fn solve(&self, x: &mut [f64], ncols: usize) -> Result<()> {
         debug_assert_eq!(x.len(), self.n * ncols);
-        let mut ledger = self.ledger.lock().unwrap_or_else(|e| e.into_inner());
+        let mut ledger = self.ledger();
         if let Some(e) = &ledger.failure {
             return Err(e.clone());
         }
@@ -103,34 +120,27 @@ impl Host {
             let mut solver = self.solver.lock().unwrap_or_else(|e| e.into_inner());
             solver.solve(x, ncols)
         };
-        ledger.seconds += start.elapsed().as_secs_f64();
-        ledger.calls += 1;
-        ledger.columns += ncols;
+        let counts = &mut ledger.counts;
+        counts.seconds += start.elapsed().as_secs_f64();
+        counts.calls += 1;
+        counts.columns += ncols;
+        let call = counts.calls;
         let failure = match outcome {
             Err(code) => Some(format!(
-                "the host's solve of K failed with its code {code} (call {} of this \
-                 problem, {ncols} right-hand sides)",
-                ledger.calls
+                "the host's solve of K failed with its code {code} (call {call} of this \
+                 problem, {ncols} right-hand sides)"
             )),
             Ok(()) => x.iter().position(|v| !v.is_finite()).map(|p| {
                 format!(
                     "the host's solve of K returned {} at row {} of right-hand side {} \
-                     (call {} of this problem)",
+                     (call {call} of this problem)",
                     x[p],
                     p % self.n.max(1),
                     p / self.n.max(1),
-                    ledger.calls
                 )
             }),
         };
-        match failure {
-            Some(message) => {
-                let e = Error::new(ErrorKind::HostSolve, message);
-                ledger.failure = Some(e.clone());
-                Err(e)
-            }
-            None => Ok(()),
-        }
+        ledger.latch(failure)
     }
 
     /// The entries of K^-1 at (`rows`, `cols`) into `values` by the host where it offers
@@ -141,7 +151,7 @@ impl Host {
         cols: &[usize],
         values: &mut [f64],
     ) -> Option<Result<()>> {
-        let mut ledger = self.ledger.lock().unwrap_or_else(|e| e.into_inner());
+        let mut ledger = self.ledger();
         if let Some(e) = &ledger.failure {
             return Some(Err(e.clone()));
         }
@@ -150,8 +160,8 @@ impl Host {
             let mut solver = self.solver.lock().unwrap_or_else(|e| e.into_inner());
             solver.inverse_entries(rows, cols, values)?
         };
-        ledger.seconds += start.elapsed().as_secs_f64();
-        ledger.entries += rows.len();
+        ledger.counts.seconds += start.elapsed().as_secs_f64();
+        ledger.counts.entries += rows.len();
         let failure = match outcome {
             Err(code) => Some(format!(
                 "the host's entries of K^-1 failed with its code {code} ({} entries asked)",
@@ -164,42 +174,22 @@ impl Host {
                 )
             }),
         };
-        Some(match failure {
-            Some(message) => {
-                let e = Error::new(ErrorKind::HostSolve, message);
-                ledger.failure = Some(e.clone());
-                Err(e)
-            }
-            None => Ok(()),
-        })
+        Some(ledger.latch(failure))
     }
 
     /// The failure latched since the last [`Host::clear`], if any.
     pub(crate) fn failure(&self) -> Option<Error> {
-        self.ledger
-            .lock()
-            .unwrap_or_else(|e| e.into_inner())
-            .failure
-            .clone()
+        self.ledger().failure.clone()
     }
 
     /// Forgets a latched failure (each solve of the problem starts afresh).
     pub(crate) fn clear(&self) {
-        self.ledger
-            .lock()
-            .unwrap_or_else(|e| e.into_inner())
-            .failure = None;
+        self.ledger().failure = None;
     }
 
     /// What the host's solver did so far.
     pub(crate) fn counts(&self) -> Counts {
-        let l = self.ledger.lock().unwrap_or_else(|e| e.into_inner());
-        Counts {
-            calls: l.calls,
-            columns: l.columns,
-            entries: l.entries,
-            seconds: l.seconds,
-        }
+        self.ledger().counts
     }
 }
 
