@@ -187,24 +187,16 @@ impl Dual {
         let ledger = factor.ledger();
         if how == Condensation::MatrixFree {
             let free = Operator::new(factor, &b, m, d)?;
-            let rho = rho_of(m, d, |j| free.diag[j]);
-            return Ok(Dual {
-                _claim: ledger.claim_f64(d * c),
-                ledger: ledger.clone(),
+            let claim = ledger.claim_f64(d * c);
+            let (threads, ledger) = (factor.threads().clone(), ledger.clone());
+            return Ok(Self::of_operator(
+                free,
+                b,
                 d,
-                m,
-                c,
-                a: Vec::new(),
-                free: Some(free),
-                rho,
-                rows: b,
-                condense_seconds: start.elapsed().as_secs_f64(),
-                condensation: how,
                 trailing,
-                threads: factor.threads().clone(),
-                shift: Vec::new(),
-                rigid_diag: Vec::new(),
-            });
+                (threads, ledger, claim),
+                start,
+            ));
         }
         let mut a = try_zeros(c.saturating_mul(c), "condensed dual")?;
         let claim = ledger.claim_f64(c * c);
@@ -258,24 +250,47 @@ impl Dual {
         let b = stack_rows(n, t);
         let c = b.nrows;
         let free = Operator::on_host(host, &b, m, d)?;
-        let rho = rho_of(m, d, |j| free.diag[j]);
-        Ok(Dual {
-            _claim: ledger.claim_f64(d * c + host.n()),
+        let claim = ledger.claim_f64(d * c + host.n());
+        Ok(Self::of_operator(
+            free,
+            b,
+            d,
+            false,
+            (threads, ledger, claim),
+            start,
+        ))
+    }
+
+    /// The matrix-free dual of B = `b` on the operator `free` (its products
+    /// by K's factor or the host's solves), `trailing` as the field, with
+    /// the problem's threads and ledger and the claim of its bytes; formed
+    /// since `start`.
+    fn of_operator(
+        free: Operator,
+        b: Csc,
+        d: usize,
+        trailing: bool,
+        (threads, ledger, claim): (Arc<Threads>, Arc<Ledger>, Claim),
+        start: Instant,
+    ) -> Dual {
+        let (m, c) = (b.nrows / d, b.nrows);
+        Dual {
+            _claim: claim,
             ledger,
             d,
             m,
             c,
             a: Vec::new(),
+            rho: rho_of(m, d, |j| free.diag[j]),
             free: Some(free),
-            rho,
             rows: b,
             condense_seconds: start.elapsed().as_secs_f64(),
             condensation: Condensation::MatrixFree,
-            trailing: false,
+            trailing,
             threads,
             shift: Vec::new(),
             rigid_diag: Vec::new(),
-        })
+        }
     }
 
     /// Makes the operator A + D for the compliance diagonal `shift` (length c;
