@@ -364,64 +364,29 @@ fn a_failure_while_forming_the_blocks_fails_the_creation() {
 fn bad_sizes_and_methods_that_need_entries_are_refused() {
     let scene = scene_2d();
     let opts = Options::default();
-    // K of another size than the host's n.
+    // The creation on the 2D scene's host with dimension d, K, N and T
+    // (another scene's where given) refused with `want`.
+    let refused = |d: usize, k: Option<&dualsplit::Csc>, nt: &Scene, o: &Options, want| {
+        let (solver, _) = host(&scene, false);
+        let k_owned = k.map(Owned::of);
+        let kv = k_owned.as_ref().map(Owned::view);
+        let (n, t) = (Owned::of(&nt.n), Owned::of(&nt.t));
+        let e = ContactProblem::with_host_solver(d, solver, kv.as_ref(), &n.view(), &t.view(), o)
+            .err()
+            .expect("refused");
+        assert_eq!(e.kind, want, "{e}");
+    };
     let small = scene_3d();
-    let (solver, _) = host(&scene, false);
-    let k_owned = Owned::of(&small.k);
-    let k = k_owned.view();
-    let e = ContactProblem::with_host_solver(
-        2,
-        solver,
-        Some(&k),
-        &Owned::of(&scene.n).view(),
-        &Owned::of(&scene.t).view(),
-        &opts,
-    )
-    .err()
-    .unwrap();
-    assert_eq!(e.kind, ErrorKind::BadSize, "{e}");
-    // N with another column count.
-    let (solver, _) = host(&scene, false);
-    let e = ContactProblem::with_host_solver(
-        2,
-        solver,
-        None,
-        &Owned::of(&small.n).view(),
-        &Owned::of(&small.t).view(),
-        &opts,
-    )
-    .err()
-    .unwrap();
-    assert_eq!(e.kind, ErrorKind::BadSize, "{e}");
+    // K of another size than the host's n; N with another column count.
+    refused(2, Some(&small.k), &scene, &opts, ErrorKind::BadSize);
+    refused(2, None, &small, &opts, ErrorKind::BadSize);
     // d = 4, and the dense form.
-    let (solver, _) = host(&scene, false);
-    let e = ContactProblem::with_host_solver(
-        4,
-        solver,
-        None,
-        &Owned::of(&scene.n).view(),
-        &Owned::of(&scene.t).view(),
-        &opts,
-    )
-    .err()
-    .unwrap();
-    assert_eq!(e.kind, ErrorKind::BadArgument, "{e}");
-    let (solver, _) = host(&scene, false);
+    refused(4, None, &scene, &opts, ErrorKind::BadArgument);
     let dense = Options {
         dual_form: DualForm::Dense,
         ..opts
     };
-    let e = ContactProblem::with_host_solver(
-        2,
-        solver,
-        None,
-        &Owned::of(&scene.n).view(),
-        &Owned::of(&scene.t).view(),
-        &dense,
-    )
-    .err()
-    .unwrap();
-    assert_eq!(e.kind, ErrorKind::BadArgument, "{e}");
+    refused(2, None, &scene, &dense, ErrorKind::BadArgument);
     // On a valid problem: the methods that read A's entries, the dense form,
     // refactor and a folder without K are refused; a solve still works.
     let (mut pb, _) = on_host(&scene, false, false, &opts);
