@@ -22,6 +22,7 @@ mod friction;
 mod history;
 mod host;
 mod info;
+mod load_span;
 mod memory;
 mod methods;
 /// Matrix Market files and problem folders, for the `dualsplit` command-line

@@ -83,9 +83,10 @@ impl Sizes {
         (self.base() + self.factor_scratch).max(self.base() + self.forming(how).0)
     }
 
-    /// What the problem holds between calls.
+    /// What the problem holds between calls: with the dual, the last two
+    /// loads solved for and their solutions (`load_span`, 4 n doubles).
     pub fn resident(&self, how: Condensation) -> usize {
-        self.base() + self.forming(how).1
+        self.base() + self.forming(how).1 + 4 * self.n * F64
     }
 
     /// The peak of refactoring a problem whose dual is held as `how`: the new K

@@ -529,3 +529,108 @@ fn set_contacts_on_the_hosts_solves_matches_the_own_path() {
     assert_converged("the own path", &want);
     assert_agree("set_contacts on the host", &want, &sol, 1e-8);
 }
+
+/// A host that counts the calls whose right-hand side is nonzero off the
+/// contact DOFs: loads (a step's right-hand side, the recovery of u), not
+/// products with A (B^T x lives on the contact DOFs).
+struct LoadCounter {
+    host: Host,
+    contact: Vec<bool>,
+    loads: Arc<AtomicUsize>,
+}
+
+impl KSolve for LoadCounter {
+    fn n(&self) -> usize {
+        self.host.n
+    }
+
+    fn solve(&mut self, x: &mut [f64], ncols: usize) -> Result<(), i32> {
+        for col in x.chunks(self.host.n) {
+            if col.iter().zip(&self.contact).any(|(v, &c)| *v != 0.0 && !c) {
+                self.loads.fetch_add(1, Ordering::SeqCst);
+            }
+        }
+        self.host.solve(x, ncols)
+    }
+}
+
+/// A history whose loads lie in the span of the last loads solved for
+/// (a proportional press, then a shear ramp at full press) takes its
+/// right-hand side from their solutions (`load_span`): one load solve per
+/// step (the recovery of u) where two are needed otherwise. Its answers
+/// agree with the own path given the same loads with a component of 1e-12
+/// off the span added (so that every step solves afresh), and with the own
+/// path on the exact loads; K's equilibrium holds at every step.
+#[test]
+fn a_history_in_the_span_of_its_loads_solves_once_per_step() {
+    let scene = scene_3d();
+    let mu = vec![0.3; scene.m()];
+    let friction = Friction::Coulomb(&mu);
+    let opts = with(Method::Auto);
+    let n = scene.k.nrows;
+    let mut contact = vec![false; n];
+    for b in [&scene.n, &scene.t] {
+        for (j, touched) in contact.iter_mut().enumerate() {
+            *touched |= b.col_ptr[j] < b.col_ptr[j + 1];
+        }
+    }
+    let (h, _) = concrete_host(&scene, false);
+    let loads = Arc::new(AtomicUsize::new(0));
+    let counter = LoadCounter {
+        host: h,
+        contact,
+        loads: loads.clone(),
+    };
+    let k_owned = Owned::of(&scene.k);
+    let mut pb = ContactProblem::with_host_solver(
+        scene.d,
+        Box::new(counter),
+        Some(&k_owned.view()),
+        &Owned::of(&scene.n).view(),
+        &Owned::of(&scene.t).view(),
+        &opts,
+    )
+    .unwrap();
+    let mut own = scene.problem();
+    let mut fresh = scene.problem();
+    // The shear: the press load's horizontal components.
+    let shear: Vec<f64> = (0..n)
+        .map(|i| if i % 3 == 2 { 0.0 } else { scene.f[i] })
+        .collect();
+    let mut expected = Vec::new();
+    for step in 1..=6 {
+        let (a, b) = if step <= 3 {
+            (step as f64 / 3.0, 0.0)
+        } else {
+            (1.0, (step - 3) as f64 / 3.0)
+        };
+        let f: Vec<f64> = (0..n).map(|i| a * scene.f[i] + b * shear[i]).collect();
+        let before = loads.load(Ordering::SeqCst);
+        let sol = pb.step(&f, &scene.g, friction, &opts).unwrap();
+        let w = format!("step {step}");
+        assert_converged(&w, &sol);
+        assert!(
+            sol.report.equilibrium_residual < 1e-10,
+            "{w}: {:?}",
+            sol.report
+        );
+        let solved = loads.load(Ordering::SeqCst) - before;
+        // Steps 1 and 4 leave the span (the first load, the turn to shear):
+        // a solve of the load and the recovery; the others the recovery.
+        expected.push(if step == 1 || step == 4 { 2 } else { 1 });
+        assert_eq!(solved, expected[step - 1], "{w}: load solves");
+        let a_own = own.step(&f, &scene.g, friction, &opts).unwrap();
+        assert_agree(&format!("{w}, own path"), &a_own, &sol, 1e-8);
+        // Off the span: 1e-12 step^2 of |f| at a DOF that f does not load
+        // (not affine in the step, so no two loads span a third).
+        let mut off = f.clone();
+        let far = (0..n)
+            .rev()
+            .find(|&i| f[i] == 0.0)
+            .expect("an unloaded DOF");
+        off[far] += 1e-12 * (step * step) as f64 * norm_inf(&scene.f);
+        let a_fresh = fresh.step(&off, &scene.g, friction, &opts).unwrap();
+        assert_converged(&format!("{w}, fresh"), &a_fresh);
+        assert_agree(&format!("{w}, solved afresh"), &a_fresh, &sol, 1e-8);
+    }
+}

@@ -11,6 +11,7 @@ use crate::friction::Friction;
 use crate::history::History;
 use crate::host::KSolve;
 use crate::info::Info;
+use crate::load_span::LoadSpan;
 use crate::memory::{self, Claim};
 use crate::methods::{self, DualProblem, End, Monitor, Progress};
 use crate::options::{DualForm, Method, Options};
@@ -61,6 +62,10 @@ pub struct ContactProblem {
     history: History,
     /// The interface law of each contact (rigid unless set).
     compliance: Compliance,
+    /// The last total loads solved for with K^-1 of each (`load_span`):
+    /// a step whose load lies in their span takes its right-hand side from
+    /// them instead of a solve.
+    loads: LoadSpan,
 }
 
 fn check_vec(name: &str, x: &[f64], len: usize) -> Result<()> {
@@ -231,6 +236,7 @@ impl ContactProblem {
             max_memory: opts.max_memory,
             history: History::new(ndof, c),
             compliance: Compliance::rigid(m),
+            loads: LoadSpan::default(),
         })
     }
 
@@ -320,6 +326,7 @@ impl ContactProblem {
             max_memory: opts.max_memory,
             history: History::new(ndof, c),
             compliance: Compliance::rigid(m),
+            loads: LoadSpan::default(),
         })
     }
 
@@ -440,6 +447,7 @@ impl ContactProblem {
         self.dual = form_dual(&fresh, &k, (&self.n, &self.t), self.d, how, &shift, None)?;
         self.stiff = Stiffness::Own { k, factor: fresh };
         self.history.forget_loads();
+        self.loads.clear();
         Ok(())
     }
 
@@ -653,7 +661,7 @@ impl ContactProblem {
         let mut lam = vec![0.0; self.dual.c];
         let lt = lt_prev.unwrap_or(&[]);
         let (sol, _) = self.solve_from(
-            f,
+            (f, f),
             g,
             friction,
             opts,
@@ -715,7 +723,16 @@ impl ContactProblem {
         // a nonlinear law changes the dual's diagonal) and put back after.
         let history = std::mem::replace(&mut self.history, History::new(0, 0));
         let hist = (Some(&history), &history.lt[..]);
-        let solved = self.solve_from(&f, &g, friction, opts, &mut lam, hist, monitor, predicted);
+        let solved = self.solve_from(
+            (&f, f_total),
+            &g,
+            friction,
+            opts,
+            &mut lam,
+            hist,
+            monitor,
+            predicted,
+        );
         self.history = history;
         let (mut sol, load) = solved?;
         for (ui, uh) in sol.u.iter_mut().zip(&self.history.u) {

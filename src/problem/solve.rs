@@ -4,6 +4,7 @@
 //! the dual tolerance tightened where rounding in A needs it).
 
 use super::*;
+use crate::load_span::max_amplification;
 
 /// Times the dual error is tightened when the error measured on the recovered u
 /// misses the tolerance although the dual one met it (rounding in A).
@@ -95,18 +96,20 @@ impl ContactProblem {
         Ok(need)
     }
 
-    /// u := K^-1 (f - B^T lambda) given y_f = L^-1 P f (the forward half of the
-    /// solve for K^-1 f) and `bt_lam` = B^T lambda. When the contact DOFs are the
-    /// factor's trailing DOFs, B^T lambda lives on them, so its forward half
-    /// touches only the trailing block and the whole recovery costs about half a
-    /// solve (a matrix-free dual on a plain factor takes the whole forward half). The difference is taken between the
-    /// forward halves, not between K^-1 f and K^-1 B^T lambda: those two nearly
-    /// cancel where the contact carries the load, and on the slender beam of
-    /// tests/hard_scenes.rs (cond(K) 1.6e9) their difference left an equilibrium
-    /// residual of 3e-8 against 3e-12 here. For the same reason b's K^-1 f
-    /// comes from the same substitution (`Factor::backward_to_last` repeats
-    /// `Factor::backward`'s arithmetic exactly). On the host's solves: one
-    /// solve of f - B^T lambda.
+    /// u := K^-1 (f - B^T lambda), `bt_lam` = B^T lambda. When the contact DOFs
+    /// are the factor's trailing DOFs, given y_f = L^-1 P f (the forward half
+    /// of the solve for K^-1 f): B^T lambda lives on them, so its forward half
+    /// touches only the trailing block and the whole recovery costs about half
+    /// a solve. The difference is taken between the forward halves, not
+    /// between K^-1 f and K^-1 B^T lambda: those two nearly cancel where the
+    /// contact carries the load, and on the slender beam of
+    /// tests/hard_scenes.rs (cond(K) 1.6e9) their difference left an
+    /// equilibrium residual of 3e-8 against 3e-12 here. For the same reason
+    /// b's K^-1 f comes from the same substitution (`Factor::backward_to_last`
+    /// repeats `Factor::backward`'s arithmetic exactly). Otherwise (a
+    /// matrix-free dual on a plain factor, the dense dual by solves, the
+    /// host's solves) one solve of f - B^T lambda, the difference taken
+    /// before it.
     ///
     /// Errors: `HostSolve` (the host's solve failed).
     pub(super) fn recover_u(
@@ -136,46 +139,76 @@ impl ContactProblem {
         if self.dual.trailing {
             let r_last: Vec<f64> = factor.last().iter().map(|&j| bt_lam[j]).collect();
             factor.forward_from_last(&r_last, &mut y);
+            for (yi, fi) in y.iter_mut().zip(y_f) {
+                *yi = fi - *yi;
+            }
         } else {
-            factor.forward(bt_lam, &mut y);
-        }
-        for (yi, fi) in y.iter_mut().zip(y_f) {
-            *yi = fi - *yi;
+            let r: Vec<f64> = f.iter().zip(bt_lam).map(|(a, b)| a - b).collect();
+            factor.forward(&r, &mut y);
         }
         factor.backward(&mut y, u);
         Ok(())
     }
 
-    /// y_f = L^-1 P f (the forward half, kept for [`Self::recover_u`]; empty
-    /// on the host's solves) and u0 = K^-1 f where B reads it: at the
-    /// trailing DOFs alone when B touches no other (their back substitution
-    /// needs the trailing block of L only), else everywhere.
+    /// u0 = K^-1 f where B reads it, for the increment f = f_total - K u_k
+    /// (`load`: f, f_total and u_k; None for u_k = 0) of a solve to the
+    /// tolerance `tol`, and where the contact DOFs are the factor's trailing
+    /// DOFs y_f = L^-1 P f (the forward half, kept for [`Self::recover_u`];
+    /// else empty).
+    ///
+    /// Trailing DOFs: u0 at them alone (their back substitution needs the
+    /// trailing block of L only). Else u0 everywhere. Where f_total lies in
+    /// the span of the last loads solved for (`load_span`), u0 is K^-1
+    /// f_total minus u_k from their solutions without a solve (where that
+    /// amplifies rounding at most `load_span::max_amplification(tol)`
+    /// times); else it takes one solve (of the factor or the host's), and
+    /// K^-1 f_total = u0 + u_k is kept.
     ///
     /// Errors: `HostSolve`.
-    fn solve_load(&self, f: &[f64], y_f: &mut Vec<f64>, u0: &mut [f64]) -> Result<()> {
-        let factor = match &self.stiff {
-            Stiffness::Own { factor, .. } => factor,
-            Stiffness::Host { host, .. } => {
-                y_f.clear();
-                u0.copy_from_slice(f);
-                return host.solve(u0, 1);
+    fn solve_load(
+        &mut self,
+        (f, f_total, u_k): (&[f64], &[f64], Option<&[f64]>),
+        tol: f64,
+        y_f: &mut Vec<f64>,
+        u0: &mut [f64],
+    ) -> Result<()> {
+        if !self.dual.trailing {
+            y_f.clear();
+            if self.loads.combine(f_total, u_k, u0, max_amplification(tol)) {
+                return Ok(());
             }
-        };
-        factor.forward(f, y_f);
-        if self.dual.trailing {
-            let last = factor.last();
-            let mut u_last = vec![0.0; last.len()];
-            factor.backward_to_last(y_f, &mut u_last);
-            for (&j, &v) in last.iter().zip(&u_last) {
-                u0[j] = v;
-            }
-        } else {
-            factor.backward(&mut y_f.clone(), u0);
         }
+        match &self.stiff {
+            Stiffness::Own { factor, .. } if self.dual.trailing => {
+                factor.forward(f, y_f);
+                let last = factor.last();
+                let mut u_last = vec![0.0; last.len()];
+                factor.backward_to_last(y_f, &mut u_last);
+                for (&j, &v) in last.iter().zip(&u_last) {
+                    u0[j] = v;
+                }
+                return Ok(());
+            }
+            Stiffness::Own { factor, .. } => {
+                u0.copy_from_slice(f);
+                factor.solve_vec(u0);
+            }
+            Stiffness::Host { host, .. } => {
+                u0.copy_from_slice(f);
+                host.solve(u0, 1)?;
+            }
+        }
+        let mut x = u0.to_vec();
+        if let Some(u_k) = u_k {
+            x.iter_mut().zip(u_k).for_each(|(a, b)| *a += b);
+        }
+        let ledger = self.stiff.ledger().clone();
+        self.loads.keep(f_total, x, &ledger);
         Ok(())
     }
 
-    /// The increment solve, starting from the multipliers in `lam`, or, for a
+    /// The increment solve of the load `f` (in a history f = f_total - K u_k,
+    /// else f_total = f), starting from the multipliers in `lam`, or, for a
     /// step of `history`, from the history's prediction (then the step's
     /// contact-space load is returned too, for the history), the elastic
     /// slip's return mapping from `lt_prev` (empty: zero); `predicted` is the
@@ -183,7 +216,7 @@ impl ContactProblem {
     #[allow(clippy::too_many_arguments)]
     pub(super) fn solve_from(
         &mut self,
-        f: &[f64],
+        (f, f_total): (&[f64], &[f64]),
         g: &[f64],
         friction: Friction<'_>,
         opts: &Options,
@@ -203,7 +236,8 @@ impl ContactProblem {
         // recovery of u.
         let mut y_f = vec![0.0; ndof];
         let mut u0 = vec![0.0; ndof];
-        self.solve_load(f, &mut y_f, &mut u0)?;
+        let u_k = history.map(|h| &h.u[..]);
+        self.solve_load((f, f_total, u_k), opts.tol, &mut y_f, &mut u0)?;
         let mut b = vec![0.0; c];
         self.dual.rows.mul_vec(&u0, &mut b);
         for i in 0..m {
