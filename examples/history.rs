@@ -6,7 +6,7 @@
 //! press (so contacts close, stick and slip change along the way), Tresca and
 //! Coulomb. Per step: seconds (wall clock of `step`), their ratio to the
 //! baseline, Newton steps (outer), products or sweeps (inner), open / stick /
-//! slip and err; per history: creation, the mean and worst warm step, and the
+//! slip, err and the equilibrium residual; per history: creation, the mean and worst warm step, and the
 //! creation plus the first 10 steps and plus all steps, in units of the
 //! baseline. `--csv FILE` writes the per-step rows; `--svg FILE` draws them:
 //! the time of each step in units of the baseline along the history, one
@@ -71,7 +71,7 @@ fn main() {
         let mut f = std::fs::File::create(&p).expect("the csv file");
         writeln!(
             f,
-            "scene,threads,law,step,seconds,per_factor,rhs_s,iterate_s,recover_s,outer,inner,open,stick,slip,err"
+            "scene,threads,law,step,seconds,per_factor,rhs_s,iterate_s,recover_s,outer,inner,open,stick,slip,err,equilibrium_residual"
         )
         .unwrap();
         f
@@ -116,9 +116,9 @@ fn main() {
                 }
             );
             println!(
-                "| step | press | shear | s | / factor | rhs / iterations / recovery, / factor | method | outer | inner | open / stick / slip | err |"
+                "| step | press | shear | s | / factor | rhs / iterations / recovery, / factor | method | outer | inner | open / stick / slip | err | equilibrium residual |"
             );
-            println!("|---|---|---|---|---|---|---|---|---|---|---|");
+            println!("|---|---|---|---|---|---|---|---|---|---|---|---|");
             let mut times = Vec::new();
             for k in 1..=steps {
                 let (a, b) = stats::load_factors(k, steps, proportional);
@@ -130,7 +130,7 @@ fn main() {
                 let r = &sol.report;
                 assert_eq!(r.status, dualsplit::SolveStatus::Converged, "{r:?}");
                 println!(
-                    "| {k} | {a:.2} | {b:.2} | {t:.3} | {:.3} | {:.3} / {:.3} / {:.3} | {} | {} | {} | {} / {} / {} | {:.1e} |",
+                    "| {k} | {a:.2} | {b:.2} | {t:.3} | {:.3} | {:.3} / {:.3} / {:.3} | {} | {} | {} | {} / {} / {} | {:.1e} | {:.1e} |",
                     t / t_factor,
                     r.rhs_seconds / t_factor,
                     r.iterate_seconds / t_factor,
@@ -141,12 +141,13 @@ fn main() {
                     r.n_open,
                     r.n_stick,
                     r.n_slip,
-                    r.err
+                    r.err,
+                    r.equilibrium_residual
                 );
                 if let Some(f) = csv.as_mut() {
                     writeln!(
                         f,
-                        "{name},{threads},{law},{k},{t},{},{},{},{},{},{},{},{},{},{}",
+                        "{name},{threads},{law},{k},{t},{},{},{},{},{},{},{},{},{},{},{}",
                         t / t_factor,
                         r.rhs_seconds,
                         r.iterate_seconds,
@@ -156,7 +157,8 @@ fn main() {
                         r.n_open,
                         r.n_stick,
                         r.n_slip,
-                        r.err
+                        r.err,
+                        r.equilibrium_residual
                     )
                     .unwrap();
                 }

@@ -55,6 +55,14 @@ pub(crate) struct History {
     /// f_total minus B^T lambda_k of the last converged step, kept by a
     /// problem on the host's solves without K; zero otherwise.
     pub ku: Vec<f64>,
+    /// L^T P u_k, the forward half of K u_k (L^-1 P K = L^T P) under K's
+    /// factor, summed from the forward halves u_k was back-substituted from
+    /// by the steps on the dense dual from the factor's trailing block: with
+    /// it a step's forward half L^-1 P (f_total - K u_k) needs no forward
+    /// substitution where f_total lies in the span of the last loads
+    /// (`load_span`). Empty for zero (u_k = 0); None where a step took
+    /// another route or K was refactored since u_k was zero.
+    pub lu: Option<Vec<f64>>,
 }
 
 impl History {
@@ -67,6 +75,7 @@ impl History {
             prev: None,
             lt: Vec::new(),
             ku: vec![0.0; n],
+            lu: Some(Vec::new()),
         }
     }
 
@@ -76,6 +85,7 @@ impl History {
         self.lam.iter_mut().for_each(|v| *v = 0.0);
         self.lt.clear();
         self.ku.iter_mut().for_each(|v| *v = 0.0);
+        self.lu = Some(Vec::new());
         self.forget_loads();
     }
 
@@ -135,8 +145,17 @@ impl History {
     }
 
     /// Records a converged step: its total displacement `u`, multipliers `lam`
-    /// and load `load`.
-    pub fn advance(&mut self, u: &[f64], lam: &[f64], load: Vec<f64>) {
+    /// and load `load`, and the forward half `forward` its displacement was
+    /// back-substituted from (None: another route; see the field `lu`).
+    pub fn advance(&mut self, u: &[f64], lam: &[f64], load: Vec<f64>, forward: Option<Vec<f64>>) {
+        self.lu = match (self.lu.take(), forward) {
+            (Some(lu), Some(y)) if lu.is_empty() => Some(y),
+            (Some(mut lu), Some(y)) => {
+                lu.iter_mut().zip(&y).for_each(|(a, b)| *a += b);
+                Some(lu)
+            }
+            _ => None,
+        };
         self.u.copy_from_slice(u);
         self.prev = self.load.take().map(|last| {
             let dl = load.iter().zip(&last).map(|(x, y)| x - y).collect();
@@ -185,11 +204,11 @@ mod tests {
         // Nothing to predict from before two steps: the plain warm start.
         let l1 = vec![1.0, 0.0, 0.5, 0.0];
         assert_eq!(h.start(&l1, law, 2, &mut lam), 0.0);
-        h.advance(&[0.0; 3], &[1.0, 0.0, 0.2, 0.0], l1.clone());
+        h.advance(&[0.0; 3], &[1.0, 0.0, 0.2, 0.0], l1.clone(), None);
         let l2 = vec![2.0, 0.0, 1.0, 0.0];
         assert_eq!(h.start(&l2, law, 2, &mut lam), 0.0);
         assert_eq!(lam, [1.0, 0.0, 0.2, 0.0]);
-        h.advance(&[0.0; 3], &[2.0, 0.0, 0.4, 0.0], l2.clone());
+        h.advance(&[0.0; 3], &[2.0, 0.0, 0.4, 0.0], l2.clone(), None);
         // A third equal increment: s = 1, the line continued.
         let l3 = vec![3.0, 0.0, 1.5, 0.0];
         assert_eq!(h.start(&l3, law, 2, &mut lam), 1.0);
@@ -206,8 +225,18 @@ mod tests {
         let law = Friction::Tresca(&p);
         let mut h = history();
         let mut lam = vec![0.0; 4];
-        h.advance(&[0.0; 3], &[1.0, 1.0, 0.1, -0.3], vec![0.0, 0.0, 1.0, 0.0]);
-        h.advance(&[0.0; 3], &[0.5, 2.0, 0.3, -0.45], vec![0.0, 0.0, 2.0, 0.0]);
+        h.advance(
+            &[0.0; 3],
+            &[1.0, 1.0, 0.1, -0.3],
+            vec![0.0, 0.0, 1.0, 0.0],
+            None,
+        );
+        h.advance(
+            &[0.0; 3],
+            &[0.5, 2.0, 0.3, -0.45],
+            vec![0.0, 0.0, 2.0, 0.0],
+            None,
+        );
         // s = 1: lambda_N,0 = 0 (cut from -0.5), lambda_T,1 = -0.6 cut to -0.5.
         assert_eq!(h.start(&[0.0, 0.0, 3.0, 0.0], law, 2, &mut lam), 1.0);
         assert_close(&lam, &[0.0, 3.0, 0.5, -0.5]);
@@ -233,8 +262,18 @@ mod tests {
         let law = Friction::Tresca(&p);
         let mut h = history();
         let mut lam = vec![0.0; 4];
-        h.advance(&[1.0; 3], &[1.0, 0.0, 0.0, 0.0], vec![1.0, 0.0, 0.0, 0.0]);
-        h.advance(&[2.0; 3], &[2.0, 0.0, 0.0, 0.0], vec![2.0, 0.0, 0.0, 0.0]);
+        h.advance(
+            &[1.0; 3],
+            &[1.0, 0.0, 0.0, 0.0],
+            vec![1.0, 0.0, 0.0, 0.0],
+            None,
+        );
+        h.advance(
+            &[2.0; 3],
+            &[2.0, 0.0, 0.0, 0.0],
+            vec![2.0, 0.0, 0.0, 0.0],
+            None,
+        );
         h.new_contacts(4);
         assert_eq!(h.start(&[3.0, 0.0, 0.0, 0.0], law, 2, &mut lam), 0.0);
         assert_eq!(lam, [2.0, 0.0, 0.0, 0.0], "lambda kept for the same c");
@@ -242,5 +281,35 @@ mod tests {
         assert_eq!(h.lam, vec![0.0; 6]);
         h.reset();
         assert_eq!((h.u.clone(), h.load.is_none()), (vec![0.0; 3], true));
+    }
+
+    #[test]
+    fn the_forward_half_of_k_u_sums_the_steps_and_is_lost_off_the_route() {
+        let mut h = History::new(3, 4);
+        assert_eq!(h.lu.as_deref(), Some(&[][..]), "zero at the start");
+        h.advance(
+            &[0.0; 3],
+            &[0.0; 4],
+            vec![0.0; 4],
+            Some(vec![1.0, 2.0, 3.0]),
+        );
+        h.advance(
+            &[0.0; 3],
+            &[0.0; 4],
+            vec![0.0; 4],
+            Some(vec![0.5, 0.0, -1.0]),
+        );
+        assert_eq!(h.lu.as_deref(), Some(&[1.5, 2.0, 2.0][..]));
+        h.advance(&[0.0; 3], &[0.0; 4], vec![0.0; 4], None);
+        assert_eq!(h.lu, None, "a step on another route");
+        h.advance(
+            &[0.0; 3],
+            &[0.0; 4],
+            vec![0.0; 4],
+            Some(vec![1.0, 1.0, 1.0]),
+        );
+        assert_eq!(h.lu, None, "unknown until the history is reset");
+        h.reset();
+        assert_eq!(h.lu.as_deref(), Some(&[][..]));
     }
 }

@@ -25,7 +25,8 @@
 //!
 //! Else the caller solves and keeps the new pair (the older of two kept pairs
 //! is dropped). Kept solutions come from solves, never from combinations, so
-//! rounding does not build up along a history.
+//! rounding does not build up along a history. The pairs are of one map at a
+//! time ([`Map`]): keeping a pair of the other drops them.
 
 use crate::memory::{Claim, Ledger};
 use std::sync::Arc;
@@ -50,6 +51,17 @@ pub(crate) fn max_amplification(tol: f64) -> f64 {
 /// Pairs kept (the newest last).
 const KEPT: usize = 2;
 
+/// The linear map a kept solution is of.
+#[derive(Copy, Clone, Debug, PartialEq, Eq)]
+pub(crate) enum Map {
+    /// v = K^-1 f (a matrix-free dual, the dense dual by solves, the host's
+    /// solves).
+    Solve,
+    /// v = L^-1 P f, the forward half of a solve with K's factor (the dense
+    /// dual from the factor's trailing block).
+    Forward,
+}
+
 /// One load and its solution, with the claim of their bytes.
 struct Pair {
     f: Vec<f64>,
@@ -62,6 +74,8 @@ struct Pair {
 #[derive(Default)]
 pub(crate) struct LoadSpan {
     kept: Vec<Pair>,
+    /// The map of the kept pairs (None before the first).
+    map: Option<Map>,
 }
 
 fn dot(x: &[f64], y: &[f64]) -> f64 {
@@ -102,9 +116,14 @@ impl LoadSpan {
         self.kept.clear();
     }
 
-    /// Keeps f with its solution v (both n), dropping the oldest pair when
-    /// KEPT are held; `ledger` counts their bytes.
-    pub fn keep(&mut self, f: &[f64], v: Vec<f64>, ledger: &Arc<Ledger>) {
+    /// Keeps f with its solution v (both n) under `map`, dropping the oldest
+    /// pair when KEPT are held (all of them when they are of another map);
+    /// `ledger` counts their bytes.
+    pub fn keep(&mut self, map: Map, f: &[f64], v: Vec<f64>, ledger: &Arc<Ledger>) {
+        if self.map != Some(map) {
+            self.kept.clear();
+            self.map = Some(map);
+        }
         if self.kept.len() == KEPT {
             self.kept.remove(0);
         }
@@ -151,11 +170,21 @@ impl LoadSpan {
     }
 
     /// out := sum_j c_j v_j - `minus` (minus: n, or None for zero) for the fit
-    /// of f by the kept loads, when the fit passes and the amplification
+    /// of f by the kept loads of `map`, when the fit passes and the amplification
     /// (see the module docs, |minus| counting as a kept solution's size) is
     /// at most `max_amp`; false otherwise (then `out` holds nothing useful
     /// and the caller solves).
-    pub fn combine(&self, f: &[f64], minus: Option<&[f64]>, out: &mut [f64], max_amp: f64) -> bool {
+    pub fn combine(
+        &self,
+        map: Map,
+        f: &[f64],
+        minus: Option<&[f64]>,
+        out: &mut [f64],
+        max_amp: f64,
+    ) -> bool {
+        if self.map != Some(map) {
+            return false;
+        }
         let Some(c) = self.fit(f) else {
             return false;
         };
@@ -211,7 +240,7 @@ mod tests {
     fn nothing_kept_fits_nothing() {
         let span = LoadSpan::default();
         let mut out = vec![0.0; 3];
-        assert!(!span.combine(&[1.0, 2.0, 3.0], None, &mut out, AMP));
+        assert!(!span.combine(Map::Solve, &[1.0, 2.0, 3.0], None, &mut out, AMP));
     }
 
     #[test]
@@ -219,10 +248,10 @@ mod tests {
         let l = ledger();
         let mut span = LoadSpan::default();
         let f1 = [1.0, -2.0, 0.5];
-        span.keep(&f1, map(&f1), &l);
+        span.keep(Map::Solve, &f1, map(&f1), &l);
         let f = [3.0, -6.0, 1.5];
         let mut out = vec![0.0; 3];
-        assert!(span.combine(&f, None, &mut out, AMP));
+        assert!(span.combine(Map::Solve, &f, None, &mut out, AMP));
         for (o, w) in out.iter().zip(map(&f)) {
             assert!((o - w).abs() <= 1e-14 * w.abs().max(1.0), "{out:?}");
         }
@@ -235,17 +264,17 @@ mod tests {
         let mut span = LoadSpan::default();
         let (p, s) = ([1.0, 0.0, -1.0], [0.0, 0.3, 0.2]);
         let at = |j: f64| [p[0] + j * s[0], p[1] + j * s[1], p[2] + j * s[2]];
-        span.keep(&at(1.0), map(&at(1.0)), &l);
-        span.keep(&at(2.0), map(&at(2.0)), &l);
+        span.keep(Map::Solve, &at(1.0), map(&at(1.0)), &l);
+        span.keep(Map::Solve, &at(2.0), map(&at(2.0)), &l);
         let f = at(3.0);
         let mut out = vec![0.0; 3];
-        assert!(span.combine(&f, None, &mut out, AMP));
+        assert!(span.combine(Map::Solve, &f, None, &mut out, AMP));
         for (o, w) in out.iter().zip(map(&f)) {
             assert!((o - w).abs() <= 1e-13 * w.abs().max(1.0), "{out:?}");
         }
         // With a part subtracted: out = M f - x.
         let x = [0.1, 0.2, 0.3];
-        assert!(span.combine(&f, Some(&x), &mut out, AMP));
+        assert!(span.combine(Map::Solve, &f, Some(&x), &mut out, AMP));
         for ((o, w), xi) in out.iter().zip(map(&f)).zip(x) {
             assert!((o - (w - xi)).abs() <= 1e-13 * w.abs().max(1.0));
         }
@@ -255,15 +284,20 @@ mod tests {
     fn a_load_off_the_span_is_refused() {
         let l = ledger();
         let mut span = LoadSpan::default();
-        span.keep(&[1.0, 0.0, 0.0], map(&[1.0, 0.0, 0.0]), &l);
-        span.keep(&[0.0, 1.0, 0.0], map(&[0.0, 1.0, 0.0]), &l);
+        span.keep(Map::Solve, &[1.0, 0.0, 0.0], map(&[1.0, 0.0, 0.0]), &l);
+        span.keep(Map::Solve, &[0.0, 1.0, 0.0], map(&[0.0, 1.0, 0.0]), &l);
         let mut out = vec![0.0; 3];
-        assert!(!span.combine(&[1.0, 1.0, 1e-12], None, &mut out, AMP));
+        assert!(!span.combine(Map::Solve, &[1.0, 1.0, 1e-12], None, &mut out, AMP));
         // Three pairs kept: the oldest went, and its direction with it.
-        span.keep(&[0.0, 0.0, 1.0], map(&[0.0, 0.0, 1.0]), &l);
-        assert!(!span.combine(&[1.0, 0.0, 0.0], None, &mut out, AMP));
-        assert!(span.combine(&[0.0, 2.0, 1.0], None, &mut out, AMP));
+        span.keep(Map::Solve, &[0.0, 0.0, 1.0], map(&[0.0, 0.0, 1.0]), &l);
+        assert!(!span.combine(Map::Solve, &[1.0, 0.0, 0.0], None, &mut out, AMP));
+        assert!(span.combine(Map::Solve, &[0.0, 2.0, 1.0], None, &mut out, AMP));
         assert_eq!(l.live(), 12 * std::mem::size_of::<f64>());
+        // A pair of the other map drops the pairs of this one.
+        span.keep(Map::Forward, &[1.0, 0.0, 0.0], map(&[1.0, 0.0, 0.0]), &l);
+        assert!(!span.combine(Map::Solve, &[2.0, 0.0, 0.0], None, &mut out, AMP));
+        assert!(span.combine(Map::Forward, &[2.0, 0.0, 0.0], None, &mut out, AMP));
+        assert_eq!(l.live(), 6 * std::mem::size_of::<f64>());
         span.clear();
         assert_eq!(l.live(), 0);
     }
@@ -273,13 +307,13 @@ mod tests {
         let l = ledger();
         let mut span = LoadSpan::default();
         let f1 = [1.0, 1.0, 1.0];
-        span.keep(&f1, map(&f1), &l);
+        span.keep(Map::Solve, &f1, map(&f1), &l);
         let mut out = vec![0.0; 3];
         // M f - x nearly cancels: the combination would lose the digits a
         // solve keeps.
         let x: Vec<f64> = map(&f1).iter().map(|v| v * (1.0 - 1e-3)).collect();
-        assert!(!span.combine(&f1, Some(&x), &mut out, AMP));
+        assert!(!span.combine(Map::Solve, &f1, Some(&x), &mut out, AMP));
         let y: Vec<f64> = map(&f1).iter().map(|v| 0.5 * v).collect();
-        assert!(span.combine(&f1, Some(&y), &mut out, AMP));
+        assert!(span.combine(Map::Solve, &f1, Some(&y), &mut out, AMP));
     }
 }

@@ -84,9 +84,10 @@ impl Sizes {
     }
 
     /// What the problem holds between calls: with the dual, the last two
-    /// loads solved for and their solutions (`load_span`, 4 n doubles).
+    /// loads solved for and their solutions (`load_span`, 4 n doubles) and
+    /// the forward half of K u_k (`History::lu`, n).
     pub fn resident(&self, how: Condensation) -> usize {
-        self.base() + self.forming(how).1 + 4 * self.n * F64
+        self.base() + self.forming(how).1 + 5 * self.n * F64
     }
 
     /// The peak of refactoring a problem whose dual is held as `how`: the new K

@@ -275,3 +275,104 @@ fn a_proportional_step_with_an_unchanged_contact_state_is_predicted() {
         }
     }
 }
+
+/// A history whose total loads lie in the span of the last loads solved
+/// (pressed in equal increments, then sheared at full press) takes each
+/// step's right-hand side from their solutions (src/load_span.rs) instead of
+/// a solve: on the dense dual from the factor's trailing block (the forward
+/// half L^-1 P f, less that of K u_k) and on the matrix-free one (K^-1 f,
+/// less u_k). Every step is a KKT point of its increment, and agrees with a
+/// second handle given the same loads plus a component of 1e-12 off the span
+/// (so that it solves every load afresh).
+#[test]
+fn a_history_in_the_span_of_its_loads_matches_fresh_solves() {
+    let press = block_moved(60, 12, 0.0, -1.0);
+    let shear = block_moved(60, 12, 0.5, 0.0);
+    let mu = vec![0.3; press.m()];
+    let friction = Friction::Coulomb(&mu);
+    let sc = &press;
+    let n = sc.k.nrows;
+    // A DOF no load touches (the loads act at the top edge).
+    let far = (0..n)
+        .find(|&i| press.f[i] == 0.0 && shear.f[i] == 0.0)
+        .expect("an unloaded DOF");
+    for form in [dualsplit::DualForm::Dense, dualsplit::DualForm::MatrixFree] {
+        let o = Options {
+            tol: 1e-10,
+            dual_form: form,
+            ..Options::default()
+        };
+        let new = || {
+            dualsplit::ContactProblem::from_csc_with(
+                sc.d,
+                sc.k.clone(),
+                sc.n.clone(),
+                sc.t.clone(),
+                &o,
+            )
+            .unwrap()
+        };
+        let (mut pb, mut fresh) = (new(), new());
+        let mut u_prev = vec![0.0; n];
+        for k in 1..=8 {
+            let (a, b) = if k <= 4 {
+                (k as f64 / 4.0, 0.0)
+            } else {
+                (1.0, (k - 4) as f64 / 4.0)
+            };
+            let f: Vec<f64> = press
+                .f
+                .iter()
+                .zip(&shear.f)
+                .map(|(p, s)| a * p + b * s)
+                .collect();
+            let sol = pb.step(&f, &sc.g, friction, &o).unwrap();
+            let what = format!("{form:?} step {k}");
+            assert_eq!(sol.report.status, SolveStatus::Converged, "{what}");
+            let ku = mul(&sc.k, &u_prev);
+            let nu = mul(&sc.n, &u_prev);
+            let f_inc: Vec<f64> = f.iter().zip(&ku).map(|(a, b)| a - b).collect();
+            let g_inc: Vec<f64> = sc.g.iter().zip(&nu).map(|(a, b)| a - b).collect();
+            let du: Vec<f64> = sol.u.iter().zip(&u_prev).map(|(a, b)| a - b).collect();
+            kkt(
+                sc.d,
+                &sc.k,
+                &sc.n,
+                &sc.t,
+                &f_inc,
+                &g_inc,
+                friction,
+                &du,
+                &sol.lambda_n,
+                &sol.lambda_t,
+            )
+            .assert_ok(&what, 1e-8);
+            assert!(
+                sol.report.equilibrium_residual < 1e-12,
+                "{what}: {:?}",
+                sol.report
+            );
+            // Off the span: 1e-12 k^2 of |f| at an unloaded DOF (not affine
+            // in k, so no two loads span a third).
+            let scale = f.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+            let mut off = f.clone();
+            off[far] += 1e-12 * (k * k) as f64 * scale;
+            let other = fresh.step(&off, &sc.g, friction, &o).unwrap();
+            assert_eq!(other.report.status, SolveStatus::Converged, "{what}");
+            let gap = |x: &[f64], y: &[f64]| {
+                let top = x.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+                let d = x
+                    .iter()
+                    .zip(y)
+                    .fold(0.0f64, |m, (p, q)| m.max((p - q).abs()));
+                d / top
+            };
+            assert!(gap(&other.u, &sol.u) < 1e-8, "{what}: u");
+            assert!(
+                gap(&other.lambda_n, &sol.lambda_n) < 1e-8,
+                "{what}: lambda_N"
+            );
+            u_prev = sol.u;
+        }
+    }
+}

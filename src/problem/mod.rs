@@ -447,6 +447,7 @@ impl ContactProblem {
         self.dual = form_dual(&fresh, &k, (&self.n, &self.t), self.d, how, &shift, None)?;
         self.stiff = Stiffness::Own { k, factor: fresh };
         self.history.forget_loads();
+        self.history.lu = None;
         self.loads.clear();
         Ok(())
     }
@@ -660,7 +661,7 @@ impl ContactProblem {
         let predicted = self.prepare_dual(opts)?;
         let mut lam = vec![0.0; self.dual.c];
         let lt = lt_prev.unwrap_or(&[]);
-        let (sol, _) = self.solve_from(
+        let solve::Solved { sol, .. } = self.solve_from(
             (f, f),
             g,
             friction,
@@ -734,13 +735,17 @@ impl ContactProblem {
             predicted,
         );
         self.history = history;
-        let (mut sol, load) = solved?;
+        let solve::Solved {
+            mut sol,
+            load,
+            forward,
+        } = solved?;
         for (ui, uh) in sol.u.iter_mut().zip(&self.history.u) {
             *ui += uh;
         }
         if sol.report.status == SolveStatus::Converged {
             let load = load.expect("a step's load");
-            self.history.advance(&sol.u, &lam, load);
+            self.history.advance(&sol.u, &lam, load, forward);
             self.history.lt = lam[m..].to_vec();
             if self.stiff.k().is_none() {
                 // K u_k+1 = f_total - B^T lambda_k+1 (the step's equilibrium).

@@ -4,7 +4,7 @@
 //! the dual tolerance tightened where rounding in A needs it).
 
 use super::*;
-use crate::load_span::max_amplification;
+use crate::load_span::{Map, max_amplification};
 
 /// Times the dual error is tightened when the error measured on the recovered u
 /// misses the tolerance although the dual one met it (rounding in A).
@@ -17,6 +17,25 @@ const LAW_ROUNDS: usize = 30;
 
 fn norm(x: &[f64]) -> f64 {
     x.iter().map(|v| v * v).sum::<f64>().sqrt()
+}
+
+/// The load of an increment solve: f = f_total - K u_k, with u_k (None for
+/// zero) and L^T P u_k as `History::lu` holds it (None: unknown).
+struct Load<'a> {
+    f: &'a [f64],
+    f_total: &'a [f64],
+    u_k: Option<&'a [f64]>,
+    lu: Option<&'a [f64]>,
+}
+
+/// What an increment solve gives: the solution, and for a step of the
+/// history its contact-space load (the predictor's) and the forward half its
+/// u was back-substituted from (`History::lu`; None off the dense dual from
+/// the trailing block).
+pub(super) struct Solved {
+    pub sol: Solution,
+    pub load: Option<Vec<f64>>,
+    pub forward: Option<Vec<f64>>,
 }
 
 impl ContactProblem {
@@ -109,7 +128,9 @@ impl ContactProblem {
     /// repeats `Factor::backward`'s arithmetic exactly). Otherwise (a
     /// matrix-free dual on a plain factor, the dense dual by solves, the
     /// host's solves) one solve of f - B^T lambda, the difference taken
-    /// before it.
+    /// before it. `forward` receives the forward half u was back-substituted
+    /// from in the trailing case (L^-1 P (f - B^T lambda), for
+    /// `History::lu`); it is left alone otherwise.
     ///
     /// Errors: `HostSolve` (the host's solve failed).
     pub(super) fn recover_u(
@@ -118,6 +139,7 @@ impl ContactProblem {
         y_f: &[f64],
         bt_lam: &[f64],
         u: &mut [f64],
+        forward: &mut Vec<f64>,
     ) -> Result<()> {
         let factor = match &self.stiff {
             Stiffness::Own { factor, .. } => factor,
@@ -142,6 +164,7 @@ impl ContactProblem {
             for (yi, fi) in y.iter_mut().zip(y_f) {
                 *yi = fi - *yi;
             }
+            forward.clone_from(&y);
         } else {
             let r: Vec<f64> = f.iter().zip(bt_lam).map(|(a, b)| a - b).collect();
             factor.forward(&r, &mut y);
@@ -150,37 +173,59 @@ impl ContactProblem {
         Ok(())
     }
 
-    /// u0 = K^-1 f where B reads it, for the increment f = f_total - K u_k
-    /// (`load`: f, f_total and u_k; None for u_k = 0) of a solve to the
-    /// tolerance `tol`, and where the contact DOFs are the factor's trailing
-    /// DOFs y_f = L^-1 P f (the forward half, kept for [`Self::recover_u`];
-    /// else empty).
+    /// u0 = K^-1 f where B reads it, for the increment `load` of a solve to
+    /// the tolerance `tol`, and where the contact DOFs are the factor's
+    /// trailing DOFs y_f = L^-1 P f (the forward half, kept for
+    /// [`Self::recover_u`]; else empty).
     ///
-    /// Trailing DOFs: u0 at them alone (their back substitution needs the
-    /// trailing block of L only). Else u0 everywhere. Where f_total lies in
-    /// the span of the last loads solved for (`load_span`), u0 is K^-1
-    /// f_total minus u_k from their solutions without a solve (where that
-    /// amplifies rounding at most `load_span::max_amplification(tol)`
-    /// times); else it takes one solve (of the factor or the host's), and
-    /// K^-1 f_total = u0 + u_k is kept.
+    /// Where f_total lies in the span of the last loads solved for
+    /// (`load_span`), from their solutions without a solve, where that
+    /// amplifies rounding at most `load_span::max_amplification(tol)` times;
+    /// else by a solve, whose solution of f_total is kept.
+    /// - Trailing DOFs: y_f is the combination of the kept L^-1 P f_total
+    ///   minus L^T P u_k (the forward half of K u_k; where it is known), else
+    ///   the forward substitution of f; u0 at the trailing DOFs alone (their
+    ///   back substitution needs the trailing block of L only).
+    /// - Else u0 everywhere: the combination of the kept K^-1 f_total minus
+    ///   u_k, else one solve (of the factor or the host's).
     ///
     /// Errors: `HostSolve`.
     fn solve_load(
         &mut self,
-        (f, f_total, u_k): (&[f64], &[f64], Option<&[f64]>),
+        Load {
+            f,
+            f_total,
+            u_k,
+            lu,
+        }: Load<'_>,
         tol: f64,
         y_f: &mut Vec<f64>,
         u0: &mut [f64],
     ) -> Result<()> {
+        let amp = max_amplification(tol);
         if !self.dual.trailing {
             y_f.clear();
-            if self.loads.combine(f_total, u_k, u0, max_amplification(tol)) {
+            if self.loads.combine(Map::Solve, f_total, u_k, u0, amp) {
                 return Ok(());
             }
         }
         match &self.stiff {
             Stiffness::Own { factor, .. } if self.dual.trailing => {
-                factor.forward(f, y_f);
+                // L^-1 P (f_total - K u_k) = L^-1 P f_total - L^T P u_k.
+                let lu = lu.map(|s| (!s.is_empty()).then_some(s));
+                let combined =
+                    lu.is_some_and(|s| self.loads.combine(Map::Forward, f_total, s, y_f, amp));
+                if !combined {
+                    factor.forward(f, y_f);
+                    if let Some(s) = lu {
+                        let mut y_total = y_f.clone();
+                        if let Some(s) = s {
+                            y_total.iter_mut().zip(s).for_each(|(a, b)| *a += b);
+                        }
+                        let ledger = factor.ledger().clone();
+                        self.loads.keep(Map::Forward, f_total, y_total, &ledger);
+                    }
+                }
                 let last = factor.last();
                 let mut u_last = vec![0.0; last.len()];
                 factor.backward_to_last(y_f, &mut u_last);
@@ -203,7 +248,7 @@ impl ContactProblem {
             x.iter_mut().zip(u_k).for_each(|(a, b)| *a += b);
         }
         let ledger = self.stiff.ledger().clone();
-        self.loads.keep(f_total, x, &ledger);
+        self.loads.keep(Map::Solve, f_total, x, &ledger);
         Ok(())
     }
 
@@ -224,7 +269,7 @@ impl ContactProblem {
         (history, lt_prev): (Option<&History>, &[f64]),
         mut monitor: Option<Monitor<'_>>,
         predicted: usize,
-    ) -> Result<(Solution, Option<Vec<f64>>)> {
+    ) -> Result<Solved> {
         let start = Instant::now();
         let (ndof, m, c) = (self.n_dofs(), self.n_contacts(), self.dual.c);
         // y_f, K^-1 f, u, B^T lambda, K u and the residual below.
@@ -237,7 +282,17 @@ impl ContactProblem {
         let mut y_f = vec![0.0; ndof];
         let mut u0 = vec![0.0; ndof];
         let u_k = history.map(|h| &h.u[..]);
-        self.solve_load((f, f_total, u_k), opts.tol, &mut y_f, &mut u0)?;
+        let lu = match history {
+            Some(h) => h.lu.as_deref(),
+            None => Some(&[][..]),
+        };
+        let load = Load {
+            f,
+            f_total,
+            u_k,
+            lu,
+        };
+        self.solve_load(load, opts.tol, &mut y_f, &mut u0)?;
         let mut b = vec![0.0; c];
         self.dual.rows.mul_vec(&u0, &mut b);
         for i in 0..m {
@@ -311,6 +366,9 @@ impl ContactProblem {
         let (mut method, mut choice) = (opts.method, "");
         let mut u = vec![0.0; ndof];
         let mut bt_lam = vec![0.0; ndof];
+        // The forward half of the last recovery (dense dual from the
+        // trailing block; empty otherwise).
+        let mut forward = Vec::new();
         let mut v = vec![0.0; c];
         let mut p = vec![0.0; m];
         let mut err = f64::INFINITY;
@@ -360,7 +418,7 @@ impl ContactProblem {
                 end = o.end;
                 // u = K^-1 (f - B^T lambda), and the error measured on it.
                 self.dual.rows.mul_t_vec(lam, &mut bt_lam);
-                self.recover_u(f, &y_f, &bt_lam, &mut u)?;
+                self.recover_u(f, &y_f, &bt_lam, &mut u, &mut forward)?;
                 self.dual.rows.mul_vec(&u, &mut v);
                 for i in 0..m {
                     v[i] -= g[i];
@@ -488,7 +546,11 @@ impl ContactProblem {
                 host_seconds: host_counts.seconds - counts.seconds,
             },
         };
-        Ok((sol, load))
+        Ok(Solved {
+            sol,
+            load,
+            forward: (!forward.is_empty()).then_some(forward),
+        })
     }
 }
 
