@@ -69,8 +69,9 @@ struct Pair {
     _claim: Claim,
 }
 
-/// Up to KEPT loads with their solutions under one linear map (the caller's:
-/// a handle keeps one span per map and clears it when the map changes).
+/// Up to KEPT loads with their solutions under one linear map ([`Map`]; a
+/// pair of another map replaces them all). The handle clears it when the
+/// map itself changes (K refactored).
 #[derive(Default)]
 pub(crate) struct LoadSpan {
     kept: Vec<Pair>,
@@ -114,6 +115,7 @@ impl LoadSpan {
     /// Forgets every kept pair (the map changed: K refactored).
     pub fn clear(&mut self) {
         self.kept.clear();
+        self.map = None;
     }
 
     /// Keeps f with its solution v (both n) under `map`, dropping the oldest
