@@ -189,6 +189,36 @@ fn block_moved(nx: usize, ny: usize, sx: f64, sy: f64) -> Scene {
     })
 }
 
+/// Checks a history step of `sc` with total load `f` from u_k = `u_prev` as
+/// the KKT point of its increment: f - K u_k, g - N u_k, the step du.
+fn assert_step_is_kkt(
+    sc: &Scene,
+    friction: Friction<'_>,
+    f: &[f64],
+    u_prev: &[f64],
+    sol: &Solution,
+    what: &str,
+) {
+    let ku = mul(&sc.k, u_prev);
+    let nu = mul(&sc.n, u_prev);
+    let f_inc: Vec<f64> = f.iter().zip(&ku).map(|(a, b)| a - b).collect();
+    let g_inc: Vec<f64> = sc.g.iter().zip(&nu).map(|(a, b)| a - b).collect();
+    let du: Vec<f64> = sol.u.iter().zip(u_prev).map(|(a, b)| a - b).collect();
+    kkt(
+        sc.d,
+        &sc.k,
+        &sc.n,
+        &sc.t,
+        &f_inc,
+        &g_inc,
+        friction,
+        &du,
+        &sol.lambda_n,
+        &sol.lambda_t,
+    )
+    .assert_ok(what, 1e-8);
+}
+
 /// A history whose contact state no longer changes (pressed, then sheared in
 /// equal increments with a Tresca bound no contact reaches): from the third
 /// step on the history's prediction (src/history.rs: the multipliers
@@ -231,24 +261,7 @@ fn a_proportional_step_with_an_unchanged_contact_state_is_predicted() {
             let sol = pb.step(&f, &sc.g, friction, &o).unwrap();
             let what = format!("{form:?} step {}", k + 1);
             assert_eq!(sol.report.status, SolveStatus::Converged, "{what}");
-            let ku = mul(&sc.k, &u_prev);
-            let nu = mul(&sc.n, &u_prev);
-            let f_inc: Vec<f64> = f.iter().zip(&ku).map(|(a, b)| a - b).collect();
-            let g_inc: Vec<f64> = sc.g.iter().zip(&nu).map(|(a, b)| a - b).collect();
-            let du: Vec<f64> = sol.u.iter().zip(&u_prev).map(|(a, b)| a - b).collect();
-            kkt(
-                sc.d,
-                &sc.k,
-                &sc.n,
-                &sc.t,
-                &f_inc,
-                &g_inc,
-                friction,
-                &du,
-                &sol.lambda_n,
-                &sol.lambda_t,
-            )
-            .assert_ok(&what, 1e-8);
+            assert_step_is_kkt(sc, friction, &f, &u_prev, &sol, &what);
             let r = &sol.report;
             states.push((r.n_open, r.n_stick, r.n_slip));
             println!(
@@ -329,24 +342,7 @@ fn a_history_in_the_span_of_its_loads_matches_fresh_solves() {
             let sol = pb.step(&f, &sc.g, friction, &o).unwrap();
             let what = format!("{form:?} step {k}");
             assert_eq!(sol.report.status, SolveStatus::Converged, "{what}");
-            let ku = mul(&sc.k, &u_prev);
-            let nu = mul(&sc.n, &u_prev);
-            let f_inc: Vec<f64> = f.iter().zip(&ku).map(|(a, b)| a - b).collect();
-            let g_inc: Vec<f64> = sc.g.iter().zip(&nu).map(|(a, b)| a - b).collect();
-            let du: Vec<f64> = sol.u.iter().zip(&u_prev).map(|(a, b)| a - b).collect();
-            kkt(
-                sc.d,
-                &sc.k,
-                &sc.n,
-                &sc.t,
-                &f_inc,
-                &g_inc,
-                friction,
-                &du,
-                &sol.lambda_n,
-                &sol.lambda_t,
-            )
-            .assert_ok(&what, 1e-8);
+            assert_step_is_kkt(sc, friction, &f, &u_prev, &sol, &what);
             assert!(
                 sol.report.equilibrium_residual < 1e-12,
                 "{what}: {:?}",
