@@ -119,9 +119,21 @@ fn concrete_host(scene: &Scene, nan: bool) -> (Host, Handles) {
 
 fn on_host(scene: &Scene, with_k: bool, nan: bool, opts: &Options) -> (ContactProblem, Handles) {
     let (solver, handles) = host(scene, nan);
+    let pb = on_solver(scene, solver, with_k, opts).expect("a valid host problem");
+    (pb, handles)
+}
+
+/// The problem of `scene` on the host `solver`, with K handed over where
+/// `with_k`.
+fn on_solver(
+    scene: &Scene,
+    solver: Box<dyn KSolve>,
+    with_k: bool,
+    opts: &Options,
+) -> dualsplit::Result<ContactProblem> {
     let k_owned = Owned::of(&scene.k);
     let k = k_owned.view();
-    let pb = ContactProblem::with_host_solver(
+    ContactProblem::with_host_solver(
         scene.d,
         solver,
         with_k.then_some(&k),
@@ -129,8 +141,6 @@ fn on_host(scene: &Scene, with_k: bool, nan: bool, opts: &Options) -> (ContactPr
         &Owned::of(&scene.t).view(),
         opts,
     )
-    .expect("a valid host problem");
-    (pb, handles)
 }
 
 fn scene_2d() -> Scene {
@@ -435,7 +445,6 @@ fn the_contact_blocks_from_the_hosts_entries_of_the_inverse() {
         .problem()
         .solve(&scene.f, &scene.g, friction, &opts)
         .unwrap();
-    let (n_owned, t_owned) = (Owned::of(&scene.n), Owned::of(&scene.t));
     for fail in [false, true] {
         let (inner, handles) = concrete_host(&scene, false);
         let entries = Arc::new(AtomicUsize::new(0));
@@ -444,14 +453,7 @@ fn the_contact_blocks_from_the_hosts_entries_of_the_inverse() {
             entries: entries.clone(),
             fail,
         };
-        let made = ContactProblem::with_host_solver(
-            3,
-            Box::new(with),
-            None,
-            &n_owned.view(),
-            &t_owned.view(),
-            &opts,
-        );
+        let made = on_solver(&scene, Box::new(with), false, &opts);
         if fail {
             let e = made.err().expect("the entries call fails");
             assert_eq!(e.kind, ErrorKind::HostSolve);
@@ -581,16 +583,7 @@ fn a_history_in_the_span_of_its_loads_solves_once_per_step() {
         contact,
         loads: loads.clone(),
     };
-    let k_owned = Owned::of(&scene.k);
-    let mut pb = ContactProblem::with_host_solver(
-        scene.d,
-        Box::new(counter),
-        Some(&k_owned.view()),
-        &Owned::of(&scene.n).view(),
-        &Owned::of(&scene.t).view(),
-        &opts,
-    )
-    .unwrap();
+    let mut pb = on_solver(&scene, Box::new(counter), true, &opts).unwrap();
     let mut own = scene.problem();
     let mut fresh = scene.problem();
     // The shear: the press load's horizontal components.

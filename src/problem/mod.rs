@@ -62,9 +62,9 @@ pub struct ContactProblem {
     history: History,
     /// The interface law of each contact (rigid unless set).
     compliance: Compliance,
-    /// The last total loads solved for with K^-1 of each (`load_span`):
-    /// a step whose load lies in their span takes its right-hand side from
-    /// them instead of a solve.
+    /// The last total loads solved for, with K^-1 or the forward half L^-1 P
+    /// of each as the route needs (`load_span`): a step whose load lies in
+    /// their span takes its right-hand side from them instead of a solve.
     loads: LoadSpan,
 }
 
