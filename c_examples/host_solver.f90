@@ -1,7 +1,9 @@
 !> host_solver.f90 -- the library on a Fortran host's own solve of K
 !> (ds_problem_new_host): the node of minimal.f90 (K = diag(2, 4), pressed onto
 !> the foundation with Tresca friction), with K^-1 applied by a BIND(C)
-!> callback instead of K handed over, then a callback that fails.
+!> callback instead of K handed over, what the solve cost (ds_problem_last_cost:
+!> the host's right-hand sides, checked against the callback's own count), then
+!> a callback that fails.
 !>
 !> Build (or `make fortran-host`):
 !>   gfortran -c include/dualsplit.f90
@@ -24,6 +26,7 @@ module host_callbacks
       real(c_double) :: kdiag(2)
       integer(c_int32_t) :: fail_code
       integer(c_int32_t) :: calls
+      integer(c_int64_t) :: columns   ! right-hand sides solved, summed over the calls
    end type host_data
 contains
 
@@ -39,6 +42,7 @@ contains
       h%calls = h%calls + 1
       code = h%fail_code
       if (code /= 0) return
+      h%columns = h%columns + ncols
       do j = 1, ncols
          do i = 1, n
             x(i, j) = x(i, j) / h%kdiag(i)
@@ -50,7 +54,7 @@ end module host_callbacks
 program host_solver_f
    use dualsplit
    use host_callbacks
-   use, intrinsic :: iso_c_binding, only: c_int32_t, c_loc, c_funloc, c_null_funptr
+   use, intrinsic :: iso_c_binding, only: c_int32_t, c_int64_t, c_loc, c_funloc, c_null_funptr
    implicit none
 
    integer, target :: nia(2) = [1, 2], nja(1) = [2]   ! N = [0 -1], 1-based CSR
@@ -62,15 +66,18 @@ program host_solver_f
    type(DsMatrix) :: n, t
    type(DsOptions) :: opts
    type(DsReport) :: rep
+   type(DsCost) :: cost
    type(c_ptr) :: pb
    real(8) :: f(2) = [1.0d0, -10.0d0], g(1) = [0.5d0], p(1) = [0.4d0]
    real(8) :: u(2), ln(1), lt(1)
    integer :: st
-   logical :: ok
+   integer(c_int64_t) :: columns_before
+   logical :: ok, ok_cost
 
    host%kdiag = [2.0d0, 4.0d0]
    host%fail_code = 0
    host%calls = 0
+   host%columns = 0
    solver%struct_size = DS_HOST_SOLVER_SIZE
    solver%n = 2
    solver%solve = c_funloc(diagonal_solve)
@@ -88,6 +95,7 @@ program host_solver_f
    u = 0.0d0
    ln = 0.0d0
    lt = 0.0d0
+   columns_before = host%columns
    st = ds_solve(pb, opts, DS_FRICTION_TRESCA, f, g, p, u, ln, lt, rep)
    if (st /= DS_STATUS_OK) then
       print '(a)', 'ds_solve: '//ds_status_string(st)//': '//ds_last_error_message()
@@ -95,8 +103,16 @@ program host_solver_f
    end if
    print '(a,5(1x,es23.15e3))', 'RESULT', ln(1), lt(1), u(1), u(2), rep%err
    print '(a,1x,i0)', 'CALLS', host%calls
+   ! What the solve cost: the host's right-hand sides as this callback counted them.
+   call ds_cost_init(cost)
+   st = ds_problem_last_cost(pb, cost)
+   print '(a,1x,i0,1x,i0,1x,i0,2(1x,es10.3))', 'COST', st, cost%host_solves, &
+      host%columns - columns_before, cost%host_seconds, cost%library_seconds
+   ok_cost = st == DS_STATUS_OK .and. cost%solved == 1 .and. &
+      cost%host_solves == host%columns - columns_before .and. cost%host_solves > 0 .and. &
+      cost%host_seconds <= cost%solve_seconds
    ok = abs(ln(1) - 8.0d0) <= 1.0d-9 .and. abs(lt(1) - 0.4d0) <= 1.0d-9 .and. &
-        abs(u(1) - 0.3d0) <= 1.0d-9 .and. abs(u(2) + 0.5d0) <= 1.0d-9
+        abs(u(1) - 0.3d0) <= 1.0d-9 .and. abs(u(2) + 0.5d0) <= 1.0d-9 .and. ok_cost
 
    ! The host fails with its code 5: DS_STATUS_HOST_SOLVE_FAILED, outputs untouched.
    host%fail_code = 5

@@ -209,6 +209,23 @@ module dualsplit
    !> sizeof(DsInfo) in C (tests/fortran.rs checks it).
    integer(c_size_t), parameter, public :: DS_INFO_SIZE = 136
 
+   !> What the last ds_solve or ds_step on a handle cost (ds_problem_last_cost):
+   !> where its seconds went and the host's solves. ds_cost_init sets struct_size.
+   type, bind(C), public :: DsCost
+      integer(c_int32_t) :: struct_size   !< uint32_t in C: sizeof(DsCost), set by ds_cost_init
+      integer(c_int32_t) :: solved        !< 1 once a solve returned a report, else 0 (all fields 0)
+      real(c_double)     :: solve_seconds !< DsReport%solve_seconds of that call
+      real(c_double)     :: rhs_seconds   !< the right-hand side
+      real(c_double)     :: iterate_seconds !< the method's iterations
+      real(c_double)     :: recover_seconds !< the recovery of u and err
+      integer(c_int64_t) :: host_solves   !< right-hand sides the host's solve took (0: own factor)
+      real(c_double)     :: host_seconds  !< seconds inside the host's solve
+      real(c_double)     :: library_seconds !< solve_seconds - host_seconds
+   end type DsCost
+
+   !> sizeof(DsCost) in C (tests/fortran.rs checks it).
+   integer(c_size_t), parameter, public :: DS_COST_SIZE = 64
+
    !> What the monitor callback receives after every outer iteration.
    type, bind(C), public :: DsProgress
       integer(c_int64_t) :: iteration     !< outer iterations done so far (1 after the first)
@@ -302,7 +319,7 @@ module dualsplit
    public :: ds_problem_new_host
    public :: ds_problem_new, ds_problem_new_opts, ds_problem_free, ds_problem_refactor, ds_problem_set_contacts
    public :: ds_problem_sizes, ds_solve, ds_step, ds_history_reset, ds_problem_set_compliance
-   public :: ds_analyse, ds_problem_info, ds_info_init
+   public :: ds_analyse, ds_problem_info, ds_info_init, ds_problem_last_cost, ds_cost_init
    public :: ds_problem_set_monitor, ds_problem_set_log, ds_problem_dump, ds_string_from_c
    public :: ds_matrix_csr, ds_matrix_csc, ds_matrix_coo, ds_matrix_dense
 
@@ -414,6 +431,16 @@ module dualsplit
          type(DsInfo), intent(inout) :: info
          integer(c_int) :: status
       end function c_ds_analyse
+
+      ! enum DsStatus ds_problem_last_cost(const struct DsProblem *problem,
+      !     struct DsCost *cost);
+      function c_ds_problem_last_cost(problem, cost) result(status) &
+            bind(C, name="ds_problem_last_cost")
+         import :: c_int, c_ptr, DsCost
+         type(c_ptr), value :: problem
+         type(DsCost), intent(inout) :: cost
+         integer(c_int) :: status
+      end function c_ds_problem_last_cost
 
       ! enum DsStatus ds_problem_info(const struct DsProblem *problem,
       !     const struct DsOptions *opts, struct DsInfo *info);
@@ -707,6 +734,22 @@ contains
       integer(c_int32_t) :: status
       status = int(c_ds_problem_info(problem, opts, info), c_int32_t)
    end function ds_problem_info
+
+   !> Sets cost%struct_size = DS_COST_SIZE and every other field to 0.
+   subroutine ds_cost_init(cost)
+      type(DsCost), intent(out) :: cost
+      cost = DsCost(int(DS_COST_SIZE, c_int32_t), 0, 0.0_c_double, 0.0_c_double, &
+         0.0_c_double, 0.0_c_double, 0_c_int64_t, 0.0_c_double, 0.0_c_double)
+   end subroutine ds_cost_init
+
+   !> What the last ds_solve or ds_step on the handle cost (see DsCost in
+   !> dualsplit.h). Call ds_cost_init(cost) first.
+   function ds_problem_last_cost(problem, cost) result(status)
+      type(c_ptr), intent(in) :: problem
+      type(DsCost), intent(inout) :: cost
+      integer(c_int32_t) :: status
+      status = int(c_ds_problem_last_cost(problem, cost), c_int32_t)
+   end function ds_problem_last_cost
 
    !> Frees a handle (a null handle is fine) and sets it to c_null_ptr.
    subroutine ds_problem_free(problem)

@@ -323,6 +323,68 @@ typedef enum DsFriction {
 typedef struct DsProblem DsProblem;
 
 /*
+ What the last ds_solve or ds_step on a handle cost, beyond DsReport: where
+ its seconds went and, on a handle made on the host's solver
+ (ds_problem_new_host), how many right-hand sides the host's solve took and
+ the seconds inside it against the library's own. Filled by
+ ds_problem_last_cost.
+
+ Set struct_size = sizeof(DsCost) before the call: the struct grows at its
+ end from version to version, and the library writes no byte past
+ struct_size. Added in version 0.10 (64 bytes).
+ */
+typedef struct DsCost {
+  /*
+   sizeof(DsCost) as the caller sees it; set by the caller, at least 8.
+   */
+  uint32_t struct_size;
+  /*
+   1 when a ds_solve or ds_step on this handle has returned a report
+   (DS_STATUS_OK, DS_STATUS_NOT_CONVERGED, DS_STATUS_STOPPED,
+   DS_STATUS_STALLED or DS_STATUS_TIME_LIMIT): the fields below are that
+   call's. 0 before any: every field below is 0. A call that failed
+   before solving (a bad argument, a refused memory need, a failed host
+   solve) leaves the last cost as it was.
+   */
+  int32_t solved;
+  /*
+   Seconds of that call's solve (DsReport.solve_seconds): the sum of the
+   three phases below and of the report (equilibrium residual, contact
+   states).
+   */
+  double solve_seconds;
+  /*
+   Seconds of the right-hand side b = B K^-1 f - [g; 0] (one solve with
+   K, or none where a history step's load lies in the span of the last
+   loads).
+   */
+  double rhs_seconds;
+  /*
+   Seconds of the method's iterations.
+   */
+  double iterate_seconds;
+  /*
+   Seconds of the recovery of u = K^-1 (f - B^T lambda) and of err
+   measured on it.
+   */
+  double recover_seconds;
+  /*
+   Right-hand sides the host's solve callback took during that call
+   (columns, summed over the calls); 0 on the library's own factor.
+   */
+  int64_t host_solves;
+  /*
+   Seconds inside the host's solve callback during that call (part of
+   solve_seconds); 0 on the library's own factor.
+   */
+  double host_seconds;
+  /*
+   solve_seconds - host_seconds: the library's own time in that call.
+   */
+  double library_seconds;
+} DsCost;
+
+/*
  The host's solve with K: overwrite x (n x ncols, column-major, leading
  dimension ld, ld = n) with K^-1 x, for the `context` given in
  DsHostSolver. Return 0 on success; any other value is an error code of the
@@ -844,6 +906,21 @@ typedef struct DsReport {
 #ifdef __cplusplus
 extern "C" {
 #endif // __cplusplus
+
+/*
+ Writes what the last ds_solve or ds_step on the handle cost into *cost
+ (see DsCost; cost->solved = 0 before any). Set cost->struct_size =
+ sizeof(DsCost) first.
+
+ Returns DS_STATUS_OK; DS_STATUS_NULL_POINTER when problem or cost is NULL;
+ DS_STATUS_BAD_ARGUMENT when cost is misaligned or cost->struct_size is
+ below 8. *cost is written only on DS_STATUS_OK.
+
+ # Safety
+ problem must be NULL or a live handle; cost must be NULL or point to a
+ writable DsCost of at least cost->struct_size bytes.
+ */
+enum DsStatus ds_problem_last_cost(const struct DsProblem *problem, struct DsCost *cost);
 
 /*
  Creates a contact problem on the host's own solver of K (a CHOLMOD, MUMPS

@@ -1484,3 +1484,127 @@ fn compliant_counts(h: *mut DsProblem) -> (i64, i64) {
     assert_eq!((old.compliant_contacts, old.power_law_contacts), (-7, -7));
     (info.compliant_contacts, info.power_law_contacts)
 }
+
+/// The host's solve for the small problem: K = 3 I + ones(4), so K^-1 x =
+/// (x - sum(x) / 7) / 3 (Sherman-Morrison); the context counts the columns.
+unsafe extern "C" fn small_k_solve(
+    context: *mut std::ffi::c_void,
+    n: i64,
+    ncols: i64,
+    x: *mut f64,
+    ld: i64,
+) -> i32 {
+    // SAFETY: the context is the i64 counter the test passed, alive and not
+    // otherwise borrowed during the call.
+    let count = unsafe { &mut *context.cast::<i64>() };
+    *count += ncols;
+    for j in 0..ncols {
+        // SAFETY: x holds ld x ncols doubles (the callback's contract).
+        let col = unsafe { std::slice::from_raw_parts_mut(x.add((j * ld) as usize), n as usize) };
+        let s: f64 = col.iter().sum();
+        col.iter_mut().for_each(|v| *v = (*v - s / 7.0) / 3.0);
+    }
+    0
+}
+
+/// ds_problem_last_cost: zero (solved = 0) before any solve; after one, the
+/// report's solve_seconds split into its phases, no host solves on the own
+/// factor; on the host's solves the columns its callback counted and
+/// library_seconds = solve_seconds - host_seconds; an older struct gets its
+/// prefix only; NULL and an unset struct_size are refused; a solve refused
+/// for a bad argument leaves the last cost as it was.
+#[test]
+fn last_cost_splits_the_solve_and_counts_the_hosts_solves() {
+    let sentinel = DsCost {
+        struct_size: std::mem::size_of::<DsCost>() as u32,
+        solved: -7,
+        solve_seconds: SENTINEL,
+        rhs_seconds: SENTINEL,
+        iterate_seconds: SENTINEL,
+        recover_seconds: SENTINEL,
+        host_solves: -7,
+        host_seconds: SENTINEL,
+        library_seconds: SENTINEL,
+    };
+    let cost_of = |h: *mut DsProblem| {
+        let mut c = sentinel;
+        // SAFETY: a live handle and a whole, writable DsCost.
+        expect_ok(unsafe { ds_problem_last_cost(h, &mut c) });
+        c
+    };
+    let h = new_problem();
+    let before = cost_of(h);
+    assert_eq!(before.solved, 0);
+    assert_eq!((before.solve_seconds, before.host_solves), (0.0, 0));
+    let out = assert_usable(h);
+    let own = cost_of(h);
+    assert_eq!(own.solved, 1);
+    assert_eq!(own.solve_seconds, out.report.solve_seconds);
+    let phases = own.rhs_seconds + own.iterate_seconds + own.recover_seconds;
+    assert!(phases > 0.0 && phases <= own.solve_seconds, "{own:?}");
+    assert_eq!((own.host_solves, own.host_seconds), (0, 0.0));
+    assert_eq!(own.library_seconds, own.solve_seconds);
+    // A struct of 8 bytes: struct_size and solved, nothing past them.
+    let mut old = sentinel;
+    old.struct_size = 8;
+    // SAFETY: the library writes at most 8 bytes of the whole struct.
+    expect_ok(unsafe { ds_problem_last_cost(h, &mut old) });
+    assert_eq!((old.struct_size, old.solved), (8, 1));
+    assert_eq!((old.solve_seconds, old.host_solves), (SENTINEL, -7));
+    let mut unset = sentinel;
+    unset.struct_size = 0;
+    // SAFETY: as above; refused before anything is written.
+    let s = unsafe { ds_problem_last_cost(h, &mut unset) };
+    expect_error(s, DsStatus::BadArgument, &["struct_size"]);
+    assert_eq!(unset.solved, -7);
+    // SAFETY: NULL arguments are refused.
+    let s = unsafe { ds_problem_last_cost(h, null_mut()) };
+    expect_error(s, DsStatus::NullPointer, &["cost"]);
+    let mut c = sentinel;
+    // SAFETY: as above.
+    let s = unsafe { ds_problem_last_cost(null(), &mut c) };
+    expect_error(s, DsStatus::NullPointer, &["problem"]);
+    // A solve refused (f NULL) keeps the last cost.
+    let mut junk = Outputs::small();
+    let s = solve_raw(
+        h,
+        null(),
+        DsFriction::Tresca as i32,
+        null(),
+        G.as_ptr(),
+        P.as_ptr(),
+        &mut junk,
+    );
+    expect_error(s, DsStatus::NullPointer, &["f"]);
+    assert_eq!(cost_of(h), own);
+    free(h);
+
+    // The same problem on the host's solves.
+    let mut columns: i64 = 0;
+    let solver = DsHostSolver {
+        struct_size: std::mem::size_of::<DsHostSolver>() as u32,
+        n: N_DOFS as i64,
+        solve: Some(small_k_solve),
+        context: (&raw mut columns).cast(),
+        inverse_entries: None,
+    };
+    let (k, n, t) = (k_good(), n_good(), t_good());
+    let mut hh: *mut DsProblem = null_mut();
+    // SAFETY: the solver and the matrices live until the call returns, the
+    // counter until the handle is freed. K is given for the equilibrium
+    // residual that assert_usable checks; every solve is the host's.
+    let s = unsafe { ds_problem_new_host(2, &solver, &k.ds(), &n.ds(), &t.ds(), null(), &mut hh) };
+    expect_ok(s);
+    let at_creation = columns;
+    let on_host = assert_usable(hh);
+    let host = cost_of(hh);
+    assert_eq!(host.solved, 1);
+    assert!(host.host_solves > 0);
+    assert_eq!(host.host_solves, columns - at_creation);
+    assert!(host.host_seconds > 0.0 && host.host_seconds <= host.solve_seconds);
+    assert_eq!(host.library_seconds, host.solve_seconds - host.host_seconds);
+    for (a, b) in on_host.lambda_n.iter().zip(&out.lambda_n) {
+        assert!((a - b).abs() <= 1e-10 * b.abs(), "{a} against {b}");
+    }
+    free(hh);
+}

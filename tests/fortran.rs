@@ -427,6 +427,7 @@ const LAYOUT_F90: &str = r#"program layout
    type(DsProgress), target :: g
    type(DsInfo), target :: i
    type(DsHostSolver), target :: h
+   type(DsCost), target :: k
    write (*, '(a,99(1x,i0))') 'DsMatrix', c_sizeof(m), off(c_loc(m), c_loc(m%format)), &
       off(c_loc(m), c_loc(m%index_type)), off(c_loc(m), c_loc(m%base)), &
       off(c_loc(m), c_loc(m%storage)), off(c_loc(m), c_loc(m%nrows)), &
@@ -466,6 +467,12 @@ const LAYOUT_F90: &str = r#"program layout
       off(c_loc(i), c_loc(i%analyse_seconds)), &
       off(c_loc(i), c_loc(i%compliant_contacts)), off(c_loc(i), c_loc(i%power_law_contacts))
    write (*, '(a,99(1x,i0))') 'DS_INFO_SIZE', DS_INFO_SIZE
+   write (*, '(a,99(1x,i0))') 'DsCost', c_sizeof(k), off(c_loc(k), c_loc(k%struct_size)), &
+      off(c_loc(k), c_loc(k%solved)), off(c_loc(k), c_loc(k%solve_seconds)), &
+      off(c_loc(k), c_loc(k%rhs_seconds)), off(c_loc(k), c_loc(k%iterate_seconds)), &
+      off(c_loc(k), c_loc(k%recover_seconds)), off(c_loc(k), c_loc(k%host_solves)), &
+      off(c_loc(k), c_loc(k%host_seconds)), off(c_loc(k), c_loc(k%library_seconds))
+   write (*, '(a,99(1x,i0))') 'DS_COST_SIZE', DS_COST_SIZE
    write (*, '(a,99(1x,i0))') 'DsHostSolver', c_sizeof(h), off(c_loc(h), c_loc(h%struct_size)), &
       off(c_loc(h), c_loc(h%n)), off(c_loc(h), c_loc(h%solve)), off(c_loc(h), c_loc(h%context)), &
       off(c_loc(h), c_loc(h%inverse_entries))
@@ -514,6 +521,11 @@ int main(void)
            O(DsInfo, analyse_seconds), O(DsInfo, compliant_contacts),
            O(DsInfo, power_law_contacts));
     printf("DS_INFO_SIZE %d\n", (int)sizeof(DsInfo));
+    printf("DsCost %d %d %d %d %d %d %d %d %d %d\n", (int)sizeof(DsCost),
+           O(DsCost, struct_size), O(DsCost, solved), O(DsCost, solve_seconds),
+           O(DsCost, rhs_seconds), O(DsCost, iterate_seconds), O(DsCost, recover_seconds),
+           O(DsCost, host_solves), O(DsCost, host_seconds), O(DsCost, library_seconds));
+    printf("DS_COST_SIZE %d\n", (int)sizeof(DsCost));
     printf("DsHostSolver %d %d %d %d %d %d\n", (int)sizeof(DsHostSolver),
            O(DsHostSolver, struct_size), O(DsHostSolver, n), O(DsHostSolver, solve),
            O(DsHostSolver, context), O(DsHostSolver, inverse_entries));
@@ -568,6 +580,16 @@ fn host_solver_example_runs() {
         stdout.lines().any(|l| l.starts_with("AGAIN 0 ")),
         "{stdout}"
     );
+    // ds_problem_last_cost through the module: OK, the host's right-hand
+    // sides as the callback counted them (the program checks the equality).
+    let cost: Vec<&str> = stdout
+        .lines()
+        .find_map(|l| l.strip_prefix("COST "))
+        .expect("a COST line")
+        .split_whitespace()
+        .collect();
+    assert_eq!(cost[0], "0", "{stdout}");
+    assert_eq!(cost[1], cost[2], "{stdout}");
 }
 
 #[test]

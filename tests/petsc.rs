@@ -128,6 +128,10 @@ fn check(stdout: &str, what: &str) {
     let s = key_values(line);
     assert_eq!(s["ranks"], "2", "{what}");
     assert_eq!(s["identical"], "1", "{what}: the ranks differ");
+    assert_eq!(
+        s["cost_matches"], "1",
+        "{what}: DsCost.host_solves differs from the callback's count: {line}"
+    );
     assert_eq!(s["check"], "ok", "{what}: {line}");
     assert!(num(&s, "max_err") <= 1e-10, "{what}: {line}");
     let dev = num(&s, "max_dev");

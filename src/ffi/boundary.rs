@@ -203,6 +203,56 @@ impl<T: Copy> OutArray<T> {
     }
 }
 
+/// Writes `value` into the caller's versioned struct at `out` (DsInfo,
+/// DsCost: a `#[repr(C)]` struct whose first field is the u32 struct_size the
+/// caller set), at most struct_size bytes: a caller compiled against an older,
+/// shorter struct gets the fields it has. struct_size keeps the caller's value.
+///
+/// Errors: `NullPointer`; `BadArgument` when `out` is misaligned or its
+/// struct_size is below 8 (not set).
+///
+/// # Safety
+/// `out` must be NULL or point to a writable prefix of struct_size bytes of a
+/// `T` whose first field is a u32 struct_size.
+pub(crate) unsafe fn write_sized<T: Copy>(
+    out: *mut T,
+    value: T,
+    what: &str,
+    type_name: &str,
+) -> Result<()> {
+    if out.is_null() {
+        return Err(Error::new(
+            DsStatus::NullPointer,
+            format!("argument {what} is NULL"),
+        ));
+    }
+    if !out.is_aligned() {
+        return Err(Error::new(
+            DsStatus::BadArgument,
+            format!("argument {what} = {out:p} is not aligned"),
+        ));
+    }
+    // SAFETY: non-NULL and aligned; the first field, a u32, is present in every
+    // version (contract).
+    let struct_size = unsafe { out.cast::<u32>().read() };
+    let size = struct_size as usize;
+    if size < 8 {
+        return Err(Error::new(
+            DsStatus::BadArgument,
+            format!("{what}->struct_size = {size}: set it to sizeof({type_name}) before the call"),
+        ));
+    }
+    let len = size.min(std::mem::size_of::<T>());
+    // SAFETY: `out` is writable for struct_size >= len >= 8 bytes (contract),
+    // `value` is a whole T in library memory (no overlap); the u32 written last
+    // is the first field, restored to the caller's value.
+    unsafe {
+        std::ptr::copy_nonoverlapping((&value as *const T).cast::<u8>(), out.cast::<u8>(), len);
+        out.cast::<u32>().write(struct_size);
+    }
+    Ok(())
+}
+
 /// Borrows the struct at `ptr`.
 ///
 /// Errors: `NullPointer`, `BadArgument` (misaligned).

@@ -6,7 +6,6 @@
 use super::boundary::{entry, ref_in, ref_mut};
 use super::error::{CError as Error, CResult as Result};
 use super::matrix::DsMatrix;
-use super::monitor::Watch;
 use super::options::DsOptions;
 use super::problem::{DsProblem, dimension};
 use super::status::DsStatus;
@@ -237,10 +236,7 @@ pub unsafe extern "C" fn ds_problem_new_host(
         let kv = unsafe { k.map(|k| k.view("K")).transpose()? };
         let inner =
             ContactProblem::with_host_solver(d, Box::new(host), kv.as_ref(), &nv, &tv, &opts)?;
-        *out = Box::into_raw(Box::new(DsProblem {
-            inner,
-            watch: Watch::default(),
-        }));
+        *out = DsProblem::boxed(inner);
         Ok(())
     })
 }

@@ -1,6 +1,6 @@
 //! The analysis report of the C API: DsInfo, ds_analyse and ds_problem_info.
 
-use super::boundary::{entry, ref_in};
+use super::boundary::{entry, ref_in, write_sized};
 use super::error::{CError as Error, CResult as Result};
 use super::matrix::DsMatrix;
 use super::options::DsOptions;
@@ -121,39 +121,8 @@ impl From<&Info> for DsInfo {
 /// # Safety
 /// `out` must be NULL or point to a writable DsInfo prefix of struct_size bytes.
 unsafe fn write_info(out: *mut DsInfo, info: &Info) -> Result<()> {
-    if out.is_null() {
-        return Err(Error::new(DsStatus::NullPointer, "argument info is NULL"));
-    }
-    if !out.is_aligned() {
-        return Err(Error::new(
-            DsStatus::BadArgument,
-            format!("argument info = {out:p} is not aligned"),
-        ));
-    }
-    // SAFETY: non-NULL and aligned; the first field is present in every version.
-    let struct_size = unsafe { std::ptr::addr_of!((*out).struct_size).read() };
-    let size = struct_size as usize;
-    if size < 8 {
-        return Err(Error::new(
-            DsStatus::BadArgument,
-            format!("info->struct_size = {size}: set it to sizeof(DsInfo) before the call"),
-        ));
-    }
-    let value = DsInfo {
-        struct_size,
-        ..DsInfo::from(info)
-    };
-    let len = size.min(std::mem::size_of::<DsInfo>());
-    // SAFETY: `out` is writable for struct_size >= len bytes (contract), `value`
-    // is a whole DsInfo; caller memory and a Rust value do not overlap.
-    unsafe {
-        std::ptr::copy_nonoverlapping(
-            (&value as *const DsInfo).cast::<u8>(),
-            out.cast::<u8>(),
-            len,
-        )
-    };
-    Ok(())
+    // SAFETY: out is NULL or writable for its struct_size bytes (contract).
+    unsafe { write_sized(out, DsInfo::from(info), "info", "DsInfo") }
 }
 
 /// The analysis alone: validates K, N, T and the options, orders K and computes

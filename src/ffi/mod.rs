@@ -23,6 +23,7 @@
 #![cfg_attr(not(feature = "internals"), allow(unused_imports))]
 
 mod boundary;
+mod cost;
 mod error;
 mod host;
 mod info;
@@ -37,6 +38,7 @@ mod status;
 mod types;
 mod version;
 
+pub use cost::{DsCost, ds_problem_last_cost};
 pub use host::{DsHostInverseFn, DsHostSolveFn, DsHostSolver, ds_problem_new_host};
 pub use info::{DsInfo, ds_analyse, ds_problem_info};
 pub use last_error::ds_last_error_message;

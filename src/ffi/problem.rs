@@ -5,6 +5,7 @@
 //! the body, -T^T lambda_T, opposes the slip T u.
 
 use super::boundary::{OutArray, entry, optional_in, ref_in, ref_mut, slice_in};
+use super::cost::DsCost;
 use super::error::{CError as Error, CResult as Result};
 use super::matrix::DsMatrix;
 use super::monitor::{DsLogFn, DsMonitorFn, LOG_ITERATIONS, LOG_SILENT, Watch};
@@ -24,6 +25,20 @@ pub struct DsProblem {
     pub(super) inner: ContactProblem,
     /// Monitor callback and log settings.
     pub(super) watch: Watch,
+    /// What the last ds_solve or ds_step that returned a report cost (see
+    /// ds_problem_last_cost); None before any.
+    pub(super) last_cost: Option<DsCost>,
+}
+
+impl DsProblem {
+    /// A handle owning `inner`, without monitor, log or past solve.
+    pub(super) fn boxed(inner: ContactProblem) -> *mut DsProblem {
+        Box::into_raw(Box::new(DsProblem {
+            inner,
+            watch: Watch::default(),
+            last_cost: None,
+        }))
+    }
 }
 
 /// The contact dimension d as `usize`, or `BadArgument`.
@@ -82,10 +97,7 @@ pub unsafe extern "C" fn ds_problem_new(
         // SAFETY: the matrices' arrays match their fields (contract).
         let (kv, nv, tv) = unsafe { (k.view("K")?, n.view("N")?, t.view("T")?) };
         let inner = ContactProblem::new(d, &kv, &nv, &tv)?;
-        *out = Box::into_raw(Box::new(DsProblem {
-            inner,
-            watch: Watch::default(),
-        }));
+        *out = DsProblem::boxed(inner);
         Ok(())
     })
 }
@@ -127,10 +139,7 @@ pub unsafe extern "C" fn ds_problem_new_opts(
         // SAFETY: the matrices' arrays match their fields (contract).
         let (kv, nv, tv) = unsafe { (k.view("K")?, n.view("N")?, t.view("T")?) };
         let inner = ContactProblem::with_options(d, &kv, &nv, &tv, &opts)?;
-        *out = Box::into_raw(Box::new(DsProblem {
-            inner,
-            watch: Watch::default(),
-        }));
+        *out = DsProblem::boxed(inner);
         Ok(())
     })
 }

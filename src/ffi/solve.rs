@@ -2,6 +2,7 @@
 //! solve, and the outputs written per status after it returned.
 
 use super::boundary::{OutArray, entry, ref_mut, slice_in};
+use super::cost::DsCost;
 use super::error::{CError as Error, CResult as Result};
 use super::monitor::LOG_ITERATIONS;
 use super::options::DsOptions;
@@ -95,6 +96,7 @@ unsafe fn solve_impl(
         Mode::Step => problem.inner.step_monitored(f, g, law, &options, monitor)?,
     };
     problem.watch.on_done(&solution.report);
+    problem.last_cost = Some(DsCost::from(&solution.report));
     let ds_report = DsReport::from(&solution.report);
     let status = solution.report.status;
     if status != SolveStatus::NotConverged {
