@@ -6,11 +6,13 @@
 //! factorisation included) and the host path's creation (the host's
 //! factorisation excluded: the host already holds it), the first solve and a
 //! press-then-shear history of `--steps` steps, with the host's solves and
-//! their seconds.
+//! their seconds. `--single`: the host also solves in single precision
+//! (`KSolve::solve_single`, from its factor's values rounded), which the
+//! library takes for Newton's loose products.
 //!
 //! ```text
 //! cargo run --release --example host_solver -- [--scenes A,B,..] [--steps N]
-//!     [--laws tresca,coulomb] [--no-k] [--threads K]
+//!     [--laws tresca,coulomb] [--no-k] [--single] [--threads K]
 //! ```
 
 #[path = "bench/baseline.rs"]
@@ -35,9 +37,13 @@ use std::time::Instant;
 /// Runs of each plain factorisation whose median is the baseline.
 const FACTOR_REPS: usize = 3;
 
-/// The host: a factor of K, solving a block of right-hand sides at once.
+/// The host: a factor of K, solving a block of right-hand sides at once;
+/// with `--single` also in single precision, from a copy of its factor's
+/// values rounded to single precision (as a host holding a single-precision
+/// factor, CHOLMOD 5 or SMUMPS, would), with the workspace of one solve.
 struct Host {
     factor: Arc<Factor>,
+    single: Option<(Arc<Vec<f32>>, MemBuffer)>,
 }
 
 impl KSolve for Host {
@@ -51,6 +57,16 @@ impl KSolve for Host {
         let m = faer::MatMut::from_column_major_slice_mut(x, n, ncols);
         self.factor.solve_in_place(m, MemStack::new(&mut mem));
         Ok(())
+    }
+
+    fn solve_single(&mut self, x: &mut [f32], _ncols: usize) -> Option<Result<(), i32>> {
+        let (values, mem) = self.single.as_mut()?;
+        let n = self.factor.n();
+        for col in x.chunks_mut(n) {
+            let m = faer::MatMut::from_column_major_slice_mut(col, n, 1);
+            self.factor.solve_single(values, m, MemStack::new(mem));
+        }
+        Some(Ok(()))
     }
 }
 
@@ -87,6 +103,7 @@ fn main() {
     let mut steps = 10usize;
     let mut laws = vec!["tresca".to_string(), "coulomb".to_string()];
     let mut with_k = true;
+    let mut single = false;
     let mut threads = 1;
     let args: Vec<String> = std::env::args().skip(1).collect();
     let mut k = 0;
@@ -99,6 +116,11 @@ fn main() {
             "--threads" => threads = value().parse().expect("--threads K"),
             "--no-k" => {
                 with_k = false;
+                k += 1;
+                continue;
+            }
+            "--single" => {
+                single = true;
                 k += 1;
                 continue;
             }
@@ -127,6 +149,9 @@ fn main() {
         let host_factor =
             Factor::with_last(&sc.k, &[], ordering, Arc::new(Threads::new(threads))).unwrap();
         let t_host_factor = t0.elapsed().as_secs_f64();
+        let t0 = Instant::now();
+        let single_values = single.then(|| Arc::new(host_factor.single_values().unwrap()));
+        let t_host_single = t0.elapsed().as_secs_f64();
         let arrays = (Arrays::of(&sc.k), Arrays::of(&sc.n), Arrays::of(&sc.t));
         for law in &laws {
             let friction = if law == "tresca" {
@@ -150,6 +175,9 @@ fn main() {
                 sc.d,
                 Box::new(Host {
                     factor: host_factor.clone(),
+                    single: single_values
+                        .clone()
+                        .map(|v| (v, MemBuffer::new(host_factor.solve_scratch_single()))),
                 }),
                 with_k.then_some(&kv),
                 &arrays.1.view(&sc.n),
@@ -160,7 +188,7 @@ fn main() {
             let t_host = t2.elapsed().as_secs_f64();
             println!(
                 "\n{name} (n = {}, c = {}), {law}, {threads} thread(s), K {}: best plain factor {t_factor:.3} s; \
-                 own creation {t_own:.3} s ({:.2} x); host's factor {t_host_factor:.3} s, host creation \
+                 own creation {t_own:.3} s ({:.2} x); host's factor {t_host_factor:.3} s{}, host creation \
                  (the contact blocks by {} solves) {t_host:.3} s ({:.2} x)",
                 sc.k.nrows,
                 own.dual_unknowns(),
@@ -170,6 +198,11 @@ fn main() {
                     "not handed over"
                 },
                 t_own / t_factor,
+                if single {
+                    format!(" (and its single-precision copy {t_host_single:.3} s)")
+                } else {
+                    String::new()
+                },
                 own.dual_unknowns(),
                 t_host / t_factor,
             );

@@ -44,7 +44,7 @@
 !> DS_STATUS_TIME_LIMIT the iterate with the lowest err and the report) and the
 !> handle stays usable. Compile this file with the program (gfortran -c dualsplit.f90) and link with libdualsplit (see README.md).
 module dualsplit
-   use, intrinsic :: iso_c_binding, only: c_int, c_int32_t, c_int64_t, c_double, &
+   use, intrinsic :: iso_c_binding, only: c_int, c_int32_t, c_int64_t, c_double, c_float, &
       c_ptr, c_null_ptr, c_char, c_size_t, c_associated, c_f_pointer, c_loc, c_funptr, &
       c_null_funptr, c_funloc, c_null_char
    implicit none
@@ -240,17 +240,21 @@ module dualsplit
    !> to DS_HOST_SOLVER_SIZE, n, solve = c_funloc(a BIND(C) function with the
    !> interface ds_host_solve_fn), context (c_null_ptr, or c_loc of the
    !> host's data, valid until the handle is freed) and inverse_entries
-   !> (c_null_funptr, or a function with the interface ds_host_inverse_fn).
+   !> (c_null_funptr, or a function with the interface ds_host_inverse_fn);
+   !> solve_single (0.10, optional: c_null_funptr by default, or a function
+   !> with the interface ds_host_solve_single_fn for the loose products in
+   !> single precision).
    type, bind(C), public :: DsHostSolver
       integer(c_int32_t) :: struct_size   !< uint32_t in C: sizeof(DsHostSolver)
       integer(c_int64_t) :: n             !< DOFs of K, >= 1
       type(c_funptr)     :: solve         !< DsHostSolveFn: x := K^-1 x (required)
       type(c_ptr)        :: context       !< passed back to solve unchanged
       type(c_funptr)     :: inverse_entries !< DsHostInverseFn or c_null_funptr (optional)
+      type(c_funptr)     :: solve_single = c_null_funptr !< DsHostSolveSingleFn (optional, 0.10)
    end type DsHostSolver
 
    !> sizeof(DsHostSolver) in C (tests/fortran.rs checks it).
-   integer(c_int32_t), parameter, public :: DS_HOST_SOLVER_SIZE = 40
+   integer(c_int32_t), parameter, public :: DS_HOST_SOLVER_SIZE = 48
 
    ! ---------------------------------------------------------------------------------
    ! Callbacks (DsMonitorFn, DsLogFn): write them as BIND(C) procedures of a module
@@ -295,6 +299,17 @@ module dualsplit
          real(c_double), intent(inout) :: x(ld, *)
          integer(c_int32_t) :: code
       end function ds_host_solve_fn
+
+      !> typedef int32_t (*DsHostSolveSingleFn)(void *context, int64_t n,
+      !>     int64_t ncols, float *x, int64_t ld);
+      !> As ds_host_solve_fn in single precision (optional, version 0.10).
+      function ds_host_solve_single_fn(context, n, ncols, x, ld) result(code) bind(C)
+         import :: c_int32_t, c_int64_t, c_float, c_ptr
+         type(c_ptr), value :: context
+         integer(c_int64_t), value :: n, ncols, ld
+         real(c_float), intent(inout) :: x(ld, *)
+         integer(c_int32_t) :: code
+      end function ds_host_solve_single_fn
 
       !> typedef int32_t (*DsHostInverseFn)(void *context, int64_t count,
       !>     const int64_t *rows, const int64_t *cols, double *values);

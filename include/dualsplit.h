@@ -424,9 +424,26 @@ typedef int32_t (*DsHostInverseFn)(void *context,
                                    double *values);
 
 /*
+ Optional: the host's solve with K in single precision: as DsHostSolveFn,
+ on floats. The library calls it for the products whose accuracy allows a
+ relative error of about 1e-7 cond(K)^(1/2) (the loose Krylov solves of
+ Newton's early steps and the inner rounds of its mixed-precision
+ refinement, where its own factor uses a single-precision copy of L): half
+ the memory traffic of a solve in double where the host holds its factor in
+ single precision too (CHOLMOD 5, MUMPS's SMUMPS, PARDISO). Every gradient
+ and residual the library trusts comes from `solve`. Errors and the rules of
+ calling as DsHostSolveFn; on MPI, as collective as `solve`. Added in
+ version 0.10.
+ */
+typedef int32_t (*DsHostSolveSingleFn)(void *context, int64_t n, int64_t ncols, float *x, int64_t ld);
+
+/*
  The host's solver of K, handed to ds_problem_new_host. Set struct_size =
- sizeof(DsHostSolver): later versions may add optional callbacks at the end
- and will accept this size.
+ sizeof(DsHostSolver), and the optional callbacks to NULL where not given
+ (zero the struct first): later versions may add optional callbacks at the
+ end and will accept this size. 40 bytes (version 0.9: up to
+ inverse_entries) and 48 (0.10: solve_single) are accepted; the library
+ reads no byte past struct_size.
  */
 typedef struct DsHostSolver {
   /*
@@ -450,6 +467,11 @@ typedef struct DsHostSolver {
    Entries of K^-1 (optional, NULL: the contacts' blocks by solves).
    */
   DsHostInverseFn inverse_entries;
+  /*
+   The solve in single precision (optional, NULL: every product calls
+   `solve`). Added in version 0.10.
+   */
+  DsHostSolveSingleFn solve_single;
 } DsHostSolver;
 
 /*
@@ -936,7 +958,9 @@ enum DsStatus ds_problem_last_cost(const struct DsProblem *problem, struct DsCos
  side and create a new handle), and so does ds_problem_dump without K.
 
  - d: contact dimension, 2 or 3.
- - solver: the callback, its context and n (see DsHostSolver).
+ - solver: the callbacks, their context and n (see DsHostSolver; with
+   solver->solve_single, the loose products are solved in single
+   precision).
  - k: K itself, optional (NULL: none), as ds_problem_new takes it. Where
    given it serves the lumped preconditioner B K B^T of Newton's reduced
    systems (about half the products of Jacobi), K u_k in a history and the
@@ -956,8 +980,9 @@ enum DsStatus ds_problem_last_cost(const struct DsProblem *problem, struct DsCos
  DS_STATUS_OUT_OF_MEMORY. Added in version 0.9.
 
  # Safety
- Each pointer must be NULL or valid: solver points to a DsHostSolver whose
- callback and context stay valid until the handle is freed; k (if not
+ Each pointer must be NULL or valid: solver points to a DsHostSolver of
+ struct_size readable bytes whose callbacks and context stay valid until
+ the handle is freed; k (if not
  NULL), n, t point to DsMatrix structs whose arrays match their fields; opts
  as for ds_problem_new_opts; out points to a writable DsProblem*.
  */

@@ -392,6 +392,23 @@ mod tests {
         );
     }
 
+    /// On the host's solves the preconditioner is weighed as on the own path,
+    /// against the factor the library would make of K (`dual::host_layer`):
+    /// where it pays on the own path it is formed there too, which the old
+    /// weighing against K's lower triangle alone refused.
+    #[test]
+    fn on_the_hosts_solves_it_is_weighed_as_on_the_own_path() {
+        let (nx, ny) = (60, 30);
+        let (k, b, factor, _) = scene(nx, ny);
+        let (threads, ledger) = (Arc::new(Threads::new(1)), Ledger::new());
+        let own = Plan::of(&k, &b, &factor, threads.clone(), ledger.clone());
+        let host = crate::dual::host_layer(&k, &b, 2, &threads, &ledger);
+        let lower = Plan::within(&k, &b, (k.nnz() + k.nrows) / 2, threads, ledger);
+        assert!(own.is_some(), "the preconditioner pays on this grid");
+        assert_eq!(host.map(|p| p.bytes()), own.map(|p| p.bytes()));
+        assert!(lower.is_none(), "K's lower triangle alone refuses it");
+    }
+
     #[test]
     fn one_layer_lies_between_the_inverse_of_a_and_the_lumped_one() {
         let (nx, ny) = (30, 20);

@@ -657,7 +657,7 @@ impl Factor {
     /// L's values rounded to single precision (for [`Factor::solve_single`]).
     ///
     /// Errors: `OutOfMemory` when the copy cannot be allocated.
-    pub(crate) fn single_values(&self) -> Result<Vec<f32>> {
+    pub fn single_values(&self) -> Result<Vec<f32>> {
         let mut v: Vec<f32> = crate::memory::try_zeros(
             self.l_values.len(),
             "the single-precision copy of the factor",
@@ -669,7 +669,7 @@ impl Factor {
     }
 
     /// Workspace of [`Factor::solve_single`] for one right-hand side.
-    pub(crate) fn solve_scratch_single(&self) -> StackReq {
+    pub fn solve_scratch_single(&self) -> StackReq {
         match &self.layout {
             Layout::Supernodal(symbolic) => symbolic.solve_in_place_scratch::<f32>(1, self.par()),
             Layout::Dense => faer::linalg::temp_mat_scratch::<f32>(self.n(), 1),
@@ -680,7 +680,7 @@ impl Factor {
     /// precision, with `values` = [`Factor::single_values`]: half the memory
     /// traffic of a solve, relative error about 1e-7 cond(K)^(1/2) per factor
     /// solve; for the inexact inner solves of a Newton step only.
-    pub(crate) fn solve_single(&self, values: &[f32], rhs: MatMut<'_, f32>, stack: &mut MemStack) {
+    pub fn solve_single(&self, values: &[f32], rhs: MatMut<'_, f32>, stack: &mut MemStack) {
         self.solve_values(values, rhs, stack);
     }
 

@@ -25,6 +25,25 @@ pub trait KSolve: Send {
     /// the library passes on in its error message.
     fn solve(&mut self, x: &mut [f64], ncols: usize) -> std::result::Result<(), i32>;
 
+    /// Optional: as [`KSolve::solve`], in single precision (a host that holds
+    /// its factor in single precision too, or converts it: half the memory
+    /// traffic of a solve). The library takes it for the products whose
+    /// accuracy allows a relative error of about 1e-7 cond(K)^(1/2), as its
+    /// own factor's single-precision copy serves them: the loose Krylov solves
+    /// of Newton's early steps and the inner rounds of its mixed-precision
+    /// refinement; every gradient and residual it trusts is from
+    /// [`KSolve::solve`]. `None` (the default): not offered; the library then
+    /// calls `solve` for every product. `Some(Err(code))` reports a failure
+    /// as `solve` does.
+    fn solve_single(
+        &mut self,
+        x: &mut [f32],
+        ncols: usize,
+    ) -> Option<std::result::Result<(), i32>> {
+        let _ = (x, ncols);
+        None
+    }
+
     /// Optional: entry k of `values` := the entry of K^-1 at (entry k of
     /// `rows`, entry k of `cols`) for every k (0-based
     /// DOFs, as MUMPS's selected inversion, ICNTL(30), or PETSc's
@@ -71,6 +90,8 @@ pub(crate) struct Host {
     n: usize,
     solver: Mutex<Box<dyn KSolve>>,
     ledger: Mutex<Ledger>,
+    /// False once the host answered that it offers no single-precision solve.
+    single: std::sync::atomic::AtomicBool,
 }
 
 /// Counters of the host's solves (see [`Host::counts`]).
@@ -92,6 +113,7 @@ impl Host {
             n: solver.n(),
             solver: Mutex::new(solver),
             ledger: Mutex::new(Ledger::default()),
+            single: std::sync::atomic::AtomicBool::new(true),
         }
     }
 
@@ -110,15 +132,46 @@ impl Host {
     /// latched and returned; while one is latched the host is not called
     /// again and x is left as given.
     pub(crate) fn solve(&self, x: &mut [f64], ncols: usize) -> Result<()> {
+        self.call(x, ncols, "", |s, x| Some(s.solve(x, ncols)))
+            .unwrap_or_else(|| unreachable!("the double-precision solve is always offered"))
+    }
+
+    /// As [`Host::solve`] in single precision where the host offers it
+    /// ([`KSolve::solve_single`]); None where it does not (remembered: the
+    /// host is not asked again).
+    pub(crate) fn solve_single(&self, x: &mut [f32], ncols: usize) -> Option<Result<()>> {
+        use std::sync::atomic::Ordering::Relaxed;
+        if !self.single.load(Relaxed) {
+            return None;
+        }
+        let outcome = self.call(x, ncols, " in single precision", |s, x| {
+            s.solve_single(x, ncols)
+        });
+        if outcome.is_none() {
+            self.single.store(false, Relaxed);
+        }
+        outcome
+    }
+
+    /// One call of the host's solve `f` on x (n x ncols) in either precision,
+    /// counted, its failure latched; None where `f` is not offered (nothing
+    /// counted).
+    fn call<T: Copy + Into<f64>>(
+        &self,
+        x: &mut [T],
+        ncols: usize,
+        precision: &str,
+        f: impl FnOnce(&mut dyn KSolve, &mut [T]) -> Option<std::result::Result<(), i32>>,
+    ) -> Option<Result<()>> {
         debug_assert_eq!(x.len(), self.n * ncols);
         let mut ledger = self.ledger();
         if let Some(e) = &ledger.failure {
-            return Err(e.clone());
+            return Some(Err(e.clone()));
         }
         let start = Instant::now();
         let outcome = {
             let mut solver = self.solver.lock().unwrap_or_else(|e| e.into_inner());
-            solver.solve(x, ncols)
+            f(&mut **solver, x)?
         };
         let counts = &mut ledger.counts;
         counts.seconds += start.elapsed().as_secs_f64();
@@ -127,20 +180,20 @@ impl Host {
         let call = counts.calls;
         let failure = match outcome {
             Err(code) => Some(format!(
-                "the host's solve of K failed with its code {code} (call {call} of this \
-                 problem, {ncols} right-hand sides)"
+                "the host's solve of K{precision} failed with its code {code} (call {call} of \
+                 this problem, {ncols} right-hand sides)"
             )),
-            Ok(()) => x.iter().position(|v| !v.is_finite()).map(|p| {
+            Ok(()) => x.iter().position(|&v| !v.into().is_finite()).map(|p| {
                 format!(
-                    "the host's solve of K returned {} at row {} of right-hand side {} \
-                     (call {call} of this problem)",
-                    x[p],
+                    "the host's solve of K{precision} returned {} at row {} of right-hand side \
+                     {} (call {call} of this problem)",
+                    x[p].into(),
                     p % self.n.max(1),
                     p / self.n.max(1),
                 )
             }),
         };
-        ledger.latch(failure)
+        Some(ledger.latch(failure))
     }
 
     /// The entries of K^-1 at (`rows`, `cols`) into `values` by the host where it offers

@@ -1507,6 +1507,100 @@ unsafe extern "C" fn small_k_solve(
     0
 }
 
+/// Calls of small_k_solve_single (only the test below uses it).
+static SINGLE_CALLS: std::sync::atomic::AtomicI64 = std::sync::atomic::AtomicI64::new(0);
+
+/// small_k_solve in single precision; the context counts its columns, and
+/// SINGLE_CALLS its calls.
+unsafe extern "C" fn small_k_solve_single(
+    context: *mut std::ffi::c_void,
+    n: i64,
+    ncols: i64,
+    x: *mut f32,
+    ld: i64,
+) -> i32 {
+    // SAFETY: the context is the i64 counter the test passed, alive and not
+    // otherwise borrowed during the call.
+    let count = unsafe { &mut *context.cast::<i64>() };
+    *count += ncols;
+    SINGLE_CALLS.fetch_add(1, std::sync::atomic::Ordering::SeqCst);
+    for j in 0..ncols {
+        // SAFETY: x holds ld x ncols floats (the callback's contract).
+        let col = unsafe { std::slice::from_raw_parts_mut(x.add((j * ld) as usize), n as usize) };
+        let s: f32 = col.iter().sum();
+        col.iter_mut().for_each(|v| *v = (*v - s / 7.0) / 3.0);
+    }
+    0
+}
+
+/// ds_problem_new_host with the single-precision solve: the handle solves
+/// the small problem (assert_usable's checks) and its loose products call
+/// it; a DsHostSolver of version 0.9 (40 bytes, no solve_single) is
+/// accepted and reads nothing past its end (the field there holds a
+/// pointer that would crash if called); any other struct_size is refused.
+#[test]
+fn the_hosts_single_precision_solve_through_the_c_abi() {
+    let mut columns: i64 = 0;
+    let (k, n, t) = (k_good(), n_good(), t_good());
+    let mut solver = DsHostSolver {
+        struct_size: std::mem::size_of::<DsHostSolver>() as u32,
+        n: N_DOFS as i64,
+        solve: Some(small_k_solve),
+        context: (&raw mut columns).cast(),
+        inverse_entries: None,
+        solve_single: Some(small_k_solve_single),
+    };
+    let mut h: *mut DsProblem = null_mut();
+    // SAFETY: the solver and the matrices live until the call returns, the
+    // counter until the handle is freed.
+    let s = unsafe { ds_problem_new_host(2, &solver, &k.ds(), &n.ds(), &t.ds(), null(), &mut h) };
+    expect_ok(s);
+    let mut cost = DsCost {
+        struct_size: std::mem::size_of::<DsCost>() as u32,
+        ..DsCost::default()
+    };
+    let out = assert_usable(h);
+    // SAFETY: a live handle, a whole DsCost.
+    expect_ok(unsafe { ds_problem_last_cost(h, &mut cost) });
+    let singles = SINGLE_CALLS.load(std::sync::atomic::Ordering::SeqCst);
+    assert!(singles > 0, "the loose products in single precision");
+    assert!(cost.host_solves > singles, "and the exact ones in double");
+    free(h);
+    // Version 0.9: 40 bytes; solve_single past them is never read.
+    solver.struct_size = 40;
+    // SAFETY: a non-NULL function pointer that must never be called: the
+    // library reads no byte past struct_size.
+    solver.solve_single = Some(unsafe {
+        std::mem::transmute::<
+            usize,
+            unsafe extern "C" fn(*mut std::ffi::c_void, i64, i64, *mut f32, i64) -> i32,
+        >(8)
+    });
+    let mut old: *mut DsProblem = null_mut();
+    // SAFETY: as above.
+    let s = unsafe { ds_problem_new_host(2, &solver, &k.ds(), &n.ds(), &t.ds(), null(), &mut old) };
+    expect_ok(s);
+    let again = assert_usable(old);
+    assert_eq!(
+        SINGLE_CALLS.load(std::sync::atomic::Ordering::SeqCst),
+        singles
+    );
+    for (a, b) in again.lambda_n.iter().zip(&out.lambda_n) {
+        assert!((a - b).abs() <= 1e-10 * b.abs(), "{a} against {b}");
+    }
+    free(old);
+    for bad in [0u32, 8, 44, 56] {
+        solver.struct_size = bad;
+        let mut none: *mut DsProblem = null_mut();
+        // SAFETY: as above; refused before any callback is read.
+        let s = unsafe {
+            ds_problem_new_host(2, &solver, &k.ds(), &n.ds(), &t.ds(), null(), &mut none)
+        };
+        expect_error(s, DsStatus::BadArgument, &["struct_size"]);
+        assert!(none.is_null());
+    }
+}
+
 /// ds_problem_last_cost: zero (solved = 0) before any solve; after one, the
 /// report's solve_seconds split into its phases, no host solves on the own
 /// factor; on the host's solves the columns its callback counted and
@@ -1587,6 +1681,7 @@ fn last_cost_splits_the_solve_and_counts_the_hosts_solves() {
         solve: Some(small_k_solve),
         context: (&raw mut columns).cast(),
         inverse_entries: None,
+        solve_single: None,
     };
     let (k, n, t) = (k_good(), n_good(), t_good());
     let mut hh: *mut DsProblem = null_mut();

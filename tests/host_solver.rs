@@ -627,3 +627,129 @@ fn a_history_in_the_span_of_its_loads_solves_once_per_step() {
         assert_agree(&format!("{w}, solved afresh"), &a_fresh, &sol, 1e-8);
     }
 }
+
+/// A host that also solves in single precision (`KSolve::solve_single`):
+/// here K^-1 x from its factor with a relative error of 1e-6 put on each
+/// entry and the result rounded to single precision, rougher than a
+/// single-precision factor's 1e-7. Single call number `fail_at` (from 1, 0
+/// never) fails with code 5, or returns a NaN where `nan` is set.
+struct Single {
+    host: Host,
+    singles: Arc<AtomicUsize>,
+    fail_at: usize,
+    nan: bool,
+}
+
+impl KSolve for Single {
+    fn n(&self) -> usize {
+        self.host.n
+    }
+
+    fn solve(&mut self, x: &mut [f64], ncols: usize) -> Result<(), i32> {
+        self.host.solve(x, ncols)
+    }
+
+    fn solve_single(&mut self, x: &mut [f32], ncols: usize) -> Option<Result<(), i32>> {
+        assert_eq!(x.len(), self.host.n * ncols, "the block is n x ncols");
+        let call = self.singles.fetch_add(1, Ordering::SeqCst) + 1;
+        if call == self.fail_at && !self.nan {
+            return Some(Err(5));
+        }
+        for col in x.chunks_mut(self.host.n) {
+            let mut z: Vec<f64> = col.iter().map(|&v| v as f64).collect();
+            self.host.factor.solve_vec(&mut z);
+            for (i, (c, v)) in col.iter_mut().zip(&z).enumerate() {
+                *c = (v * (1.0 + 1e-6 * (i as f64).sin())) as f32;
+            }
+        }
+        if call == self.fail_at {
+            x[0] = f32::NAN;
+        }
+        Some(Ok(()))
+    }
+}
+
+/// The scene's problem on a `Single` host (K handed over) and its counter of
+/// single-precision calls.
+fn on_single(scene: &Scene, fail_at: usize, nan: bool) -> (ContactProblem, Arc<AtomicUsize>) {
+    let (host, _) = concrete_host(scene, false);
+    let singles = Arc::new(AtomicUsize::new(0));
+    let solver = Single {
+        host,
+        singles: singles.clone(),
+        fail_at,
+        nan,
+    };
+    let opts = with(Method::Newton);
+    let pb = on_solver(scene, Box::new(solver), true, &opts).expect("a valid host problem");
+    (pb, singles)
+}
+
+/// With the host's single-precision solve, Newton's loose products are
+/// single-precision calls, and the answer still passes the KKT check and
+/// agrees with the own path (Tresca and Coulomb, two history steps, then a
+/// single solve checked against the KKT conditions); the report counts every
+/// call of either precision.
+#[test]
+fn a_hosts_single_precision_solve_serves_the_loose_products() {
+    let scene = scene_3d();
+    let (mu, p) = (vec![0.3; scene.m()], vec![0.05; scene.m()]);
+    let opts = with(Method::Newton);
+    for (name, friction) in [
+        ("Tresca", Friction::Tresca(&p)),
+        ("Coulomb", Friction::Coulomb(&mu)),
+    ] {
+        let mut own = scene.problem();
+        let (mut pb, singles) = on_single(&scene, 0, false);
+        for step in 1..=2 {
+            let f: Vec<f64> = scene.f.iter().map(|v| v * step as f64 / 2.0).collect();
+            let want = own.step(&f, &scene.g, friction, &opts).unwrap();
+            let before = singles.load(Ordering::SeqCst);
+            let sol = pb.step(&f, &scene.g, friction, &opts).unwrap();
+            let used = singles.load(Ordering::SeqCst) - before;
+            let w = format!("{name} step {step}");
+            println!(
+                "{w}: {used} single-precision calls of {} host solves, err {:.2e}",
+                sol.report.host_solves, sol.report.err
+            );
+            assert_converged(&w, &sol);
+            assert!(used > 0, "{w}: no single-precision call");
+            assert!(sol.report.host_solves > used, "{w}: exact solves too");
+            assert_agree(&w, &want, &sol, 1e-8);
+        }
+        // A single solve of the whole load: the KKT point.
+        let before = singles.load(Ordering::SeqCst);
+        let sol = pb.solve(&scene.f, &scene.g, friction, &opts).unwrap();
+        assert_converged(name, &sol);
+        assert!(
+            singles.load(Ordering::SeqCst) > before,
+            "{name}: no single-precision call"
+        );
+        kkt_of(&scene, friction, &sol).assert_ok(name, 1e-8);
+    }
+}
+
+/// A single-precision solve that fails (code 5, or a NaN) ends the solve
+/// with `HostSolve` naming it; the next solve succeeds.
+#[test]
+fn a_failing_single_precision_solve_is_an_error_and_the_problem_stays_usable() {
+    let scene = scene_3d();
+    let p = vec![0.05; scene.m()];
+    let friction = Friction::Tresca(&p);
+    let opts = with(Method::Newton);
+    let want = scene
+        .problem()
+        .solve(&scene.f, &scene.g, friction, &opts)
+        .unwrap();
+    for nan in [false, true] {
+        let (mut pb, _) = on_single(&scene, 1, nan);
+        let e = pb.solve(&scene.f, &scene.g, friction, &opts).unwrap_err();
+        assert_eq!(e.kind, ErrorKind::HostSolve, "{e}");
+        assert!(e.message.contains("single precision"), "{}", e.message);
+        let what = if nan { "returned NaN" } else { "code 5" };
+        assert!(e.message.contains(what), "{}", e.message);
+        let again = pb.solve(&scene.f, &scene.g, friction, &opts).unwrap();
+        assert_converged("the solve again", &again);
+        assert_agree("the solve again", &want, &again, 1e-8);
+    }
+}

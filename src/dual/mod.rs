@@ -371,12 +371,11 @@ impl Dual {
             // The layered Dirichlet preconditioner is weighed against the
             // cost of a product with K's factor.
             let Some(factor) = f.factor() else {
-                // On the host's solves: weighed against a solve that reads
-                // at least K's lower triangle.
-                let l_nnz = (k.nnz() + k.nrows) / 2;
-                let (threads, ledger) = (self.threads.clone(), self.ledger.clone());
-                f.dirichlet = crate::dirichlet::Plan::within(k, &self.rows, l_nnz, threads, ledger)
-                    .and_then(|p| p.form(&self.ledger));
+                // On the host's solves: the caller's plan (`host_layer`, made
+                // for the memory prediction), else made here the same way.
+                let plan = layer
+                    .or_else(|| host_layer(k, &self.rows, self.d, &self.threads, &self.ledger));
+                f.dirichlet = plan.and_then(|p| p.form(&self.ledger));
                 return;
             };
             let plan = layer.or_else(|| {
@@ -573,6 +572,34 @@ fn rho_of(m: usize, d: usize, diag: impl Fn(usize) -> f64) -> Vec<f64> {
 
 mod condense;
 mod operator;
+
+/// The layered Dirichlet preconditioner's plan on the host's solves (K
+/// handed over, `b` = [N; T]), weighed as on the own path against a solve
+/// with the factor the library would make of K: the symbolic analysis alone,
+/// in the default ordering (a tenth of a factorisation or less, against the
+/// d m solves the contact blocks take), or K's lower triangle where that
+/// analysis fails. A direct host's factor is about that size; an iterative
+/// host's solve reads far more. Weighed against K's lower triangle alone
+/// the preconditioner was refused on most scenes, and the host's steps took
+/// 30-50 % more products than the own path's (BENCHMARKS.md, session 21).
+pub(crate) fn host_layer(
+    k: &Csc,
+    b: &Csc,
+    d: usize,
+    threads: &Arc<Threads>,
+    ledger: &Arc<Ledger>,
+) -> Option<crate::dirichlet::Plan> {
+    let l_nnz = Factor::analyse(
+        k,
+        &[],
+        crate::options::Ordering::Auto,
+        d == 3,
+        threads.clone(),
+        Ledger::new(),
+    )
+    .map_or((k.nnz() + k.nrows) / 2, |a| a.nnz_and_flops().0);
+    crate::dirichlet::Plan::within(k, b, l_nnz, threads.clone(), ledger.clone())
+}
 
 use condense::*;
 pub(crate) use operator::own_solves_bytes;

@@ -35,10 +35,13 @@ pub(super) enum Solves {
     Host(HostSolves),
 }
 
-/// The host's solves (`host.rs`) with one product's n-vector.
+/// The host's solves (`host.rs`) with one product's n-vector, in double and
+/// (made at the first rough product, where the host offers single-precision
+/// solves) in single precision.
 pub(super) struct HostSolves {
     pub(super) host: Arc<crate::host::Host>,
     pub(super) work: std::cell::RefCell<Vec<f64>>,
+    pub(super) work_single: std::cell::RefCell<Vec<f32>>,
 }
 
 /// The products' solves with K's factor and their workspace.
@@ -191,6 +194,7 @@ impl Operator {
                     host.n(),
                     "the matrix-free dual's work space",
                 )?),
+                work_single: std::cell::RefCell::new(Vec::new()),
             }),
         })
     }
@@ -226,7 +230,7 @@ impl Operator {
         let bt = &self.bt;
         let fs = match &self.solves {
             Solves::Factor(fs) => fs,
-            Solves::Host(hs) => return hs.apply(bt, x, y),
+            Solves::Host(hs) => return hs.apply(bt, x, y, rough),
         };
         let factor = &fs.factor;
         macro_rules! whole {
@@ -411,9 +415,22 @@ fn gather<T: Real>(bt: &Csc, z: &[T], rows: impl Iterator<Item = usize>, y: &mut
 }
 
 impl HostSolves {
-    /// y := A x by one host solve; y is NaN where the solve failed (the
-    /// failure is latched on the host and ends the solve: `host.rs`).
-    fn apply(&self, bt: &Csc, x: &[f64], y: &mut [f64]) {
+    /// y := A x by one host solve, in single precision where `rough` and the
+    /// host offers it (`KSolve::solve_single`); y is NaN where the solve
+    /// failed (the failure is latched on the host and ends the solve:
+    /// `host.rs`).
+    fn apply(&self, bt: &Csc, x: &[f64], y: &mut [f64], rough: bool) {
+        if rough {
+            let mut z = self.work_single.borrow_mut();
+            z.clear();
+            z.resize(self.host.n(), 0.0);
+            scatter(bt, x, 0..x.len(), &mut z[..]);
+            match self.host.solve_single(&mut z, 1) {
+                Some(Ok(())) => return gather(bt, &z, 0..y.len(), y),
+                Some(Err(_)) => return y.iter_mut().for_each(|v| *v = f64::NAN),
+                None => {}
+            }
+        }
         let mut z = self.work.borrow_mut();
         z.iter_mut().for_each(|v| *v = 0.0);
         scatter(bt, x, 0..x.len(), &mut z[..]);

@@ -36,6 +36,20 @@ pub type DsHostSolveFn = Option<
     unsafe extern "C" fn(context: *mut c_void, n: i64, ncols: i64, x: *mut f64, ld: i64) -> i32,
 >;
 
+/// Optional: the host's solve with K in single precision: as DsHostSolveFn,
+/// on floats. The library calls it for the products whose accuracy allows a
+/// relative error of about 1e-7 cond(K)^(1/2) (the loose Krylov solves of
+/// Newton's early steps and the inner rounds of its mixed-precision
+/// refinement, where its own factor uses a single-precision copy of L): half
+/// the memory traffic of a solve in double where the host holds its factor in
+/// single precision too (CHOLMOD 5, MUMPS's SMUMPS, PARDISO). Every gradient
+/// and residual the library trusts comes from `solve`. Errors and the rules of
+/// calling as DsHostSolveFn; on MPI, as collective as `solve`. Added in
+/// version 0.10.
+pub type DsHostSolveSingleFn = Option<
+    unsafe extern "C" fn(context: *mut c_void, n: i64, ncols: i64, x: *mut f32, ld: i64) -> i32,
+>;
+
 /// Optional: the entries of K^-1 at given positions, as a direct solver with
 /// selected inversion computes them (MUMPS's ICNTL(30), PETSc's
 /// MatMumpsGetInverse, PARDISO's selected inversion): entry k of values :=
@@ -55,8 +69,11 @@ pub type DsHostInverseFn = Option<
 >;
 
 /// The host's solver of K, handed to ds_problem_new_host. Set struct_size =
-/// sizeof(DsHostSolver): later versions may add optional callbacks at the end
-/// and will accept this size.
+/// sizeof(DsHostSolver), and the optional callbacks to NULL where not given
+/// (zero the struct first): later versions may add optional callbacks at the
+/// end and will accept this size. 40 bytes (version 0.9: up to
+/// inverse_entries) and 48 (0.10: solve_single) are accepted; the library
+/// reads no byte past struct_size.
 #[repr(C)]
 #[derive(Copy, Clone, Debug)]
 pub struct DsHostSolver {
@@ -71,12 +88,69 @@ pub struct DsHostSolver {
     pub context: *mut c_void,
     /// Entries of K^-1 (optional, NULL: the contacts' blocks by solves).
     pub inverse_entries: DsHostInverseFn,
+    /// The solve in single precision (optional, NULL: every product calls
+    /// `solve`). Added in version 0.10.
+    pub solve_single: DsHostSolveSingleFn,
+}
+
+/// sizeof(DsHostSolver) of version 0.9 (up to inverse_entries).
+const HOST_V09_SIZE: usize = 40;
+const _: () = assert!(std::mem::offset_of!(DsHostSolver, solve_single) == HOST_V09_SIZE);
+
+impl DsHostSolver {
+    /// The caller's DsHostSolver of its version (40 or 48 bytes, see the
+    /// struct): the fields an older struct lacks are NULL.
+    ///
+    /// Errors: `NullPointer`, `BadArgument` (misaligned, or struct_size not
+    /// an accepted size).
+    ///
+    /// # Safety
+    /// `ptr` must be NULL or point to struct_size readable bytes of a
+    /// DsHostSolver.
+    unsafe fn read(ptr: *const DsHostSolver) -> Result<DsHostSolver> {
+        if ptr.is_null() {
+            return Err(Error::new(DsStatus::NullPointer, "argument solver is NULL"));
+        }
+        if !ptr.is_aligned() {
+            return Err(Error::new(
+                DsStatus::BadArgument,
+                format!("argument solver = {ptr:p} is not aligned"),
+            ));
+        }
+        // SAFETY: non-NULL and aligned; struct_size, a u32 at offset 0, is in
+        // every version.
+        let size = unsafe { ptr.cast::<u32>().read() } as usize;
+        let full = std::mem::size_of::<DsHostSolver>();
+        if size != HOST_V09_SIZE && size != full {
+            return Err(Error::new(
+                DsStatus::BadArgument,
+                format!(
+                    "solver->struct_size = {size}: set it to sizeof(DsHostSolver) = {full} \
+                     ({HOST_V09_SIZE} from version 0.9 headers is accepted too)"
+                ),
+            ));
+        }
+        // SAFETY: every field of DsHostSolver is valid at all-zero bits (an
+        // integer, a NULL pointer, None for a callback).
+        let mut value: DsHostSolver = unsafe { std::mem::zeroed() };
+        // SAFETY: ptr is readable for `size` <= sizeof(DsHostSolver) bytes
+        // (contract); value is a whole local DsHostSolver, no overlap.
+        unsafe {
+            std::ptr::copy_nonoverlapping(
+                ptr.cast::<u8>(),
+                (&mut value as *mut DsHostSolver).cast::<u8>(),
+                size,
+            )
+        };
+        Ok(value)
+    }
 }
 
 /// The callback as the safe core sees it.
 struct CHost {
     n: usize,
     solve: unsafe extern "C" fn(*mut c_void, i64, ncols: i64, *mut f64, i64) -> i32,
+    solve_single: DsHostSolveSingleFn,
     inverse: DsHostInverseFn,
     context: *mut c_void,
 }
@@ -98,6 +172,20 @@ impl KSolve for CHost {
         // caller's, passed back unchanged.
         let rc = unsafe { (self.solve)(self.context, n, ncols as i64, x.as_mut_ptr(), n) };
         if rc == 0 { Ok(()) } else { Err(rc) }
+    }
+
+    fn solve_single(
+        &mut self,
+        x: &mut [f32],
+        ncols: usize,
+    ) -> Option<std::result::Result<(), i32>> {
+        let f = self.solve_single?;
+        let n = self.n as i64;
+        // SAFETY: x holds n x ncols floats, column-major with leading
+        // dimension n, as the callback's contract states; the context is the
+        // caller's, passed back unchanged.
+        let rc = unsafe { f(self.context, n, ncols as i64, x.as_mut_ptr(), n) };
+        Some(if rc == 0 { Ok(()) } else { Err(rc) })
     }
 
     fn inverse_entries(
@@ -126,16 +214,6 @@ impl KSolve for CHost {
 
 /// Checks the caller's DsHostSolver and wraps its callback.
 fn host_of(s: &DsHostSolver) -> Result<CHost> {
-    let size = std::mem::size_of::<DsHostSolver>();
-    if s.struct_size as usize != size {
-        return Err(Error::new(
-            DsStatus::BadArgument,
-            format!(
-                "solver->struct_size = {}: set it to sizeof(DsHostSolver) = {size}",
-                s.struct_size
-            ),
-        ));
-    }
     if s.n < 1 {
         return Err(Error::new(
             DsStatus::BadSize,
@@ -157,6 +235,7 @@ fn host_of(s: &DsHostSolver) -> Result<CHost> {
     Ok(CHost {
         n,
         solve,
+        solve_single: s.solve_single,
         inverse: s.inverse_entries,
         context: s.context,
     })
@@ -175,7 +254,9 @@ fn host_of(s: &DsHostSolver) -> Result<CHost> {
 /// side and create a new handle), and so does ds_problem_dump without K.
 ///
 /// - d: contact dimension, 2 or 3.
-/// - solver: the callback, its context and n (see DsHostSolver).
+/// - solver: the callbacks, their context and n (see DsHostSolver; with
+///   solver->solve_single, the loose products are solved in single
+///   precision).
 /// - k: K itself, optional (NULL: none), as ds_problem_new takes it. Where
 ///   given it serves the lumped preconditioner B K B^T of Newton's reduced
 ///   systems (about half the products of Jacobi), K u_k in a history and the
@@ -195,8 +276,9 @@ fn host_of(s: &DsHostSolver) -> Result<CHost> {
 /// DS_STATUS_OUT_OF_MEMORY. Added in version 0.9.
 ///
 /// # Safety
-/// Each pointer must be NULL or valid: solver points to a DsHostSolver whose
-/// callback and context stay valid until the handle is freed; k (if not
+/// Each pointer must be NULL or valid: solver points to a DsHostSolver of
+/// struct_size readable bytes whose callbacks and context stay valid until
+/// the handle is freed; k (if not
 /// NULL), n, t point to DsMatrix structs whose arrays match their fields; opts
 /// as for ds_problem_new_opts; out points to a writable DsProblem*.
 #[unsafe(no_mangle)]
@@ -214,7 +296,7 @@ pub unsafe extern "C" fn ds_problem_new_host(
         // rejected (k may be NULL: no K).
         let (solver, n, t, out) = unsafe {
             (
-                ref_in(solver, "solver")?,
+                DsHostSolver::read(solver)?,
                 ref_in(n, "n")?,
                 ref_in(t, "t")?,
                 ref_mut(out, "out")?,
@@ -229,7 +311,7 @@ pub unsafe extern "C" fn ds_problem_new_host(
         // SAFETY: opts is NULL or a readable DsOptions prefix (contract).
         let opts = unsafe { DsOptions::read(opts)? };
         let d = dimension(d)?;
-        let host = host_of(solver)?;
+        let host = host_of(&solver)?;
         // SAFETY: the matrices' arrays match their fields (contract).
         let (nv, tv) = unsafe { (n.view("N")?, t.view("T")?) };
         // SAFETY: as above, for K where given.

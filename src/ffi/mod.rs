@@ -39,7 +39,9 @@ mod types;
 mod version;
 
 pub use cost::{DsCost, ds_problem_last_cost};
-pub use host::{DsHostInverseFn, DsHostSolveFn, DsHostSolver, ds_problem_new_host};
+pub use host::{
+    DsHostInverseFn, DsHostSolveFn, DsHostSolveSingleFn, DsHostSolver, ds_problem_new_host,
+};
 pub use info::{DsInfo, ds_analyse, ds_problem_info};
 pub use last_error::ds_last_error_message;
 pub use matrix::DsMatrix;

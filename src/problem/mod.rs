@@ -129,8 +129,16 @@ fn form_dual(
 }
 
 /// The matrix-free dual of (N, T) on the host's solves of `stiff`, with the
-/// lumped preconditioner where K was given, its operator A + D for `shift`.
-fn host_dual(stiff: &Stiffness, nt: (&Csc, &Csc), d: usize, shift: &[f64]) -> Result<Dual> {
+/// lumped preconditioner where K was given (and the layered Dirichlet one
+/// where it pays: `layer`, its plan where the caller made it for the memory
+/// prediction), its operator A + D for `shift`.
+fn host_dual(
+    stiff: &Stiffness,
+    nt: (&Csc, &Csc),
+    d: usize,
+    shift: &[f64],
+    layer: Option<crate::dirichlet::Plan>,
+) -> Result<Dual> {
     let Stiffness::Host {
         host,
         k,
@@ -143,7 +151,7 @@ fn host_dual(stiff: &Stiffness, nt: (&Csc, &Csc), d: usize, shift: &[f64]) -> Re
     host.clear();
     let mut dual = Dual::on_host(host, nt, d, threads.clone(), ledger.clone())?;
     if let Some(k) = k {
-        dual.set_lumped(k, None);
+        dual.set_lumped(k, layer);
     }
     if !shift.is_empty() {
         dual.set_shift(shift);
@@ -207,7 +215,13 @@ impl ContactProblem {
             );
         }
         check_shapes(ndof, d, &n, &t)?;
-        let sizes = plan::host_sizes(k.as_ref(), &n, &t, d);
+        let threads = Arc::new(crate::threads::Threads::new(opts.threads));
+        let ledger = memory::Ledger::new();
+        let layer = k
+            .as_ref()
+            .and_then(|k| crate::dual::host_layer(k, &stack_rows(&n, &t), d, &threads, &ledger));
+        let mut sizes = plan::host_sizes(k.as_ref(), &n, &t, d);
+        sizes.dirichlet = layer.as_ref().map_or(0, |p| p.bytes());
         memory::check(
             sizes.setup(Condensation::MatrixFree),
             memory::limit(opts.max_memory),
@@ -215,15 +229,14 @@ impl ContactProblem {
             "creating a problem on the host's solver",
             "a larger max_memory or a machine with more memory is needed",
         )?;
-        let ledger = memory::Ledger::new();
         let inputs = ledger.claim(sizes.inputs);
         let stiff = Stiffness::Host {
             host: Arc::new(crate::host::Host::new(solver)),
             k,
-            threads: Arc::new(crate::threads::Threads::new(opts.threads)),
+            threads,
             ledger,
         };
-        let dual = host_dual(&stiff, (&n, &t), d, &[])?;
+        let dual = host_dual(&stiff, (&n, &t), d, &[], layer)?;
         let (c, m) = (dual.c, n.nrows);
         Ok(ContactProblem {
             d,
@@ -251,7 +264,7 @@ impl ContactProblem {
     ) -> Result<Dual> {
         match &self.stiff {
             Stiffness::Own { k, factor } => form_dual(factor, k, nt, self.d, how, shift, layer),
-            Stiffness::Host { .. } => host_dual(&self.stiff, nt, self.d, shift),
+            Stiffness::Host { .. } => host_dual(&self.stiff, nt, self.d, shift, None),
         }
     }
 
