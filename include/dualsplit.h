@@ -430,10 +430,12 @@ typedef int32_t (*DsHostInverseFn)(void *context,
  Newton's early steps and the inner rounds of its mixed-precision
  refinement, where its own factor uses a single-precision copy of L): half
  the memory traffic of a solve in double where the host holds its factor in
- single precision too (CHOLMOD 5, MUMPS's SMUMPS, PARDISO). Every gradient
- and residual the library trusts comes from `solve`. Errors and the rules of
- calling as DsHostSolveFn; on MPI, as collective as `solve`. Added in
- version 0.10.
+ single precision too (CHOLMOD 5, MUMPS's SMUMPS, PARDISO); an iterative
+ host may answer with a solve to a looser tolerance (relative residual
+ about 1e-7). Every gradient and residual the library trusts comes from
+ `solve`, so a rougher answer here costs iterations, never accuracy. Errors
+ and the rules of calling as DsHostSolveFn; on MPI, as collective as
+ `solve`. Added in version 0.10.
  */
 typedef int32_t (*DsHostSolveSingleFn)(void *context, int64_t n, int64_t ncols, float *x, int64_t ld);
 

@@ -32,9 +32,10 @@ pub trait KSolve: Send {
     /// own factor's single-precision copy serves them: the loose Krylov solves
     /// of Newton's early steps and the inner rounds of its mixed-precision
     /// refinement; every gradient and residual it trusts is from
-    /// [`KSolve::solve`]. `None` (the default): not offered; the library then
-    /// calls `solve` for every product. `Some(Err(code))` reports a failure
-    /// as `solve` does.
+    /// [`KSolve::solve`], so a rougher answer (an iterative host's solve to
+    /// a looser tolerance) costs iterations, never accuracy. `None` (the
+    /// default): not offered; the library then calls `solve` for every
+    /// product. `Some(Err(code))` reports a failure as `solve` does.
     fn solve_single(
         &mut self,
         x: &mut [f32],

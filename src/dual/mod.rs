@@ -61,6 +61,11 @@ pub struct Dual {
     shift: Vec<f64>,
     /// A's own diagonal while D is added to it (dense form; else empty).
     rigid_diag: Vec<f64>,
+    /// MPRGP's estimate of |A + D|_2 (30 products of power iteration) as
+    /// f64 bits, 0 while none was made: kept for the operator's life, so
+    /// that the solves of a history that fall back to MPRGP, or run it, pay
+    /// for it once (`whole_norm`, `keep_whole_norm`); cleared with the shift.
+    whole_norm: std::sync::atomic::AtomicU64,
 }
 
 /// How the condensed dual operator was formed.
@@ -229,6 +234,7 @@ impl Dual {
             threads: factor.threads().clone(),
             shift: Vec::new(),
             rigid_diag: Vec::new(),
+            whole_norm: Default::default(),
         })
     }
 
@@ -290,6 +296,24 @@ impl Dual {
             threads,
             shift: Vec::new(),
             rigid_diag: Vec::new(),
+            whole_norm: Default::default(),
+        }
+    }
+
+    /// The estimate of |A + D|_2 an earlier MPRGP run kept
+    /// ([`Dual::keep_whole_norm`]), if any.
+    pub(crate) fn whole_norm(&self) -> Option<f64> {
+        let bits = self.whole_norm.load(std::sync::atomic::Ordering::Relaxed);
+        (bits != 0).then(|| f64::from_bits(bits))
+    }
+
+    /// Keeps MPRGP's estimate of |A + D|_2 for the later runs on this
+    /// operator (see the field).
+    pub(crate) fn keep_whole_norm(&self, norm: f64) {
+        if norm > 0.0 && norm.is_finite() {
+            let bits = norm.to_bits();
+            self.whole_norm
+                .store(bits, std::sync::atomic::Ordering::Relaxed);
         }
     }
 
@@ -299,6 +323,7 @@ impl Dual {
     /// while D is added to it, so an empty shift restores A bitwise.
     pub(crate) fn set_shift(&mut self, shift: &[f64]) {
         debug_assert!(shift.is_empty() || shift.len() == self.c);
+        *self.whole_norm.get_mut() = 0;
         if self.free.is_none() && !self.a.is_empty() {
             let c = self.c;
             if self.rigid_diag.is_empty() {

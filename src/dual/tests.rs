@@ -302,3 +302,23 @@ fn matrix_free_products_and_diagonal_match_the_dense_a() {
         assert!((a - b).abs() <= 1e-12 * scale * c as f64, "{a} vs {b}");
     }
 }
+
+/// MPRGP's estimate of |A + D| lives as long as the operator: none at first,
+/// kept once given (a non-positive or non-finite one is not), cleared when the
+/// compliance shift changes the operator.
+#[test]
+fn the_norm_estimate_is_kept_until_the_operator_changes() {
+    let (nx, ny) = (8, 5);
+    let k = grid(nx, ny);
+    let (n, t) = contacts_at(&[0, 2, 4], nx * ny);
+    let f = metis_factor(&k, 1);
+    let mut dual = Dual::build(&f, &n, &t, 2, DualForm::MatrixFree).unwrap();
+    assert_eq!(dual.whole_norm(), None);
+    dual.keep_whole_norm(f64::NAN);
+    dual.keep_whole_norm(0.0);
+    assert_eq!(dual.whole_norm(), None);
+    dual.keep_whole_norm(2.5);
+    assert_eq!(dual.whole_norm(), Some(2.5));
+    dual.set_shift(&[1.0; 6]);
+    assert_eq!(dual.whole_norm(), None, "A + D is another operator");
+}

@@ -42,10 +42,12 @@ pub type DsHostSolveFn = Option<
 /// Newton's early steps and the inner rounds of its mixed-precision
 /// refinement, where its own factor uses a single-precision copy of L): half
 /// the memory traffic of a solve in double where the host holds its factor in
-/// single precision too (CHOLMOD 5, MUMPS's SMUMPS, PARDISO). Every gradient
-/// and residual the library trusts comes from `solve`. Errors and the rules of
-/// calling as DsHostSolveFn; on MPI, as collective as `solve`. Added in
-/// version 0.10.
+/// single precision too (CHOLMOD 5, MUMPS's SMUMPS, PARDISO); an iterative
+/// host may answer with a solve to a looser tolerance (relative residual
+/// about 1e-7). Every gradient and residual the library trusts comes from
+/// `solve`, so a rougher answer here costs iterations, never accuracy. Errors
+/// and the rules of calling as DsHostSolveFn; on MPI, as collective as
+/// `solve`. Added in version 0.10.
 pub type DsHostSolveSingleFn = Option<
     unsafe extern "C" fn(context: *mut c_void, n: i64, ncols: i64, x: *mut f32, ld: i64) -> i32,
 >;

@@ -73,7 +73,14 @@ impl OuterStep for WholeMprgp {
                 .relax_bound(&mut self.prev, &mut self.radii, k == 0);
         }
         let qp = ConvexQp::whole(problem, &self.radii);
+        // |A + D| estimated once per operator (see `Dual::whole_norm`).
+        if self.norm.is_none() {
+            self.norm = problem.dual.whole_norm();
+        }
         let run = self.solver.solve_convex(&qp, lam, &mut self.norm);
+        if let Some(norm) = self.norm {
+            problem.dual.keep_whole_norm(norm);
+        }
         Flow::after(run, inner, Gradient::Stale)
     }
 }

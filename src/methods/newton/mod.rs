@@ -435,11 +435,15 @@ impl Newton {
         let solver = self
             .fallback
             .get_or_insert_with(|| Mprgp::new(c, 0.0, FALLBACK_MPRGP));
-        if let Flow::Infeasible = Flow::after(
-            solver.solve_convex(&qp, lam, &mut self.norm),
-            inner,
-            Gradient::Stale,
-        ) {
+        // |A + D| estimated once per operator (see `Dual::whole_norm`).
+        if self.norm.is_none() {
+            self.norm = dual.whole_norm();
+        }
+        let run = solver.solve_convex(&qp, lam, &mut self.norm);
+        if let Some(norm) = self.norm {
+            dual.keep_whole_norm(norm);
+        }
+        if let Flow::Infeasible = Flow::after(run, inner, Gradient::Stale) {
             return Flow::Infeasible;
         }
         problem.gradient(lam, w);
