@@ -264,7 +264,7 @@ impl ContactProblem {
     ) -> Result<Dual> {
         match &self.stiff {
             Stiffness::Own { k, factor } => form_dual(factor, k, nt, self.d, how, shift, layer),
-            Stiffness::Host { .. } => host_dual(&self.stiff, nt, self.d, shift, None),
+            Stiffness::Host { .. } => host_dual(&self.stiff, nt, self.d, shift, layer),
         }
     }
 
@@ -494,9 +494,15 @@ impl ContactProblem {
                 let how = Dual::condensation_for(factor, &n, &t, self.d, form);
                 (next, how, layer)
             }
-            Stiffness::Host { k, .. } => {
-                let next = plan::host_sizes(k.as_ref(), &n, &t, self.d);
-                (next, Condensation::MatrixFree, None)
+            Stiffness::Host {
+                k, threads, ledger, ..
+            } => {
+                let layer = k
+                    .as_ref()
+                    .and_then(|k| crate::dual::host_layer(k, &b, self.d, threads, ledger));
+                let mut next = plan::host_sizes(k.as_ref(), &n, &t, self.d);
+                next.dirichlet = layer.as_ref().map_or(0, |p| p.bytes());
+                (next, Condensation::MatrixFree, layer)
             }
         };
         let need =
