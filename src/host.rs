@@ -137,19 +137,25 @@ impl Host {
             .unwrap_or_else(|| unreachable!("the double-precision solve is always offered"))
     }
 
+    /// False once the host answered that it offers no single-precision
+    /// solve (true before it was asked).
+    pub(crate) fn offers_single(&self) -> bool {
+        self.single.load(std::sync::atomic::Ordering::Relaxed)
+    }
+
     /// As [`Host::solve`] in single precision where the host offers it
     /// ([`KSolve::solve_single`]); None where it does not (remembered: the
     /// host is not asked again).
     pub(crate) fn solve_single(&self, x: &mut [f32], ncols: usize) -> Option<Result<()>> {
-        use std::sync::atomic::Ordering::Relaxed;
-        if !self.single.load(Relaxed) {
+        if !self.offers_single() {
             return None;
         }
         let outcome = self.call(x, ncols, " in single precision", |s, x| {
             s.solve_single(x, ncols)
         });
         if outcome.is_none() {
-            self.single.store(false, Relaxed);
+            self.single
+                .store(false, std::sync::atomic::Ordering::Relaxed);
         }
         outcome
     }

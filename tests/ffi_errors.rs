@@ -1485,8 +1485,30 @@ fn compliant_counts(h: *mut DsProblem) -> (i64, i64) {
     (info.compliant_contacts, info.power_law_contacts)
 }
 
-/// The host's solve for the small problem: K = 3 I + ones(4), so K^-1 x =
-/// (x - sum(x) / 7) / 3 (Sherman-Morrison); the context counts the columns.
+/// K^-1 x for the small problem, in either precision: K = 3 I + ones(4), so
+/// K^-1 x = (x - sum(x) / 7) / 3 (Sherman-Morrison); the context, an i64,
+/// counts the columns.
+///
+/// # Safety
+/// As a DsHostSolveFn: x holds ld x ncols values; the context is the test's
+/// i64 counter, alive and not otherwise borrowed during the call.
+unsafe fn small_k_apply<T>(context: *mut std::ffi::c_void, n: i64, ncols: i64, x: *mut T, ld: i64)
+where
+    T: Copy + From<f32> + std::iter::Sum + std::ops::Sub<Output = T> + std::ops::Div<Output = T>,
+{
+    // SAFETY: the context is the i64 counter (this function's contract).
+    let count = unsafe { &mut *context.cast::<i64>() };
+    *count += ncols;
+    for j in 0..ncols {
+        // SAFETY: x holds ld x ncols values (this function's contract).
+        let col = unsafe { std::slice::from_raw_parts_mut(x.add((j * ld) as usize), n as usize) };
+        let s: T = col.iter().copied().sum();
+        col.iter_mut()
+            .for_each(|v| *v = (*v - s / T::from(7.0)) / T::from(3.0));
+    }
+}
+
+/// The host's solve for the small problem (see `small_k_apply`).
 unsafe extern "C" fn small_k_solve(
     context: *mut std::ffi::c_void,
     n: i64,
@@ -1494,24 +1516,15 @@ unsafe extern "C" fn small_k_solve(
     x: *mut f64,
     ld: i64,
 ) -> i32 {
-    // SAFETY: the context is the i64 counter the test passed, alive and not
-    // otherwise borrowed during the call.
-    let count = unsafe { &mut *context.cast::<i64>() };
-    *count += ncols;
-    for j in 0..ncols {
-        // SAFETY: x holds ld x ncols doubles (the callback's contract).
-        let col = unsafe { std::slice::from_raw_parts_mut(x.add((j * ld) as usize), n as usize) };
-        let s: f64 = col.iter().sum();
-        col.iter_mut().for_each(|v| *v = (*v - s / 7.0) / 3.0);
-    }
+    // SAFETY: the callback's contract is small_k_apply's.
+    unsafe { small_k_apply(context, n, ncols, x, ld) };
     0
 }
 
 /// Calls of small_k_solve_single (only the test below uses it).
 static SINGLE_CALLS: std::sync::atomic::AtomicI64 = std::sync::atomic::AtomicI64::new(0);
 
-/// small_k_solve in single precision; the context counts its columns, and
-/// SINGLE_CALLS its calls.
+/// small_k_solve in single precision; SINGLE_CALLS counts its calls.
 unsafe extern "C" fn small_k_solve_single(
     context: *mut std::ffi::c_void,
     n: i64,
@@ -1519,17 +1532,9 @@ unsafe extern "C" fn small_k_solve_single(
     x: *mut f32,
     ld: i64,
 ) -> i32 {
-    // SAFETY: the context is the i64 counter the test passed, alive and not
-    // otherwise borrowed during the call.
-    let count = unsafe { &mut *context.cast::<i64>() };
-    *count += ncols;
     SINGLE_CALLS.fetch_add(1, std::sync::atomic::Ordering::SeqCst);
-    for j in 0..ncols {
-        // SAFETY: x holds ld x ncols floats (the callback's contract).
-        let col = unsafe { std::slice::from_raw_parts_mut(x.add((j * ld) as usize), n as usize) };
-        let s: f32 = col.iter().sum();
-        col.iter_mut().for_each(|v| *v = (*v - s / 7.0) / 3.0);
-    }
+    // SAFETY: the callback's contract is small_k_apply's.
+    unsafe { small_k_apply(context, n, ncols, x, ld) };
     0
 }
 

@@ -420,25 +420,38 @@ impl HostSolves {
     /// failed (the failure is latched on the host and ends the solve:
     /// `host.rs`).
     fn apply(&self, bt: &Csc, x: &[f64], y: &mut [f64], rough: bool) {
-        if rough {
+        // Not offered: known after the first try, then no single-precision
+        // scatter on the way to the double solve.
+        if rough && self.host.offers_single() {
             let mut z = self.work_single.borrow_mut();
-            z.clear();
             z.resize(self.host.n(), 0.0);
-            scatter(bt, x, 0..x.len(), &mut z[..]);
-            match self.host.solve_single(&mut z, 1) {
-                Some(Ok(())) => return gather(bt, &z, 0..y.len(), y),
-                Some(Err(_)) => return y.iter_mut().for_each(|v| *v = f64::NAN),
-                None => {}
+            if through(bt, x, y, &mut z, |z| self.host.solve_single(z, 1)) {
+                return;
             }
         }
         let mut z = self.work.borrow_mut();
-        z.iter_mut().for_each(|v| *v = 0.0);
-        scatter(bt, x, 0..x.len(), &mut z[..]);
-        match self.host.solve(&mut z, 1) {
-            Ok(()) => gather(bt, &z, 0..y.len(), y),
-            Err(_) => y.iter_mut().for_each(|v| *v = f64::NAN),
-        }
+        through(bt, x, y, &mut z, |z| Some(self.host.solve(z, 1)));
     }
+}
+
+/// y := B solve(B^T x) with the n-vector `z` in either precision; y is NaN
+/// where the solve failed. False (y untouched) where `solve` is not offered
+/// (None).
+fn through<T: Real>(
+    bt: &Csc,
+    x: &[f64],
+    y: &mut [f64],
+    z: &mut [T],
+    solve: impl FnOnce(&mut [T]) -> Option<crate::error::Result<()>>,
+) -> bool {
+    z.iter_mut().for_each(|v| *v = T::default());
+    scatter(bt, x, 0..x.len(), z);
+    match solve(z) {
+        Some(Ok(())) => gather(bt, z, 0..y.len(), y),
+        Some(Err(_)) => y.iter_mut().for_each(|v| *v = f64::NAN),
+        None => return false,
+    }
+    true
 }
 
 /// A's diagonal from the contacts' d x d blocks (row-major, contact by

@@ -203,6 +203,25 @@ impl<T: Copy> OutArray<T> {
     }
 }
 
+/// Checks the pointer to one of the caller's versioned structs (DsOptions,
+/// DsInfo, DsCost, DsHostSolver) before its struct_size is read: `NullPointer`
+/// when NULL, `BadArgument` when misaligned, each naming the argument `what`.
+pub(crate) fn check_struct<T>(ptr: *const T, what: &str) -> Result<()> {
+    if ptr.is_null() {
+        return Err(Error::new(
+            DsStatus::NullPointer,
+            format!("argument {what} is NULL"),
+        ));
+    }
+    if !ptr.is_aligned() {
+        return Err(Error::new(
+            DsStatus::BadArgument,
+            format!("argument {what} = {ptr:p} is not aligned"),
+        ));
+    }
+    Ok(())
+}
+
 /// Writes `value` into the caller's versioned struct at `out` (DsInfo,
 /// DsCost: a `#[repr(C)]` struct whose first field is the u32 struct_size the
 /// caller set), at most struct_size bytes: a caller compiled against an older,
@@ -220,18 +239,7 @@ pub(crate) unsafe fn write_sized<T: Copy>(
     what: &str,
     type_name: &str,
 ) -> Result<()> {
-    if out.is_null() {
-        return Err(Error::new(
-            DsStatus::NullPointer,
-            format!("argument {what} is NULL"),
-        ));
-    }
-    if !out.is_aligned() {
-        return Err(Error::new(
-            DsStatus::BadArgument,
-            format!("argument {what} = {out:p} is not aligned"),
-        ));
-    }
+    check_struct(out, what)?;
     // SAFETY: non-NULL and aligned; the first field, a u32, is present in every
     // version (contract).
     let struct_size = unsafe { out.cast::<u32>().read() };

@@ -3,7 +3,7 @@
 //! solve with K is the host's (the Rust side: `host.rs`,
 //! [`crate::ContactProblem::with_host_solver`]).
 
-use super::boundary::{entry, ref_in, ref_mut};
+use super::boundary::{check_struct, entry, ref_in, ref_mut};
 use super::error::{CError as Error, CResult as Result};
 use super::matrix::DsMatrix;
 use super::options::DsOptions;
@@ -110,15 +110,7 @@ impl DsHostSolver {
     /// `ptr` must be NULL or point to struct_size readable bytes of a
     /// DsHostSolver.
     unsafe fn read(ptr: *const DsHostSolver) -> Result<DsHostSolver> {
-        if ptr.is_null() {
-            return Err(Error::new(DsStatus::NullPointer, "argument solver is NULL"));
-        }
-        if !ptr.is_aligned() {
-            return Err(Error::new(
-                DsStatus::BadArgument,
-                format!("argument solver = {ptr:p} is not aligned"),
-            ));
-        }
+        check_struct(ptr, "solver")?;
         // SAFETY: non-NULL and aligned; struct_size, a u32 at offset 0, is in
         // every version.
         let size = unsafe { ptr.cast::<u32>().read() } as usize;

@@ -1,7 +1,7 @@
 //! The options struct of the C API, its defaults and its translation into
 //! [`Options`].
 
-use super::boundary::entry;
+use super::boundary::{check_struct, entry};
 use super::error::{CError as Error, CResult as Result};
 use super::status::DsStatus;
 use super::types::{CEnum, DsDualForm, DsMethod, DsOrdering};
@@ -208,12 +208,7 @@ impl DsOptions {
         if ptr.is_null() {
             return Ok(Options::default());
         }
-        if !ptr.is_aligned() {
-            return Err(Error::new(
-                DsStatus::BadArgument,
-                format!("argument opts = {ptr:p} is not aligned"),
-            ));
-        }
+        check_struct(ptr, "opts")?;
         // SAFETY: non-NULL and aligned; the first field is present whatever the
         // version of the caller's struct.
         let size = unsafe { std::ptr::addr_of!((*ptr).struct_size).read() } as usize;
@@ -271,15 +266,7 @@ impl Default for DsOptions {
 #[unsafe(no_mangle)]
 pub unsafe extern "C" fn ds_options_init(opts: *mut DsOptions, size: usize) -> DsStatus {
     entry("ds_options_init", || {
-        if opts.is_null() {
-            return Err(Error::new(DsStatus::NullPointer, "argument opts is NULL"));
-        }
-        if !opts.is_aligned() {
-            return Err(Error::new(
-                DsStatus::BadArgument,
-                format!("argument opts = {opts:p} is not aligned"),
-            ));
-        }
+        check_struct(opts, "opts")?;
         if !SIZES.contains(&size) {
             return Err(Error::new(
                 DsStatus::BadArgument,
