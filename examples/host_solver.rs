@@ -8,15 +8,25 @@
 //! press-then-shear history of `--steps` steps, with the host's solves and
 //! their seconds. `--single`: the host also solves in single precision
 //! (`KSolve::solve_single`, from its factor's values rounded), which the
-//! library takes for Newton's loose products.
+//! library takes for Newton's loose products. `--rows`: the host also
+//! solves on rows (`KSolve::solve_rows`) by the paths of its factor's
+//! elimination tree, as CHOLMOD's solves with Bset do (approximate ones in
+//! single precision with `--single`), which the library takes for every
+//! product with A. `--cholmod` (built with the feature `cholmod`, which
+//! links -lcholmod): the host is CHOLMOD (`bench/cholmod_host.rs`), with
+//! `--rows` its solves with Bset.
 //!
 //! ```text
-//! cargo run --release --example host_solver -- [--scenes A,B,..] [--steps N]
-//!     [--laws tresca,coulomb] [--no-k] [--single] [--threads K]
+//! cargo run --release --example host_solver [--features cholmod] -- [--scenes A,B,..]
+//!     [--steps N] [--laws tresca,coulomb] [--no-k] [--single] [--rows] [--cholmod]
+//!     [--threads K]
 //! ```
 
 #[path = "bench/baseline.rs"]
 mod baseline;
+#[cfg(feature = "cholmod")]
+#[path = "bench/cholmod_host.rs"]
+mod cholmod_host;
 #[path = "bench/scene.rs"]
 #[allow(dead_code)]
 mod scene;
@@ -24,7 +34,7 @@ mod scene;
 #[allow(dead_code)]
 mod stats;
 
-use dualsplit::internals::{Factor, Threads};
+use dualsplit::internals::{Factor, RowSolves, Threads};
 use dualsplit::{
     ContactProblem, Csc, DualForm, Format, Friction, Indices, KSolve, MatrixView, Options,
     Ordering, SolveStatus, Storage,
@@ -44,6 +54,7 @@ const FACTOR_REPS: usize = 3;
 struct Host {
     factor: Arc<Factor>,
     single: Option<(Arc<Vec<f32>>, MemBuffer)>,
+    rows: Option<RowSolves>,
 }
 
 impl KSolve for Host {
@@ -66,6 +77,17 @@ impl KSolve for Host {
             let m = faer::MatMut::from_column_major_slice_mut(col, n, 1);
             self.factor.solve_single(values, m, MemStack::new(mem));
         }
+        Some(Ok(()))
+    }
+
+    fn solve_rows(
+        &mut self,
+        rows: &[usize],
+        x: &mut [f64],
+        ncols: usize,
+        approximate: bool,
+    ) -> Option<Result<(), i32>> {
+        self.rows.as_mut()?.solve(rows, x, ncols, approximate);
         Some(Ok(()))
     }
 }
@@ -104,6 +126,8 @@ fn main() {
     let mut laws = vec!["tresca".to_string(), "coulomb".to_string()];
     let mut with_k = true;
     let mut single = false;
+    let mut rows = false;
+    let mut on_cholmod = false;
     let mut threads = 1;
     let args: Vec<String> = std::env::args().skip(1).collect();
     let mut k = 0;
@@ -121,6 +145,19 @@ fn main() {
             }
             "--single" => {
                 single = true;
+                k += 1;
+                continue;
+            }
+            "--rows" => {
+                rows = true;
+                k += 1;
+                continue;
+            }
+            "--cholmod" => {
+                if !cfg!(feature = "cholmod") {
+                    panic!("--cholmod needs the example built with --features cholmod");
+                }
+                on_cholmod = true;
                 k += 1;
                 continue;
             }
@@ -169,16 +206,22 @@ fn main() {
             )
             .unwrap();
             let t_own = t1.elapsed().as_secs_f64();
-            let t2 = Instant::now();
             let kv = arrays.0.view(&sc.k);
-            let mut host = ContactProblem::with_host_solver(
-                sc.d,
+            let solver: Box<dyn KSolve> = if on_cholmod {
+                cholmod_host(&sc.k, rows)
+            } else {
                 Box::new(Host {
                     factor: host_factor.clone(),
                     single: single_values
                         .clone()
                         .map(|v| (v, MemBuffer::new(host_factor.solve_scratch_single()))),
-                }),
+                    rows: rows.then(|| RowSolves::new(host_factor.clone(), single).unwrap()),
+                })
+            };
+            let t2 = Instant::now();
+            let mut host = ContactProblem::with_host_solver(
+                sc.d,
+                solver,
                 with_k.then_some(&kv),
                 &arrays.1.view(&sc.n),
                 &arrays.2.view(&sc.t),
@@ -255,4 +298,19 @@ fn main() {
     for s in summary {
         println!("{s}");
     }
+}
+
+/// CHOLMOD's factor of `k` as the host (`bench/cholmod_host.rs`), with its
+/// solves with Bset where `rows`; its factorisation's seconds printed.
+#[cfg(feature = "cholmod")]
+fn cholmod_host(k: &Csc, rows: bool) -> Box<dyn KSolve> {
+    let t = Instant::now();
+    let host = cholmod_host::Cholmod::new(k, rows).expect("CHOLMOD factors K");
+    println!("CHOLMOD's factor of K: {:.3} s", t.elapsed().as_secs_f64());
+    Box::new(host)
+}
+
+#[cfg(not(feature = "cholmod"))]
+fn cholmod_host(_: &Csc, _: bool) -> Box<dyn KSolve> {
+    unreachable!("--cholmod is refused without the feature")
 }

@@ -243,7 +243,9 @@ module dualsplit
    !> (c_null_funptr, or a function with the interface ds_host_inverse_fn);
    !> solve_single (0.10, optional: c_null_funptr by default, or a function
    !> with the interface ds_host_solve_single_fn for the loose products in
-   !> single precision).
+   !> single precision); solve_rows (0.10, optional: c_null_funptr by default,
+   !> or a function with the interface ds_host_solve_rows_fn for the products
+   !> on the contact DOFs alone).
    type, bind(C), public :: DsHostSolver
       integer(c_int32_t) :: struct_size   !< uint32_t in C: sizeof(DsHostSolver)
       integer(c_int64_t) :: n             !< DOFs of K, >= 1
@@ -251,10 +253,11 @@ module dualsplit
       type(c_ptr)        :: context       !< passed back to solve unchanged
       type(c_funptr)     :: inverse_entries !< DsHostInverseFn or c_null_funptr (optional)
       type(c_funptr)     :: solve_single = c_null_funptr !< DsHostSolveSingleFn (optional, 0.10)
+      type(c_funptr)     :: solve_rows = c_null_funptr !< DsHostSolveRowsFn (optional, 0.10)
    end type DsHostSolver
 
    !> sizeof(DsHostSolver) in C (tests/fortran.rs checks it).
-   integer(c_int32_t), parameter, public :: DS_HOST_SOLVER_SIZE = 48
+   integer(c_int32_t), parameter, public :: DS_HOST_SOLVER_SIZE = 56
 
    ! ---------------------------------------------------------------------------------
    ! Callbacks (DsMonitorFn, DsLogFn): write them as BIND(C) procedures of a module
@@ -310,6 +313,23 @@ module dualsplit
          real(c_float), intent(inout) :: x(ld, *)
          integer(c_int32_t) :: code
       end function ds_host_solve_single_fn
+
+      !> typedef int32_t (*DsHostSolveRowsFn)(void *context, int64_t nrows,
+      !>     const int64_t *rows, int64_t ncols, double *x, int64_t ld,
+      !>     int32_t approximate);
+      !> x(ld, ncols) holds the right-hand sides at the 0-based DOFs rows(1:nrows)
+      !> (zero elsewhere); overwrite it with K^-1 of them at the same DOFs
+      !> (optional, version 0.10; approximate = 1: a single-precision answer serves).
+      function ds_host_solve_rows_fn(context, nrows, rows, ncols, x, ld, approximate) &
+            result(code) bind(C)
+         import :: c_int32_t, c_int64_t, c_double, c_ptr
+         type(c_ptr), value :: context
+         integer(c_int64_t), value :: nrows, ncols, ld
+         integer(c_int64_t), intent(in) :: rows(*)
+         real(c_double), intent(inout) :: x(ld, *)
+         integer(c_int32_t), value :: approximate
+         integer(c_int32_t) :: code
+      end function ds_host_solve_rows_fn
 
       !> typedef int32_t (*DsHostInverseFn)(void *context, int64_t count,
       !>     const int64_t *rows, const int64_t *cols, double *values);

@@ -440,12 +440,41 @@ typedef int32_t (*DsHostInverseFn)(void *context,
 typedef int32_t (*DsHostSolveSingleFn)(void *context, int64_t n, int64_t ncols, float *x, int64_t ld);
 
 /*
+ Optional: the host's solve with K on a sparse right-hand side, wanted on
+ its own rows: x (nrows x ncols, column-major, leading dimension ld =
+ nrows) holds the right-hand sides' entries at the DOFs rows[0..nrows]
+ (0-based, ascending, distinct; every other entry of the right-hand sides
+ is zero), and is overwritten with the solutions' entries at the same
+ DOFs. A direct solver answers it on the paths of those DOFs in its
+ elimination tree alone (CHOLMOD: cholmod_solve2 with Bset, column by
+ column), a fraction of a whole solve where the contact DOFs lie in few of
+ its subtrees; any host may answer by a whole solve (scatter the entries
+ into an n-vector, solve, gather). The library calls it for every product
+ with the condensed operator, one right-hand side per call (rows: the
+ contact DOFs, or those of a Newton step's reduced unknowns, which change
+ from call to call); the contacts' diagonal blocks at creation (32
+ right-hand sides per call), the right-hand side B K^-1 f and the recovery
+ of u stay calls of `solve`. approximate = 1: a relative
+ error of about 1e-7 cond(K)^(1/2) serves (a single-precision solve, a
+ looser tolerance), as for DsHostSolveSingleFn; approximate = 0: the answer
+ must be as accurate as `solve`'s. Errors and the rules of calling as
+ DsHostSolveFn; on MPI, as collective as `solve`. Added in version 0.10.
+ */
+typedef int32_t (*DsHostSolveRowsFn)(void *context,
+                                     int64_t nrows,
+                                     const int64_t *rows,
+                                     int64_t ncols,
+                                     double *x,
+                                     int64_t ld,
+                                     int32_t approximate);
+
+/*
  The host's solver of K, handed to ds_problem_new_host. Set struct_size =
  sizeof(DsHostSolver), and the optional callbacks to NULL where not given
  (zero the struct first): later versions may add optional callbacks at the
  end and will accept this size. 40 bytes (version 0.9: up to
- inverse_entries) and 48 (0.10: solve_single) are accepted; the library
- reads no byte past struct_size.
+ inverse_entries) is accepted too; the library reads no byte past
+ struct_size.
  */
 typedef struct DsHostSolver {
   /*
@@ -474,6 +503,12 @@ typedef struct DsHostSolver {
    `solve`). Added in version 0.10.
    */
   DsHostSolveSingleFn solve_single;
+  /*
+   The solve on a sparse right-hand side wanted on its own rows
+   (optional, NULL: every product is a whole solve). Added in version
+   0.10.
+   */
+  DsHostSolveRowsFn solve_rows;
 } DsHostSolver;
 
 /*
@@ -962,7 +997,8 @@ enum DsStatus ds_problem_last_cost(const struct DsProblem *problem, struct DsCos
  - d: contact dimension, 2 or 3.
  - solver: the callbacks, their context and n (see DsHostSolver; with
    solver->solve_single, the loose products are solved in single
-   precision).
+   precision; with solver->solve_rows, every product is a solve on the
+   contact DOFs alone).
  - k: K itself, optional (NULL: none), as ds_problem_new takes it. Where
    given it serves the lumped preconditioner B K B^T of Newton's reduced
    systems (about half the products of Jacobi), K u_k in a history and the

@@ -45,6 +45,34 @@ pub trait KSolve: Send {
         None
     }
 
+    /// Optional: K^-1 on right-hand sides that vanish outside the DOFs `rows`
+    /// (0-based, ascending, distinct), wanted at those DOFs alone: `x`
+    /// (rows.len() x `ncols`, column-major, leading dimension rows.len())
+    /// holds the right-hand sides' entries at `rows`, and is overwritten with
+    /// the solutions' entries there. A direct solver answers it on the paths
+    /// of `rows` in its elimination tree alone (CHOLMOD's `cholmod_solve2`
+    /// with `Bset`), a fraction of a whole solve where the contact DOFs lie in
+    /// few subtrees; any host may answer by a whole solve (scatter into an
+    /// n-vector, solve, gather). The library takes it for every product with
+    /// A (`rows`: the contact DOFs, or those of a Newton step's reduced
+    /// unknowns, one right-hand side per call); the contacts' diagonal
+    /// blocks (many right-hand sides at once), the right-hand side and the
+    /// recovery of u stay whole solves. `approximate`: a relative
+    /// error of about 1e-7 cond(K)^(1/2) serves (single precision, a looser
+    /// tolerance), as for [`KSolve::solve_single`]; where false the answer
+    /// must be as accurate as [`KSolve::solve`]'s. `None` (the default): not
+    /// offered. `Some(Err(code))` reports a failure as `solve` does.
+    fn solve_rows(
+        &mut self,
+        rows: &[usize],
+        x: &mut [f64],
+        ncols: usize,
+        approximate: bool,
+    ) -> Option<std::result::Result<(), i32>> {
+        let _ = (rows, x, ncols, approximate);
+        None
+    }
+
     /// Optional: entry k of `values` := the entry of K^-1 at (entry k of
     /// `rows`, entry k of `cols`) for every k (0-based
     /// DOFs, as MUMPS's selected inversion, ICNTL(30), or PETSc's
@@ -93,6 +121,8 @@ pub(crate) struct Host {
     ledger: Mutex<Ledger>,
     /// False once the host answered that it offers no single-precision solve.
     single: std::sync::atomic::AtomicBool,
+    /// False once the host answered that it offers no solve on rows.
+    rows: std::sync::atomic::AtomicBool,
 }
 
 /// Counters of the host's solves (see [`Host::counts`]).
@@ -115,6 +145,7 @@ impl Host {
             solver: Mutex::new(solver),
             ledger: Mutex::new(Ledger::default()),
             single: std::sync::atomic::AtomicBool::new(true),
+            rows: std::sync::atomic::AtomicBool::new(true),
         }
     }
 
@@ -133,7 +164,7 @@ impl Host {
     /// latched and returned; while one is latched the host is not called
     /// again and x is left as given.
     pub(crate) fn solve(&self, x: &mut [f64], ncols: usize) -> Result<()> {
-        self.call(x, ncols, "", |s, x| Some(s.solve(x, ncols)))
+        self.call(x, ncols, None, "", |s, x| Some(s.solve(x, ncols)))
             .unwrap_or_else(|| unreachable!("the double-precision solve is always offered"))
     }
 
@@ -150,7 +181,7 @@ impl Host {
         if !self.offers_single() {
             return None;
         }
-        let outcome = self.call(x, ncols, " in single precision", |s, x| {
+        let outcome = self.call(x, ncols, None, " in single precision", |s, x| {
             s.solve_single(x, ncols)
         });
         if outcome.is_none() {
@@ -160,17 +191,48 @@ impl Host {
         outcome
     }
 
-    /// One call of the host's solve `f` on x (n x ncols) in either precision,
-    /// counted, its failure latched; None where `f` is not offered (nothing
-    /// counted).
+    /// False once the host answered that it offers no solve on rows (true
+    /// before it was asked).
+    pub(crate) fn offers_rows(&self) -> bool {
+        self.rows.load(std::sync::atomic::Ordering::Relaxed)
+    }
+
+    /// As [`Host::solve`] for right-hand sides that vanish outside the DOFs
+    /// `rows`, wanted there alone (x: rows.len() x ncols), where the host
+    /// offers it ([`KSolve::solve_rows`]); None where it does not
+    /// (remembered: the host is not asked again).
+    pub(crate) fn solve_rows(
+        &self,
+        rows: &[usize],
+        x: &mut [f64],
+        ncols: usize,
+        approximate: bool,
+    ) -> Option<Result<()>> {
+        if !self.offers_rows() {
+            return None;
+        }
+        let outcome = self.call(x, ncols, Some(rows), " on rows", |s, x| {
+            s.solve_rows(rows, x, ncols, approximate)
+        });
+        if outcome.is_none() {
+            self.rows.store(false, std::sync::atomic::Ordering::Relaxed);
+        }
+        outcome
+    }
+
+    /// One call of the host's solve `f` on x (n x ncols, or rows.len() x
+    /// ncols on `rows`) in either precision, counted, its failure latched;
+    /// None where `f` is not offered (nothing counted).
     fn call<T: Copy + Into<f64>>(
         &self,
         x: &mut [T],
         ncols: usize,
+        rows: Option<&[usize]>,
         precision: &str,
         f: impl FnOnce(&mut dyn KSolve, &mut [T]) -> Option<std::result::Result<(), i32>>,
     ) -> Option<Result<()>> {
-        debug_assert_eq!(x.len(), self.n * ncols);
+        let len = rows.map_or(self.n, <[usize]>::len);
+        debug_assert_eq!(x.len(), len * ncols);
         let mut ledger = self.ledger();
         if let Some(e) = &ledger.failure {
             return Some(Err(e.clone()));
@@ -195,8 +257,8 @@ impl Host {
                     "the host's solve of K{precision} returned {} at row {} of right-hand side \
                      {} (call {call} of this problem)",
                     x[p].into(),
-                    p % self.n.max(1),
-                    p / self.n.max(1),
+                    rows.map_or(p % len.max(1), |r| r[p % len.max(1)]),
+                    p / len.max(1),
                 )
             }),
         };

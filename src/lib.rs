@@ -59,6 +59,7 @@ pub mod internals {
     pub use crate::contact_rows::{contact_dofs, stack_rows};
     pub use crate::dual::{Condensation, Dual};
     pub use crate::factor::Factor;
+    pub use crate::factor_tree::row_solves::RowSolves;
     pub use crate::report::natural_map_error;
     pub use crate::threads::Threads;
 

@@ -260,6 +260,7 @@ pub(crate) fn host_sizes(k: Option<&Csc>, n: &Csc, t: &Csc, d: usize) -> Sizes {
         lumped: k.map_or(0, |k| {
             crate::sparse::congruence_bytes(k, &b, &b.transpose())
         }),
+        own_solves: crate::dual::host_rows_bytes(&b),
         ..Sizes::default()
     }
 }

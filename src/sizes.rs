@@ -30,7 +30,8 @@ pub(crate) struct Sizes {
     pub lumped: usize,
     /// Bytes of a matrix-free dual's own solves by the elimination tree and
     /// their scratch, with a bound on those of Newton's narrowed products
-    /// (`dual::own_solves_bytes`).
+    /// (`dual::own_solves_bytes`); on the host's solves, what its products on
+    /// rows hold (`dual::host_rows_bytes`).
     pub own_solves: usize,
     /// Bytes of the layered Dirichlet preconditioner a matrix-free dual holds
     /// where it pays (`dirichlet::Plan::bytes`; 0 where it does not).

@@ -1554,6 +1554,7 @@ fn the_hosts_single_precision_solve_through_the_c_abi() {
         context: (&raw mut columns).cast(),
         inverse_entries: None,
         solve_single: Some(small_k_solve_single),
+        solve_rows: None,
     };
     let mut h: *mut DsProblem = null_mut();
     // SAFETY: the solver and the matrices live until the call returns, the
@@ -1594,7 +1595,7 @@ fn the_hosts_single_precision_solve_through_the_c_abi() {
         assert!((a - b).abs() <= 1e-10 * b.abs(), "{a} against {b}");
     }
     free(old);
-    for bad in [0u32, 8, 44, 56] {
+    for bad in [0u32, 8, 44, 48, 64] {
         solver.struct_size = bad;
         let mut none: *mut DsProblem = null_mut();
         // SAFETY: as above; refused before any callback is read.
@@ -1604,6 +1605,108 @@ fn the_hosts_single_precision_solve_through_the_c_abi() {
         expect_error(s, DsStatus::BadArgument, &["struct_size"]);
         assert!(none.is_null());
     }
+}
+
+/// The rows and columns the small problem's solves on rows were asked for
+/// (only the test below uses it): calls, right-hand sides, and the fewest rows.
+static ROWS_SEEN: std::sync::Mutex<(i64, i64, i64)> = std::sync::Mutex::new((0, 0, i64::MAX));
+
+/// The small problem's solve on rows, the way any host may answer it: the
+/// entries scattered into a whole vector, small_k_apply, the rows gathered.
+/// It checks its side of the contract: rows ascending, distinct, within n,
+/// ld = nrows.
+unsafe extern "C" fn small_k_solve_rows(
+    context: *mut std::ffi::c_void,
+    nrows: i64,
+    rows: *const i64,
+    ncols: i64,
+    x: *mut f64,
+    ld: i64,
+    approximate: i32,
+) -> i32 {
+    // SAFETY: rows holds nrows DOFs (the callback's contract).
+    let rows = unsafe { std::slice::from_raw_parts(rows, nrows as usize) };
+    assert!(
+        rows.windows(2).all(|w| w[0] < w[1])
+            && rows.iter().all(|&r| (0..N_DOFS as i64).contains(&r))
+    );
+    assert!(ld == nrows && (approximate == 0 || approximate == 1));
+    {
+        let mut seen = ROWS_SEEN.lock().unwrap();
+        seen.0 += 1;
+        seen.1 += ncols;
+        seen.2 = seen.2.min(nrows);
+    }
+    let mut z = vec![0.0; N_DOFS];
+    for j in 0..ncols as usize {
+        // SAFETY: x holds ld x ncols doubles (the callback's contract).
+        let col = unsafe { std::slice::from_raw_parts_mut(x.add(j * ld as usize), nrows as usize) };
+        z.iter_mut().for_each(|v| *v = 0.0);
+        rows.iter()
+            .zip(col.iter())
+            .for_each(|(&r, &v)| z[r as usize] = v);
+        // SAFETY: z is one column of n doubles; the context is the counter.
+        unsafe { small_k_apply(context, N_DOFS as i64, 1, z.as_mut_ptr(), N_DOFS as i64) };
+        rows.iter()
+            .zip(col.iter_mut())
+            .for_each(|(&r, v)| *v = z[r as usize]);
+    }
+    0
+}
+
+/// ds_problem_new_host with the solve on rows: the handle solves the small
+/// problem (assert_usable's checks) with every product a call on rows, and
+/// agrees with the handle on whole solves; DsCost counts the right-hand
+/// sides of both kinds of call.
+#[test]
+fn the_hosts_solve_on_rows_through_the_c_abi() {
+    let (k, n, t) = (k_good(), n_good(), t_good());
+    let mut whole_columns: i64 = 0;
+    let mut solver = DsHostSolver {
+        struct_size: std::mem::size_of::<DsHostSolver>() as u32,
+        n: N_DOFS as i64,
+        solve: Some(small_k_solve),
+        context: (&raw mut whole_columns).cast(),
+        inverse_entries: None,
+        solve_single: None,
+        solve_rows: None,
+    };
+    let mut plain: *mut DsProblem = null_mut();
+    // SAFETY: the solver and the matrices live until the call returns, the
+    // counter until the handle is freed.
+    let s =
+        unsafe { ds_problem_new_host(2, &solver, &k.ds(), &n.ds(), &t.ds(), null(), &mut plain) };
+    expect_ok(s);
+    let want = assert_usable(plain);
+    free(plain);
+    let mut columns: i64 = 0;
+    solver.context = (&raw mut columns).cast();
+    solver.solve_rows = Some(small_k_solve_rows);
+    let mut h: *mut DsProblem = null_mut();
+    // SAFETY: as above.
+    let s = unsafe { ds_problem_new_host(2, &solver, &k.ds(), &n.ds(), &t.ds(), null(), &mut h) };
+    expect_ok(s);
+    let at_creation = columns;
+    let out = assert_usable(h);
+    let mut cost = DsCost {
+        struct_size: std::mem::size_of::<DsCost>() as u32,
+        ..DsCost::default()
+    };
+    // SAFETY: a live handle, a whole DsCost.
+    expect_ok(unsafe { ds_problem_last_cost(h, &mut cost) });
+    let (calls, rows_columns, fewest) = *ROWS_SEEN.lock().unwrap();
+    assert!(calls > 0, "the products on rows");
+    assert!(
+        fewest <= 2 * M as i64,
+        "the rows are the contact DOFs: {fewest}"
+    );
+    // Every column the host solved, of either kind, went through small_k_apply.
+    assert_eq!(cost.host_solves, columns - at_creation);
+    assert!(rows_columns < cost.host_solves, "and the loads whole");
+    for (a, b) in out.lambda_n.iter().zip(&want.lambda_n) {
+        assert!((a - b).abs() <= 1e-10 * b.abs(), "{a} against {b}");
+    }
+    free(h);
 }
 
 /// ds_problem_last_cost: zero (solved = 0) before any solve; after one, the
@@ -1687,6 +1790,7 @@ fn last_cost_splits_the_solve_and_counts_the_hosts_solves() {
         context: (&raw mut columns).cast(),
         inverse_entries: None,
         solve_single: None,
+        solve_rows: None,
     };
     let (k, n, t) = (k_good(), n_good(), t_good());
     let mut hh: *mut DsProblem = null_mut();

@@ -153,7 +153,9 @@ fn fortran_type_of(c_type: &str) -> &'static str {
         "int32_t" | "uint32_t" => "integer(c_int32_t)",
         "int64_t" | "uint64_t" => "integer(c_int64_t)",
         "double" => "real(c_double)",
-        "DsHostSolveFn" | "DsHostSolveSingleFn" | "DsHostInverseFn" => "type(c_funptr)",
+        "DsHostSolveFn" | "DsHostSolveSingleFn" | "DsHostSolveRowsFn" | "DsHostInverseFn" => {
+            "type(c_funptr)"
+        }
         other => panic!("no Fortran type known for the C field type {other}"),
     }
 }
@@ -477,7 +479,8 @@ const LAYOUT_F90: &str = r#"program layout
    write (*, '(a,99(1x,i0))') 'DS_COST_SIZE', DS_COST_SIZE
    write (*, '(a,99(1x,i0))') 'DsHostSolver', c_sizeof(h), off(c_loc(h), c_loc(h%struct_size)), &
       off(c_loc(h), c_loc(h%n)), off(c_loc(h), c_loc(h%solve)), off(c_loc(h), c_loc(h%context)), &
-      off(c_loc(h), c_loc(h%inverse_entries)), off(c_loc(h), c_loc(h%solve_single))
+      off(c_loc(h), c_loc(h%inverse_entries)), off(c_loc(h), c_loc(h%solve_single)), &
+      off(c_loc(h), c_loc(h%solve_rows))
    write (*, '(a,99(1x,i0))') 'DS_HOST_SOLVER_SIZE', DS_HOST_SOLVER_SIZE
 contains
    integer function off(base, field)
@@ -528,10 +531,10 @@ int main(void)
            O(DsCost, rhs_seconds), O(DsCost, iterate_seconds), O(DsCost, recover_seconds),
            O(DsCost, host_solves), O(DsCost, host_seconds), O(DsCost, library_seconds));
     printf("DS_COST_SIZE %d\n", (int)sizeof(DsCost));
-    printf("DsHostSolver %d %d %d %d %d %d %d\n", (int)sizeof(DsHostSolver),
+    printf("DsHostSolver %d %d %d %d %d %d %d %d\n", (int)sizeof(DsHostSolver),
            O(DsHostSolver, struct_size), O(DsHostSolver, n), O(DsHostSolver, solve),
            O(DsHostSolver, context), O(DsHostSolver, inverse_entries),
-           O(DsHostSolver, solve_single));
+           O(DsHostSolver, solve_single), O(DsHostSolver, solve_rows));
     printf("DS_HOST_SOLVER_SIZE %d\n", (int)sizeof(DsHostSolver));
     return 0;
 }

@@ -162,7 +162,7 @@ fn header_compiles_and_matches_the_rust_layout() {
     offsets!(DsMatrix: format, index_type, base, storage, nrows, ncols, nnz, p, i, x);
     check("sizeof(DsProgress)".into(), size_of::<DsProgress>());
     check("sizeof(DsHostSolver)".into(), size_of::<DsHostSolver>());
-    offsets!(DsHostSolver: struct_size, n, solve, context, inverse_entries, solve_single);
+    offsets!(DsHostSolver: struct_size, n, solve, context, inverse_entries, solve_single, solve_rows);
     check("sizeof(DsCost)".into(), size_of::<DsCost>());
     offsets!(DsCost: struct_size, solved, solve_seconds, rhs_seconds, iterate_seconds,
         recover_seconds, host_solves, host_seconds, library_seconds);

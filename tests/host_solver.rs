@@ -753,3 +753,186 @@ fn a_failing_single_precision_solve_is_an_error_and_the_problem_stays_usable() {
         assert_agree("the solve again", &want, &again, 1e-8);
     }
 }
+
+/// What a `Rows` host saw: calls on rows (all, approximate ones), the
+/// fewest rows of a call, and the failure to give (the call number, from
+/// 1, 0 never; code 6, or a NaN where `nan`).
+#[derive(Default)]
+struct RowsLog {
+    calls: AtomicUsize,
+    approximate: AtomicUsize,
+    fewest: AtomicUsize,
+    fail_at: AtomicUsize,
+}
+
+/// A host that also solves on rows (`KSolve::solve_rows`) the way any host
+/// may: the entries scattered into an n-vector, a whole solve, the rows
+/// gathered; an approximate answer with a relative error of 1e-6 put on
+/// each entry. It checks the library's side of the contract: rows
+/// ascending and distinct, x rows.len() x ncols.
+struct Rows {
+    host: Host,
+    log: Arc<RowsLog>,
+    nan: bool,
+}
+
+impl KSolve for Rows {
+    fn n(&self) -> usize {
+        self.host.n
+    }
+
+    fn solve(&mut self, x: &mut [f64], ncols: usize) -> Result<(), i32> {
+        self.host.solve(x, ncols)
+    }
+
+    fn solve_rows(
+        &mut self,
+        rows: &[usize],
+        x: &mut [f64],
+        ncols: usize,
+        approximate: bool,
+    ) -> Option<Result<(), i32>> {
+        assert!(
+            rows.windows(2).all(|w| w[0] < w[1]),
+            "rows ascending, distinct"
+        );
+        assert!(rows.last().is_none_or(|&r| r < self.host.n));
+        assert_eq!(x.len(), rows.len() * ncols, "the block is rows x ncols");
+        let log = &self.log;
+        let call = log.calls.fetch_add(1, Ordering::SeqCst) + 1;
+        log.approximate
+            .fetch_add(usize::from(approximate), Ordering::SeqCst);
+        log.fewest.fetch_min(rows.len(), Ordering::SeqCst);
+        let failing = call == log.fail_at.load(Ordering::SeqCst);
+        if failing && !self.nan {
+            return Some(Err(6));
+        }
+        let mut z = vec![0.0; self.host.n];
+        for col in x.chunks_mut(rows.len().max(1)) {
+            z.iter_mut().for_each(|v| *v = 0.0);
+            rows.iter().zip(col.iter()).for_each(|(&r, &v)| z[r] = v);
+            self.host.factor.solve_vec(&mut z);
+            for (k, (&r, c)) in rows.iter().zip(col.iter_mut()).enumerate() {
+                let e = if approximate {
+                    1e-6 * (k as f64).sin()
+                } else {
+                    0.0
+                };
+                *c = z[r] * (1.0 + e);
+            }
+        }
+        if failing {
+            x[0] = f64::NAN;
+        }
+        Some(Ok(()))
+    }
+}
+
+/// The scene's problem on a `Rows` host (K handed over), its log and its
+/// counter of whole solves.
+fn on_rows(scene: &Scene, nan: bool) -> (ContactProblem, Arc<RowsLog>, Arc<AtomicUsize>) {
+    let (host, handles) = concrete_host(scene, false);
+    let log = Arc::new(RowsLog {
+        fewest: AtomicUsize::new(usize::MAX),
+        ..RowsLog::default()
+    });
+    let solver = Rows {
+        host,
+        log: log.clone(),
+        nan,
+    };
+    let opts = with(Method::Newton);
+    let pb = on_solver(scene, Box::new(solver), true, &opts).expect("a valid host problem");
+    (pb, log, handles.calls)
+}
+
+/// With the host's solve on rows, every product with A is a call on rows
+/// (the loose ones approximate; none at creation, where the contact blocks
+/// take whole solves of many columns), and the whole solves are left to the
+/// loads: at most three per step (the right-hand side, the recovery of u,
+/// and the load span's). The answers agree with the own path (Tresca and
+/// Coulomb, two history steps) and a single solve passes the KKT check.
+#[test]
+fn a_hosts_solve_on_rows_serves_the_products_and_the_blocks() {
+    let scene = scene_3d();
+    let contact_dofs =
+        dualsplit::internals::contact_dofs(&dualsplit::internals::stack_rows(&scene.n, &scene.t))
+            .len();
+    let (mu, p) = (vec![0.3; scene.m()], vec![0.05; scene.m()]);
+    let opts = with(Method::Newton);
+    for (name, friction) in [
+        ("Tresca", Friction::Tresca(&p)),
+        ("Coulomb", Friction::Coulomb(&mu)),
+    ] {
+        let mut own = scene.problem();
+        let (mut pb, log, whole) = on_rows(&scene, false);
+        assert!(
+            whole.load(Ordering::SeqCst) > 0,
+            "{name}: the blocks by solves"
+        );
+        assert_eq!(
+            log.calls.load(Ordering::SeqCst),
+            0,
+            "{name}: a call on rows at creation"
+        );
+        for step in 1..=2 {
+            let f: Vec<f64> = scene.f.iter().map(|v| v * step as f64 / 2.0).collect();
+            let want = own.step(&f, &scene.g, friction, &opts).unwrap();
+            let (calls, loose, wholes) = (
+                log.calls.load(Ordering::SeqCst),
+                log.approximate.load(Ordering::SeqCst),
+                whole.load(Ordering::SeqCst),
+            );
+            let sol = pb.step(&f, &scene.g, friction, &opts).unwrap();
+            let w = format!("{name} step {step}");
+            let on_rows = log.calls.load(Ordering::SeqCst) - calls;
+            let loose = log.approximate.load(Ordering::SeqCst) - loose;
+            let wholes = whole.load(Ordering::SeqCst) - wholes;
+            println!(
+                "{w}: {on_rows} calls on rows ({loose} approximate, the fewest rows {} of \
+                 {contact_dofs}), {wholes} whole solves, err {:.2e}",
+                log.fewest.load(Ordering::SeqCst),
+                sol.report.err
+            );
+            assert_converged(&w, &sol);
+            assert!(on_rows > 0 && loose > 0, "{w}: products on rows");
+            assert!((1..=3).contains(&wholes), "{w}: {wholes} whole solves");
+            assert_eq!(
+                sol.report.host_solves,
+                on_rows + wholes,
+                "{w}: every call counted"
+            );
+            assert_agree(&w, &want, &sol, 1e-8);
+        }
+        let sol = pb.solve(&scene.f, &scene.g, friction, &opts).unwrap();
+        assert_converged(name, &sol);
+        kkt_of(&scene, friction, &sol).assert_ok(name, 1e-8);
+    }
+}
+
+/// A solve on rows that fails (code 6, or a NaN) ends the solve with
+/// `HostSolve` naming it; the next solve succeeds.
+#[test]
+fn a_failing_solve_on_rows_is_an_error_and_the_problem_stays_usable() {
+    let scene = scene_3d();
+    let p = vec![0.05; scene.m()];
+    let friction = Friction::Tresca(&p);
+    let opts = with(Method::Newton);
+    let want = scene
+        .problem()
+        .solve(&scene.f, &scene.g, friction, &opts)
+        .unwrap();
+    for nan in [false, true] {
+        let (mut pb, log, _) = on_rows(&scene, nan);
+        log.fail_at
+            .store(log.calls.load(Ordering::SeqCst) + 1, Ordering::SeqCst);
+        let e = pb.solve(&scene.f, &scene.g, friction, &opts).unwrap_err();
+        assert_eq!(e.kind, ErrorKind::HostSolve, "{e}");
+        assert!(e.message.contains("on rows"), "{}", e.message);
+        let what = if nan { "returned NaN" } else { "code 6" };
+        assert!(e.message.contains(what), "{}", e.message);
+        let again = pb.solve(&scene.f, &scene.g, friction, &opts).unwrap();
+        assert_converged("the solve again", &again);
+        assert_agree("the solve again", &want, &again, 1e-8);
+    }
+}

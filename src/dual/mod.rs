@@ -492,12 +492,16 @@ impl Dual {
 
     /// Ends a narrowing (see [`Dual::narrow_to`]).
     pub(crate) fn widen(&self) {
-        if let Some(Operator {
-            solves: Solves::Factor(fs),
-            ..
-        }) = &self.free
-        {
-            fs.narrow.borrow_mut().split = None;
+        match &self.free {
+            Some(Operator {
+                solves: Solves::Factor(fs),
+                ..
+            }) => fs.narrow.borrow_mut().split = None,
+            Some(Operator {
+                solves: Solves::Host(hs),
+                ..
+            }) => hs.narrow.borrow_mut().held.clear(),
+            None => {}
         }
     }
 
@@ -627,8 +631,8 @@ pub(crate) fn host_layer(
 }
 
 use condense::*;
-pub(crate) use operator::own_solves_bytes;
 use operator::*;
+pub(crate) use operator::{host_rows_bytes, own_solves_bytes};
 
 #[cfg(test)]
 pub(crate) mod tests;

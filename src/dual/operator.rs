@@ -32,7 +32,7 @@ pub(super) struct Operator {
 /// What a matrix-free dual's products solve with: K's factor, or the host.
 pub(super) enum Solves {
     Factor(Box<FactorSolves>),
-    Host(HostSolves),
+    Host(Box<HostSolves>),
 }
 
 /// The host's solves (`host.rs`) with one product's n-vector, in double and
@@ -42,6 +42,54 @@ pub(super) struct HostSolves {
     pub(super) host: Arc<crate::host::Host>,
     pub(super) work: std::cell::RefCell<Vec<f64>>,
     pub(super) work_single: std::cell::RefCell<Vec<f32>>,
+    /// The products on the host's solve on rows (`KSolve::solve_rows`), where
+    /// it offers one: the contact DOFs and B's entries' places among them.
+    pub(super) on_rows: OnRows,
+    /// A Newton step's products narrowed to its rows' DOFs (see
+    /// [`Dual::narrow_to`]); `held` empty: not narrowed.
+    pub(super) narrow: std::cell::RefCell<OnRows>,
+    /// A product's right-hand side on the rows.
+    pub(super) work_rows: std::cell::RefCell<Vec<f64>>,
+}
+
+/// A set of DOFs the host's solve on rows takes, and for the dual rows
+/// `held`, the place among `dofs` of each of B's entries in them (entry q
+/// of `bt`: `at[q]`; other entries' places are stale).
+#[derive(Default)]
+pub(super) struct OnRows {
+    pub(super) held: Vec<usize>,
+    pub(super) dofs: Vec<usize>,
+    pub(super) at: Vec<usize>,
+}
+
+impl OnRows {
+    /// The DOFs of B's rows `rows` (ascending) and their entries' places.
+    pub(super) fn set(&mut self, bt: &Csc, rows: &[usize]) {
+        self.held.clear();
+        self.held.extend_from_slice(rows);
+        self.dofs.clear();
+        for &r in rows {
+            self.dofs
+                .extend_from_slice(&bt.row_idx[bt.col_ptr[r]..bt.col_ptr[r + 1]]);
+        }
+        self.dofs.sort_unstable();
+        self.dofs.dedup();
+        self.at.resize(bt.row_idx.len(), 0);
+        for &r in rows {
+            for q in bt.col_ptr[r]..bt.col_ptr[r + 1] {
+                self.at[q] = self.dofs.partition_point(|&j| j < bt.row_idx[q]);
+            }
+        }
+    }
+}
+
+/// Bytes the products of a dual of B (`b`, c x n) on a host's solve on rows
+/// hold at most: the rows, DOFs and places of the contact DOFs and of a
+/// narrowing ([`OnRows`]), and a right-hand side on the DOFs.
+pub(crate) fn host_rows_bytes(b: &Csc) -> usize {
+    let (c, entries) = (b.nrows, b.nnz());
+    let dofs = b.ncols.min(entries);
+    2 * (c + dofs + entries) * std::mem::size_of::<usize>() + dofs * std::mem::size_of::<f64>()
 }
 
 /// The products' solves with K's factor and their workspace.
@@ -182,20 +230,27 @@ impl Operator {
     ) -> Result<Operator> {
         let bt = b.transpose();
         let blocks = host_blocks(host, &bt, m, d)?;
+        let mut on_rows = OnRows::default();
+        if host.offers_rows() {
+            on_rows.set(&bt, &(0..bt.ncols).collect::<Vec<_>>());
+        }
         Ok(Operator {
             diag: diag_of(&blocks, m, d),
             blocks,
             bt,
             lumped: None,
             dirichlet: None,
-            solves: Solves::Host(HostSolves {
+            solves: Solves::Host(Box::new(HostSolves {
                 host: host.clone(),
                 work: std::cell::RefCell::new(try_zeros(
                     host.n(),
                     "the matrix-free dual's work space",
                 )?),
                 work_single: std::cell::RefCell::new(Vec::new()),
-            }),
+                on_rows,
+                narrow: std::cell::RefCell::new(OnRows::default()),
+                work_rows: std::cell::RefCell::new(Vec::new()),
+            })),
         })
     }
 
@@ -265,8 +320,13 @@ impl Operator {
 impl Operator {
     /// See [`Dual::narrow_to`].
     pub(super) fn narrow_to(&self, rows: &[usize]) -> bool {
-        let Solves::Factor(fs) = &self.solves else {
-            return false;
+        let fs = match &self.solves {
+            Solves::Factor(fs) => fs,
+            Solves::Host(hs) if hs.host.offers_rows() => {
+                hs.narrow.borrow_mut().set(&self.bt, rows);
+                return true;
+            }
+            Solves::Host(_) => return false,
         };
         let mut narrow = fs.narrow.borrow_mut();
         if fs.factor.is_dense() {
@@ -322,8 +382,9 @@ impl Operator {
 
     /// See [`Dual::apply_narrow`].
     pub(super) fn apply_narrow(&self, x: &[f64], y: &mut [f64], rough: bool) {
-        let Solves::Factor(fs) = &self.solves else {
-            return self.apply_in(x, y, rough);
+        let fs = match &self.solves {
+            Solves::Factor(fs) => fs,
+            Solves::Host(hs) => return hs.apply_narrow(&self.bt, x, y, rough),
         };
         let mut narrow = fs.narrow.borrow_mut();
         let Narrow {
@@ -395,11 +456,23 @@ impl Real for f32 {
 /// z += B^T x over the rows in `rows` (x read there only): row r of B
 /// (column r of `bt`) scattered into z's DOFs, times x_r.
 fn scatter<T: Real>(bt: &Csc, x: &[f64], rows: impl Iterator<Item = usize>, z: &mut [T]) {
+    scatter_at(bt, &bt.row_idx, x, rows, z);
+}
+
+/// As [`scatter`] with B's entries placed in z at `at` (entry q of `bt` at
+/// `z[at[q]]`): the DOFs, or their places in a host's rows.
+fn scatter_at<T: Real>(
+    bt: &Csc,
+    at: &[usize],
+    x: &[f64],
+    rows: impl Iterator<Item = usize>,
+    z: &mut [T],
+) {
     for r in rows {
         let xr = x[r];
         if xr != 0.0 {
             for k in bt.col_ptr[r]..bt.col_ptr[r + 1] {
-                z[bt.row_idx[k]] += T::of(bt.values[k] * xr);
+                z[at[k]] += T::of(bt.values[k] * xr);
             }
         }
     }
@@ -407,9 +480,20 @@ fn scatter<T: Real>(bt: &Csc, x: &[f64], rows: impl Iterator<Item = usize>, z: &
 
 /// y_r := (B z)_r for the rows in `rows` (y untouched elsewhere).
 fn gather<T: Real>(bt: &Csc, z: &[T], rows: impl Iterator<Item = usize>, y: &mut [f64]) {
+    gather_at(bt, &bt.row_idx, z, rows, y);
+}
+
+/// As [`gather`] with B's entries placed in z at `at` (see [`scatter_at`]).
+fn gather_at<T: Real>(
+    bt: &Csc,
+    at: &[usize],
+    z: &[T],
+    rows: impl Iterator<Item = usize>,
+    y: &mut [f64],
+) {
     for r in rows {
         y[r] = (bt.col_ptr[r]..bt.col_ptr[r + 1])
-            .map(|k| bt.values[k] * z[bt.row_idx[k]].into())
+            .map(|k| bt.values[k] * z[at[k]].into())
             .sum();
     }
 }
@@ -420,6 +504,12 @@ impl HostSolves {
     /// failed (the failure is latched on the host and ends the solve:
     /// `host.rs`).
     fn apply(&self, bt: &Csc, x: &[f64], y: &mut [f64], rough: bool) {
+        // On rows where the host offers it (approximate where rough).
+        if self.host.offers_rows()
+            && self.on_rows(&self.on_rows, bt, x, 0..x.len(), y, 0..y.len(), rough)
+        {
+            return;
+        }
         // Not offered: known after the first try, then no single-precision
         // scatter on the way to the double solve.
         if rough && self.host.offers_single() {
@@ -431,6 +521,50 @@ impl HostSolves {
         }
         let mut z = self.work.borrow_mut();
         through(bt, x, y, &mut z, |z| Some(self.host.solve(z, 1)));
+    }
+}
+
+impl HostSolves {
+    /// As [`Operator::apply_narrow`] on the host: on the narrowed rows' DOFs
+    /// where a narrowing is in force (y zero outside the rows), else whole.
+    fn apply_narrow(&self, bt: &Csc, x: &[f64], y: &mut [f64], rough: bool) {
+        let narrow = self.narrow.borrow();
+        if !narrow.held.is_empty() && self.host.offers_rows() {
+            y.iter_mut().for_each(|v| *v = 0.0);
+            let rows = narrow.held.iter().copied();
+            if self.on_rows(&narrow, bt, x, rows.clone(), y, rows, rough) {
+                return;
+            }
+        }
+        drop(narrow);
+        self.apply(bt, x, y, rough);
+    }
+
+    /// y := B K^-1 B^T x at the rows `to`, x read at the rows `from`, by the
+    /// host's solve on the DOFs of `set` (whose places cover both); y is NaN
+    /// there where the solve failed. False (y untouched) where the host
+    /// offers no solve on rows.
+    #[allow(clippy::too_many_arguments)]
+    fn on_rows(
+        &self,
+        set: &OnRows,
+        bt: &Csc,
+        x: &[f64],
+        from: impl Iterator<Item = usize>,
+        y: &mut [f64],
+        to: impl Iterator<Item = usize>,
+        rough: bool,
+    ) -> bool {
+        let mut z = self.work_rows.borrow_mut();
+        z.clear();
+        z.resize(set.dofs.len(), 0.0);
+        scatter_at(bt, &set.at, x, from, &mut z);
+        match self.host.solve_rows(&set.dofs, &mut z, 1, rough) {
+            Some(Ok(())) => gather_at(bt, &set.at, &z, to, y),
+            Some(Err(_)) => to.for_each(|r| y[r] = f64::NAN),
+            None => return false,
+        }
+        true
     }
 }
 

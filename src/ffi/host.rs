@@ -52,6 +52,37 @@ pub type DsHostSolveSingleFn = Option<
     unsafe extern "C" fn(context: *mut c_void, n: i64, ncols: i64, x: *mut f32, ld: i64) -> i32,
 >;
 
+/// Optional: the host's solve with K on a sparse right-hand side, wanted on
+/// its own rows: x (nrows x ncols, column-major, leading dimension ld =
+/// nrows) holds the right-hand sides' entries at the DOFs rows[0..nrows]
+/// (0-based, ascending, distinct; every other entry of the right-hand sides
+/// is zero), and is overwritten with the solutions' entries at the same
+/// DOFs. A direct solver answers it on the paths of those DOFs in its
+/// elimination tree alone (CHOLMOD: cholmod_solve2 with Bset, column by
+/// column), a fraction of a whole solve where the contact DOFs lie in few of
+/// its subtrees; any host may answer by a whole solve (scatter the entries
+/// into an n-vector, solve, gather). The library calls it for every product
+/// with the condensed operator, one right-hand side per call (rows: the
+/// contact DOFs, or those of a Newton step's reduced unknowns, which change
+/// from call to call); the contacts' diagonal blocks at creation (32
+/// right-hand sides per call), the right-hand side B K^-1 f and the recovery
+/// of u stay calls of `solve`. approximate = 1: a relative
+/// error of about 1e-7 cond(K)^(1/2) serves (a single-precision solve, a
+/// looser tolerance), as for DsHostSolveSingleFn; approximate = 0: the answer
+/// must be as accurate as `solve`'s. Errors and the rules of calling as
+/// DsHostSolveFn; on MPI, as collective as `solve`. Added in version 0.10.
+pub type DsHostSolveRowsFn = Option<
+    unsafe extern "C" fn(
+        context: *mut c_void,
+        nrows: i64,
+        rows: *const i64,
+        ncols: i64,
+        x: *mut f64,
+        ld: i64,
+        approximate: i32,
+    ) -> i32,
+>;
+
 /// Optional: the entries of K^-1 at given positions, as a direct solver with
 /// selected inversion computes them (MUMPS's ICNTL(30), PETSc's
 /// MatMumpsGetInverse, PARDISO's selected inversion): entry k of values :=
@@ -74,8 +105,8 @@ pub type DsHostInverseFn = Option<
 /// sizeof(DsHostSolver), and the optional callbacks to NULL where not given
 /// (zero the struct first): later versions may add optional callbacks at the
 /// end and will accept this size. 40 bytes (version 0.9: up to
-/// inverse_entries) and 48 (0.10: solve_single) are accepted; the library
-/// reads no byte past struct_size.
+/// inverse_entries) is accepted too; the library reads no byte past
+/// struct_size.
 #[repr(C)]
 #[derive(Copy, Clone, Debug)]
 pub struct DsHostSolver {
@@ -93,6 +124,10 @@ pub struct DsHostSolver {
     /// The solve in single precision (optional, NULL: every product calls
     /// `solve`). Added in version 0.10.
     pub solve_single: DsHostSolveSingleFn,
+    /// The solve on a sparse right-hand side wanted on its own rows
+    /// (optional, NULL: every product is a whole solve). Added in version
+    /// 0.10.
+    pub solve_rows: DsHostSolveRowsFn,
 }
 
 /// sizeof(DsHostSolver) of version 0.9 (up to inverse_entries).
@@ -100,7 +135,7 @@ const HOST_V09_SIZE: usize = 40;
 const _: () = assert!(std::mem::offset_of!(DsHostSolver, solve_single) == HOST_V09_SIZE);
 
 impl DsHostSolver {
-    /// The caller's DsHostSolver of its version (40 or 48 bytes, see the
+    /// The caller's DsHostSolver of its version (40 bytes, or the whole
     /// struct): the fields an older struct lacks are NULL.
     ///
     /// Errors: `NullPointer`, `BadArgument` (misaligned, or struct_size not
@@ -145,6 +180,9 @@ struct CHost {
     n: usize,
     solve: unsafe extern "C" fn(*mut c_void, i64, ncols: i64, *mut f64, i64) -> i32,
     solve_single: DsHostSolveSingleFn,
+    solve_rows: DsHostSolveRowsFn,
+    /// The rows of the last call of `solve_rows`, as the callback takes them.
+    rows: Vec<i64>,
     inverse: DsHostInverseFn,
     context: *mut c_void,
 }
@@ -179,6 +217,34 @@ impl KSolve for CHost {
         // dimension n, as the callback's contract states; the context is the
         // caller's, passed back unchanged.
         let rc = unsafe { f(self.context, n, ncols as i64, x.as_mut_ptr(), n) };
+        Some(if rc == 0 { Ok(()) } else { Err(rc) })
+    }
+
+    fn solve_rows(
+        &mut self,
+        rows: &[usize],
+        x: &mut [f64],
+        ncols: usize,
+        approximate: bool,
+    ) -> Option<std::result::Result<(), i32>> {
+        let f = self.solve_rows?;
+        self.rows.clear();
+        self.rows.extend(rows.iter().map(|&r| r as i64));
+        let len = rows.len() as i64;
+        // SAFETY: the rows hold nrows entries and x holds nrows x ncols
+        // doubles, column-major with leading dimension nrows, as the
+        // callback's contract states; the context is the caller's.
+        let rc = unsafe {
+            f(
+                self.context,
+                len,
+                self.rows.as_ptr(),
+                ncols as i64,
+                x.as_mut_ptr(),
+                len,
+                i32::from(approximate),
+            )
+        };
         Some(if rc == 0 { Ok(()) } else { Err(rc) })
     }
 
@@ -230,6 +296,8 @@ fn host_of(s: &DsHostSolver) -> Result<CHost> {
         n,
         solve,
         solve_single: s.solve_single,
+        solve_rows: s.solve_rows,
+        rows: Vec::new(),
         inverse: s.inverse_entries,
         context: s.context,
     })
@@ -250,7 +318,8 @@ fn host_of(s: &DsHostSolver) -> Result<CHost> {
 /// - d: contact dimension, 2 or 3.
 /// - solver: the callbacks, their context and n (see DsHostSolver; with
 ///   solver->solve_single, the loose products are solved in single
-///   precision).
+///   precision; with solver->solve_rows, every product is a solve on the
+///   contact DOFs alone).
 /// - k: K itself, optional (NULL: none), as ds_problem_new takes it. Where
 ///   given it serves the lumped preconditioner B K B^T of Newton's reduced
 ///   systems (about half the products of Jacobi), K u_k in a history and the
