@@ -3,7 +3,8 @@
 !> the foundation with Tresca friction), with K^-1 applied by a BIND(C)
 !> callback instead of K handed over, what the solve cost (ds_problem_last_cost:
 !> the host's right-hand sides, checked against the callback's own count), then
-!> a callback that fails.
+!> a callback that fails, then the same solve with the host's solve on rows
+!> (DsHostSolver%solve_rows) taking the products.
 !>
 !> Build (or `make fortran-host`):
 !>   gfortran -c include/dualsplit.f90
@@ -13,7 +14,8 @@
 !> Prints RESULT lambda_N lambda_T u_x u_y err (8, 0.4, 0.3, -0.5 by hand:
 !> u_y = -g, 4 u_y = -10 + lambda_N, 2 u_x = 1 - lambda_T with |lambda_T| = p),
 !> the host's calls, FAILED with the status and message of a failing callback,
-!> and AGAIN after it; exit status 0 when all are as expected.
+!> AGAIN after it, and ROWS (the calls on rows, lambda_N, u_y) with the solve
+!> on rows; exit status 0 when all are as expected.
 
 !> The host: K = diag(kdiag), the solve divides by it. `context` points to
 !> a host_data; fail_code /= 0 makes the solve fail with that code.
@@ -27,6 +29,7 @@ module host_callbacks
       integer(c_int32_t) :: fail_code
       integer(c_int32_t) :: calls
       integer(c_int64_t) :: columns   ! right-hand sides solved, summed over the calls
+      integer(c_int32_t) :: row_calls ! calls of rows_solve
    end type host_data
 contains
 
@@ -49,6 +52,29 @@ contains
          end do
       end do
    end function diagonal_solve
+
+   !> DsHostSolveRowsFn: x(ld, ncols) holds the right-hand sides at the 0-based
+   !> DOFs rows(1:nrows); K^-1 of them there (K diagonal: row by row).
+   function rows_solve(context, nrows, rows, ncols, x, ld, approximate) result(code) bind(C)
+      type(c_ptr), value :: context
+      integer(c_int64_t), value :: nrows, ncols, ld
+      integer(c_int64_t), intent(in) :: rows(*)
+      real(c_double), intent(inout) :: x(ld, *)
+      integer(c_int32_t), value :: approximate
+      integer(c_int32_t) :: code
+      type(host_data), pointer :: h
+      integer(c_int64_t) :: i, j
+      call c_f_pointer(context, h)
+      h%row_calls = h%row_calls + 1
+      h%columns = h%columns + ncols
+      code = 0
+      if (approximate /= 0 .and. approximate /= 1) code = 3
+      do j = 1, ncols
+         do i = 1, nrows
+            x(i, j) = x(i, j) / h%kdiag(rows(i) + 1)
+         end do
+      end do
+   end function rows_solve
 end module host_callbacks
 
 program host_solver_f
@@ -78,6 +104,7 @@ program host_solver_f
    host%fail_code = 0
    host%calls = 0
    host%columns = 0
+   host%row_calls = 0
    solver%struct_size = DS_HOST_SOLVER_SIZE
    solver%n = 2
    solver%solve = c_funloc(diagonal_solve)
@@ -128,6 +155,19 @@ program host_solver_f
    print '(a,1x,i0,2(1x,es23.15e3))', 'AGAIN', st, ln(1), u(2)
    ok = ok .and. st == DS_STATUS_OK .and. abs(ln(1) - 8.0d0) <= 1.0d-9
 
+   call ds_problem_free(pb)
+
+   ! The host's solve on rows: every product with A a call of rows_solve.
+   solver%solve_rows = c_funloc(rows_solve)
+   st = ds_problem_new_host(2, solver, n, t, opts, pb)
+   if (st /= DS_STATUS_OK) then
+      print '(a)', 'ds_problem_new_host (rows): '//ds_status_string(st)//': '//ds_last_error_message()
+      stop 2
+   end if
+   st = ds_solve(pb, opts, DS_FRICTION_TRESCA, f, g, p, u, ln, lt, rep)
+   print '(a,1x,i0,1x,i0,2(1x,es23.15e3))', 'ROWS', st, host%row_calls, ln(1), u(2)
+   ok = ok .and. st == DS_STATUS_OK .and. host%row_calls > 0 .and. &
+        abs(ln(1) - 8.0d0) <= 1.0d-9 .and. abs(u(2) + 0.5d0) <= 1.0d-9
    call ds_problem_free(pb)
    if (.not. ok) then
       print '(a)', 'host_solver_f: FAILED'

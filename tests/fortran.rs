@@ -543,8 +543,9 @@ int main(void)
 /// c_examples/host_solver.f90: the library on a Fortran BIND(C) callback's
 /// solves of K gives the hand-derived answer (lambda_N = 8, lambda_T = 0.4,
 /// u = (0.3, -0.5)), a callback returning 5 gives DS_STATUS_HOST_SOLVE_FAILED
-/// (16) with the code in the message and the outputs untouched, and the same
-/// handle solves again.
+/// (16) with the code in the message and the outputs untouched, the same
+/// handle solves again, and with the solve on rows (DsHostSolver%solve_rows)
+/// a new handle gives the same answer.
 #[test]
 fn host_solver_example_runs() {
     let src = manifest_dir().join("c_examples/host_solver.f90");
@@ -596,6 +597,16 @@ fn host_solver_example_runs() {
         .collect();
     assert_eq!(cost[0], "0", "{stdout}");
     assert_eq!(cost[1], cost[2], "{stdout}");
+    // The solve on rows through the module: OK, called (the program checks
+    // the answer against the hand-derived one).
+    let rows: Vec<&str> = stdout
+        .lines()
+        .find_map(|l| l.strip_prefix("ROWS "))
+        .expect("a ROWS line")
+        .split_whitespace()
+        .collect();
+    assert_eq!(rows[0], "0", "{stdout}");
+    assert!(rows[1].parse::<i64>().unwrap() > 0, "{stdout}");
 }
 
 #[test]
