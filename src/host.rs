@@ -49,11 +49,15 @@ pub trait KSolve: Send {
     /// (0-based, ascending, distinct), wanted at those DOFs alone: `x`
     /// (rows.len() x `ncols`, column-major, leading dimension rows.len())
     /// holds the right-hand sides' entries at `rows`, and is overwritten with
-    /// the solutions' entries there. A direct solver answers it on the paths
-    /// of `rows` in its elimination tree alone (CHOLMOD's `cholmod_solve2`
-    /// with `Bset`), a fraction of a whole solve where the contact DOFs lie in
-    /// few subtrees; any host may answer by a whole solve (scatter into an
-    /// n-vector, solve, gather). The library takes it for every product with
+    /// the solutions' entries there. A direct solver may answer it on the
+    /// paths of `rows` in its elimination tree alone (PARDISO's partial
+    /// solve, `iparm[30]`), a fraction of a whole solve where the contact DOFs
+    /// lie in few subtrees; any host may answer by a whole solve (scatter
+    /// into an n-vector, solve, gather), but then gains nothing: offer it
+    /// only where it is cheaper than [`KSolve::solve`] (CHOLMOD's
+    /// `cholmod_solve2` with `Bset` solves column by column on a simplicial
+    /// copy of the factor, slower than its supernodal whole solve on the
+    /// benchmark's 3D blocks). The library takes it for every product with
     /// A (`rows`: the contact DOFs, or those of a Newton step's reduced
     /// unknowns, one right-hand side per call); the contacts' diagonal
     /// blocks (many right-hand sides at once), the right-hand side and the

@@ -1,7 +1,8 @@
 //! K^-1 on sparse right-hand sides wanted on their own rows, by the paths
 //! of the factor's elimination tree (`tree_solve.rs`): what a host's
-//! `KSolve::solve_rows` computes with a direct solver (CHOLMOD's solves with
-//! Bset). For the benchmark's and the tests' hosts (`internals`); the
+//! `KSolve::solve_rows` computes with a direct solver that prunes its solves
+//! (PARDISO's partial solve). For the benchmark's and the tests' hosts
+//! (`internals`); the
 //! library's own products call `tree_solve.rs` directly.
 
 use super::supernode_tree::Tree;

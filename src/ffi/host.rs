@@ -57,11 +57,15 @@ pub type DsHostSolveSingleFn = Option<
 /// nrows) holds the right-hand sides' entries at the DOFs rows[0..nrows]
 /// (0-based, ascending, distinct; every other entry of the right-hand sides
 /// is zero), and is overwritten with the solutions' entries at the same
-/// DOFs. A direct solver answers it on the paths of those DOFs in its
-/// elimination tree alone (CHOLMOD: cholmod_solve2 with Bset, column by
-/// column), a fraction of a whole solve where the contact DOFs lie in few of
-/// its subtrees; any host may answer by a whole solve (scatter the entries
-/// into an n-vector, solve, gather). The library calls it for every product
+/// DOFs. A direct solver may answer it on the paths of those DOFs in its
+/// elimination tree alone (PARDISO's partial solve, iparm(31) in Fortran
+/// numbering), a fraction of a whole solve where the contact DOFs lie in few
+/// of its subtrees. Offer
+/// it only where it is cheaper than your whole solve: answered by a whole
+/// solve (scatter the entries into an n-vector, solve, gather) it gains
+/// nothing, and CHOLMOD's cholmod_solve2 with Bset, column by column on a
+/// simplicial copy of the factor, was slower than its supernodal whole solve
+/// on the benchmark's 3D blocks. The library calls it for every product
 /// with the condensed operator, one right-hand side per call (rows: the
 /// contact DOFs, or those of a Newton step's reduced unknowns, which change
 /// from call to call); the contacts' diagonal blocks at creation (32
