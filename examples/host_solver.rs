@@ -14,12 +14,13 @@
 //! single precision with `--single`), which the library takes for every
 //! product with A. `--cholmod` (built with the feature `cholmod`, which
 //! links -lcholmod): the host is CHOLMOD (`bench/cholmod_host.rs`), with
-//! `--rows` its solves with Bset.
+//! `--rows` its solves with Bset. `--blocks factor|auto`: the contact blocks
+//! by the library's own factor of K (`HostBlocks`) instead of d m solves.
 //!
 //! ```text
 //! cargo run --release --example host_solver [--features cholmod] -- [--scenes A,B,..]
 //!     [--steps N] [--laws tresca,coulomb] [--no-k] [--single] [--rows] [--cholmod]
-//!     [--threads K]
+//!     [--blocks solves|factor|auto] [--threads K]
 //! ```
 
 #[path = "bench/baseline.rs"]
@@ -36,8 +37,8 @@ mod stats;
 
 use dualsplit::internals::{Factor, RowSolves, Threads};
 use dualsplit::{
-    ContactProblem, Csc, DualForm, Format, Friction, Indices, KSolve, MatrixView, Options,
-    Ordering, SolveStatus, Storage,
+    ContactProblem, Csc, DualForm, Format, Friction, HostBlocks, Indices, KSolve, MatrixView,
+    Options, Ordering, SolveStatus, Storage,
 };
 use faer::dyn_stack::{MemBuffer, MemStack};
 use scene::{Scene, Spec};
@@ -55,11 +56,16 @@ struct Host {
     factor: Arc<Factor>,
     single: Option<(Arc<Vec<f32>>, MemBuffer)>,
     rows: Option<RowSolves>,
+    blocks: HostBlocks,
 }
 
 impl KSolve for Host {
     fn n(&self) -> usize {
         self.factor.n()
+    }
+
+    fn blocks(&self) -> HostBlocks {
+        self.blocks
     }
 
     fn solve(&mut self, x: &mut [f64], ncols: usize) -> Result<(), i32> {
@@ -128,6 +134,7 @@ fn main() {
     let mut single = false;
     let mut rows = false;
     let mut on_cholmod = false;
+    let mut blocks = HostBlocks::Solves;
     let mut threads = 1;
     let args: Vec<String> = std::env::args().skip(1).collect();
     let mut k = 0;
@@ -138,6 +145,14 @@ fn main() {
             "--steps" => steps = value().parse().expect("--steps N"),
             "--laws" => laws = value().split(',').map(str::to_string).collect(),
             "--threads" => threads = value().parse().expect("--threads K"),
+            "--blocks" => {
+                blocks = match value().as_str() {
+                    "solves" => HostBlocks::Solves,
+                    "factor" => HostBlocks::Factor,
+                    "auto" => HostBlocks::Auto,
+                    v => panic!("--blocks solves|factor|auto, not {v}"),
+                }
+            }
             "--no-k" => {
                 with_k = false;
                 k += 1;
@@ -216,6 +231,7 @@ fn main() {
                         .clone()
                         .map(|v| (v, MemBuffer::new(host_factor.solve_scratch_single()))),
                     rows: rows.then(|| RowSolves::new(host_factor.clone(), single).unwrap()),
+                    blocks,
                 })
             };
             let t2 = Instant::now();
@@ -232,7 +248,7 @@ fn main() {
             println!(
                 "\n{name} (n = {}, c = {}), {law}, {threads} thread(s), K {}: best plain factor {t_factor:.3} s; \
                  own creation {t_own:.3} s ({:.2} x); host's factor {t_host_factor:.3} s{}, host creation \
-                 (the contact blocks by {} solves) {t_host:.3} s ({:.2} x)",
+                 (the contact blocks {:?}, for {} dual unknowns) {t_host:.3} s ({:.2} x)",
                 sc.k.nrows,
                 own.dual_unknowns(),
                 if with_k {
@@ -246,6 +262,7 @@ fn main() {
                 } else {
                     String::new()
                 },
+                blocks,
                 own.dual_unknowns(),
                 t_host / t_factor,
             );

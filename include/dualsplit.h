@@ -299,6 +299,38 @@ typedef enum DsOrdering {
 } DsOrdering;
 
 /*
+ How a handle on the host's solves obtains the contacts' d x d diagonal
+ blocks of A (DsHostSolver `blocks`) where the host gives no entries of
+ K^-1. Added in version 0.10.
+ */
+typedef enum DsHostBlocks {
+  /*
+   By d m of the host's solves, 32 right-hand sides per call (from its
+   inverse_entries where given): nothing of K's factor in the library's
+   memory. 9-75 factorisations of K on the benchmark's 3D blocks. The
+   default (a zeroed struct).
+   */
+  DS_HOST_BLOCKS_SOLVES = 0,
+  /*
+   By the library's own factor of K, which must be handed over
+   (DS_STATUS_BAD_ARGUMENT without it): factored once when the blocks
+   are formed (creation, ds_problem_set_contacts), its selected inversion
+   giving the blocks, and freed before the call returns; its bytes count
+   in the call's memory prediction and max_memory. 1.5-2.4
+   factorisations of K in all on the benchmark's 3D blocks.
+   inverse_entries is not called. Every product still calls the host.
+   */
+  DS_HOST_BLOCKS_FACTOR = 1,
+  /*
+   DS_HOST_BLOCKS_FACTOR where K is handed over, the factor fits
+   max_memory (the machine's memory where 0) and its flops are fewer than
+   the solves' (c solves of 4 nnz(L) flops against 2.5 times the
+   factorisation's); else DS_HOST_BLOCKS_SOLVES.
+   */
+  DS_HOST_BLOCKS_AUTO = 2,
+} DsHostBlocks;
+
+/*
  Friction law of one increment (the `friction` argument of ds_solve / ds_step).
  */
 typedef enum DsFriction {
@@ -513,6 +545,11 @@ typedef struct DsHostSolver {
    0.10.
    */
   DsHostSolveRowsFn solve_rows;
+  /*
+   How the contacts' blocks are obtained: a DsHostBlocks value (0,
+   DS_HOST_BLOCKS_SOLVES, in a zeroed struct). Added in version 0.10.
+   */
+  int32_t blocks;
 } DsHostSolver;
 
 /*
@@ -992,7 +1029,10 @@ enum DsStatus ds_problem_last_cost(const struct DsProblem *problem, struct DsCos
  operator, the right-hand side and the recovery of u is one call of
  solver->solve; the contacts' d x d diagonal blocks of A are formed here
  from solver->inverse_entries where given (one call), else by d m solves,
- 32 right-hand sides per call. ds_solve and ds_step then work
+ 32 right-hand sides per call, or, as solver->blocks asks
+ (DS_HOST_BLOCKS_FACTOR, or DS_HOST_BLOCKS_AUTO where it pays), by the
+ library's own factor of K, freed before the call returns. ds_solve and
+ ds_step then work
  as on any handle, with the methods that need no entries of A (AUTO, NEWTON,
  MPRGP; the others, and dual_form DENSE, return DS_STATUS_BAD_ARGUMENT);
  ds_problem_refactor returns DS_STATUS_BAD_ARGUMENT (refactor on the host's
@@ -1016,8 +1056,10 @@ enum DsStatus ds_problem_last_cost(const struct DsProblem *problem, struct DsCos
 
  Returns DS_STATUS_OK, or DS_STATUS_NULL_POINTER (solver, solver->solve,
  n, t, out), DS_STATUS_BAD_ARGUMENT (d, struct_size, options, dual_form
- DENSE), DS_STATUS_BAD_SIZE (n < 1, N or T not n columns, K not n x n),
+ DENSE, solver->blocks, DS_HOST_BLOCKS_FACTOR without K),
+ DS_STATUS_BAD_SIZE (n < 1, N or T not n columns, K not n x n),
  DS_STATUS_BAD_INDEX, DS_STATUS_NOT_FINITE, DS_STATUS_NOT_SYMMETRIC (K),
+ DS_STATUS_NOT_POSITIVE_DEFINITE (K, factored for the blocks),
  DS_STATUS_HOST_SOLVE_FAILED (a solve for the contact blocks failed),
  DS_STATUS_OUT_OF_MEMORY. Added in version 0.9.
 

@@ -14,6 +14,30 @@ use crate::error::{Error, ErrorKind, Result};
 use std::sync::Mutex;
 use std::time::Instant;
 
+/// How a problem on the host's solves obtains the contacts' d x d diagonal
+/// blocks of A = B K^-1 B^T where the host gives no entries of K^-1
+/// ([`KSolve::inverse_entries`]): once at creation, and again when the
+/// contacts are replaced.
+#[derive(Copy, Clone, Debug, Default, PartialEq, Eq)]
+pub enum HostBlocks {
+    /// By d m of the host's solves, 32 right-hand sides per call (the
+    /// default): nothing of K's factor in the library's memory. Each column
+    /// is a whole solve: 9-75 factorisations of K on the benchmark's 3D
+    /// blocks.
+    #[default]
+    Solves,
+    /// By the library's own factor of K, which must be handed over: analysed
+    /// and factored at creation, its selected inversion giving the blocks,
+    /// and freed before creation returns (its bytes in the creation's
+    /// prediction and under max_memory). 1.5-2.4 factorisations of K in all
+    /// on the benchmark's 3D blocks. The products still call the host.
+    Factor,
+    /// `Factor` where K is handed over, its factor fits max_memory and its
+    /// flops are fewer than the solves' (c solves of 4 nnz(L) flops each
+    /// against 2.5 times the factorisation's flops); else `Solves`.
+    Auto,
+}
+
 /// K^-1 applied by the host code. The library calls it only from the thread
 /// that calls into the problem, never concurrently.
 pub trait KSolve: Send {
@@ -77,6 +101,12 @@ pub trait KSolve: Send {
         None
     }
 
+    /// How the contacts' diagonal blocks are obtained where the host gives
+    /// no entries of K^-1 (see [`HostBlocks`]); the default: by its solves.
+    fn blocks(&self) -> HostBlocks {
+        HostBlocks::Solves
+    }
+
     /// Optional: entry k of `values` := the entry of K^-1 at (entry k of
     /// `rows`, entry k of `cols`) for every k (0-based
     /// DOFs, as MUMPS's selected inversion, ICNTL(30), or PETSc's
@@ -127,6 +157,8 @@ pub(crate) struct Host {
     single: std::sync::atomic::AtomicBool,
     /// False once the host answered that it offers no solve on rows.
     rows: std::sync::atomic::AtomicBool,
+    /// How the contacts' blocks are obtained ([`KSolve::blocks`]).
+    blocks: HostBlocks,
 }
 
 /// Counters of the host's solves (see [`Host::counts`]).
@@ -146,6 +178,7 @@ impl Host {
     pub(crate) fn new(solver: Box<dyn KSolve>) -> Host {
         Host {
             n: solver.n(),
+            blocks: solver.blocks(),
             solver: Mutex::new(solver),
             ledger: Mutex::new(Ledger::default()),
             single: std::sync::atomic::AtomicBool::new(true),
@@ -156,6 +189,11 @@ impl Host {
     /// The number of DOFs n.
     pub(crate) fn n(&self) -> usize {
         self.n
+    }
+
+    /// How the contacts' blocks are obtained ([`KSolve::blocks`]).
+    pub(crate) fn blocks(&self) -> HostBlocks {
+        self.blocks
     }
 
     /// The ledger, locked (a poisoned lock still holds valid counters).

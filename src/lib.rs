@@ -41,7 +41,7 @@ mod threads;
 
 pub use error::{Error, ErrorKind, Result};
 pub use friction::Friction;
-pub use host::KSolve;
+pub use host::{HostBlocks, KSolve};
 pub use info::Info;
 pub use methods::{Monitor, Progress};
 pub use options::{DENSE_MAX, DualForm, Method, Options, Ordering, STALL_FACTOR, STALL_WINDOW};

@@ -1555,6 +1555,7 @@ fn the_hosts_single_precision_solve_through_the_c_abi() {
         inverse_entries: None,
         solve_single: Some(small_k_solve_single),
         solve_rows: None,
+        blocks: 0,
     };
     let mut h: *mut DsProblem = null_mut();
     // SAFETY: the solver and the matrices live until the call returns, the
@@ -1595,7 +1596,7 @@ fn the_hosts_single_precision_solve_through_the_c_abi() {
         assert!((a - b).abs() <= 1e-10 * b.abs(), "{a} against {b}");
     }
     free(old);
-    for bad in [0u32, 8, 44, 48, 64] {
+    for bad in [0u32, 8, 44, 48, 56, 72] {
         solver.struct_size = bad;
         let mut none: *mut DsProblem = null_mut();
         // SAFETY: as above; refused before any callback is read.
@@ -1670,6 +1671,7 @@ fn the_hosts_solve_on_rows_through_the_c_abi() {
         inverse_entries: None,
         solve_single: None,
         solve_rows: None,
+        blocks: 0,
     };
     let mut plain: *mut DsProblem = null_mut();
     // SAFETY: the solver and the matrices live until the call returns, the
@@ -1707,6 +1709,50 @@ fn the_hosts_solve_on_rows_through_the_c_abi() {
         assert!((a - b).abs() <= 1e-10 * b.abs(), "{a} against {b}");
     }
     free(h);
+}
+
+/// DsHostSolver.blocks through the C ABI: DS_HOST_BLOCKS_FACTOR with K
+/// handed over forms the contact blocks without a call of the host (and the
+/// handle solves the small problem, assert_usable's checks); without K it
+/// is refused, and so is a value that is no DsHostBlocks, naming the field.
+#[test]
+fn the_contact_blocks_by_the_librarys_factor_through_the_c_abi() {
+    let (k, n, t) = (k_good(), n_good(), t_good());
+    let mut columns: i64 = 0;
+    let mut solver = DsHostSolver {
+        struct_size: std::mem::size_of::<DsHostSolver>() as u32,
+        n: N_DOFS as i64,
+        solve: Some(small_k_solve),
+        context: (&raw mut columns).cast(),
+        inverse_entries: None,
+        solve_single: None,
+        solve_rows: None,
+        blocks: DsHostBlocks::Factor as i32,
+    };
+    let mut h: *mut DsProblem = null_mut();
+    // SAFETY: the solver and the matrices live until the call returns, the
+    // counter until the handle is freed.
+    let s = unsafe { ds_problem_new_host(2, &solver, &k.ds(), &n.ds(), &t.ds(), null(), &mut h) };
+    expect_ok(s);
+    assert_eq!(columns, 0, "no host solve at creation");
+    assert_usable(h);
+    assert!(columns > 0, "the products call the host");
+    free(h);
+    let mut none: *mut DsProblem = null_mut();
+    // SAFETY: as above, K NULL (none handed over).
+    let s = unsafe { ds_problem_new_host(2, &solver, null(), &n.ds(), &t.ds(), null(), &mut none) };
+    expect_error(s, DsStatus::BadArgument, &["need K handed over"]);
+    assert!(none.is_null());
+    solver.blocks = 7;
+    // SAFETY: as above.
+    let s =
+        unsafe { ds_problem_new_host(2, &solver, &k.ds(), &n.ds(), &t.ds(), null(), &mut none) };
+    expect_error(
+        s,
+        DsStatus::BadArgument,
+        &["solver->blocks = 7", "DS_HOST_BLOCKS_AUTO"],
+    );
+    assert!(none.is_null());
 }
 
 /// ds_problem_last_cost: zero (solved = 0) before any solve; after one, the
@@ -1791,6 +1837,7 @@ fn last_cost_splits_the_solve_and_counts_the_hosts_solves() {
         inverse_entries: None,
         solve_single: None,
         solve_rows: None,
+        blocks: 0,
     };
     let (k, n, t) = (k_good(), n_good(), t_good());
     let mut hh: *mut DsProblem = null_mut();

@@ -480,7 +480,7 @@ const LAYOUT_F90: &str = r#"program layout
    write (*, '(a,99(1x,i0))') 'DsHostSolver', c_sizeof(h), off(c_loc(h), c_loc(h%struct_size)), &
       off(c_loc(h), c_loc(h%n)), off(c_loc(h), c_loc(h%solve)), off(c_loc(h), c_loc(h%context)), &
       off(c_loc(h), c_loc(h%inverse_entries)), off(c_loc(h), c_loc(h%solve_single)), &
-      off(c_loc(h), c_loc(h%solve_rows))
+      off(c_loc(h), c_loc(h%solve_rows)), off(c_loc(h), c_loc(h%blocks))
    write (*, '(a,99(1x,i0))') 'DS_HOST_SOLVER_SIZE', DS_HOST_SOLVER_SIZE
 contains
    integer function off(base, field)
@@ -531,10 +531,11 @@ int main(void)
            O(DsCost, rhs_seconds), O(DsCost, iterate_seconds), O(DsCost, recover_seconds),
            O(DsCost, host_solves), O(DsCost, host_seconds), O(DsCost, library_seconds));
     printf("DS_COST_SIZE %d\n", (int)sizeof(DsCost));
-    printf("DsHostSolver %d %d %d %d %d %d %d %d\n", (int)sizeof(DsHostSolver),
+    printf("DsHostSolver %d %d %d %d %d %d %d %d %d\n", (int)sizeof(DsHostSolver),
            O(DsHostSolver, struct_size), O(DsHostSolver, n), O(DsHostSolver, solve),
            O(DsHostSolver, context), O(DsHostSolver, inverse_entries),
-           O(DsHostSolver, solve_single), O(DsHostSolver, solve_rows));
+           O(DsHostSolver, solve_single), O(DsHostSolver, solve_rows),
+           O(DsHostSolver, blocks));
     printf("DS_HOST_SOLVER_SIZE %d\n", (int)sizeof(DsHostSolver));
     return 0;
 }

@@ -162,7 +162,7 @@ fn header_compiles_and_matches_the_rust_layout() {
     offsets!(DsMatrix: format, index_type, base, storage, nrows, ncols, nnz, p, i, x);
     check("sizeof(DsProgress)".into(), size_of::<DsProgress>());
     check("sizeof(DsHostSolver)".into(), size_of::<DsHostSolver>());
-    offsets!(DsHostSolver: struct_size, n, solve, context, inverse_entries, solve_single, solve_rows);
+    offsets!(DsHostSolver: struct_size, n, solve, context, inverse_entries, solve_single, solve_rows, blocks);
     check("sizeof(DsCost)".into(), size_of::<DsCost>());
     offsets!(DsCost: struct_size, solved, solve_seconds, rhs_seconds, iterate_seconds,
         recover_seconds, host_solves, host_seconds, library_seconds);
@@ -214,6 +214,9 @@ fn header_compiles_and_matches_the_rust_layout() {
         ("DS_DUAL_FORM_AUTO", DsDualForm::Auto as usize),
         ("DS_DUAL_FORM_DENSE", DsDualForm::Dense as usize),
         ("DS_DUAL_FORM_MATRIX_FREE", DsDualForm::MatrixFree as usize),
+        ("DS_HOST_BLOCKS_SOLVES", DsHostBlocks::Solves as usize),
+        ("DS_HOST_BLOCKS_FACTOR", DsHostBlocks::Factor as usize),
+        ("DS_HOST_BLOCKS_AUTO", DsHostBlocks::Auto as usize),
         ("DS_FRICTION_TRESCA", DsFriction::Tresca as usize),
         ("DS_FRICTION_COULOMB", DsFriction::Coulomb as usize),
     ] {

@@ -12,7 +12,8 @@ mod common;
 use common::{Mesh, Owned, Scene, assert_converged, kkt_of, max_diff, norm_inf};
 use dualsplit::internals::Factor;
 use dualsplit::{
-    ContactProblem, DualForm, ErrorKind, Friction, KSolve, Method, Options, Solution, SolveStatus,
+    ContactProblem, DualForm, ErrorKind, Friction, HostBlocks, KSolve, Method, Options, Solution,
+    SolveStatus,
 };
 use std::sync::Arc;
 use std::sync::atomic::{AtomicUsize, Ordering};
@@ -935,4 +936,111 @@ fn a_failing_solve_on_rows_is_an_error_and_the_problem_stays_usable() {
         assert_converged("the solve again", &again);
         assert_agree("the solve again", &want, &again, 1e-8);
     }
+}
+
+/// A host that asks for the contact blocks by `how` ([`HostBlocks`]).
+struct Blocks {
+    host: Host,
+    how: HostBlocks,
+}
+
+impl KSolve for Blocks {
+    fn n(&self) -> usize {
+        self.host.n
+    }
+
+    fn solve(&mut self, x: &mut [f64], ncols: usize) -> Result<(), i32> {
+        self.host.solve(x, ncols)
+    }
+
+    fn blocks(&self) -> HostBlocks {
+        self.how
+    }
+}
+
+/// The scene's problem on a `Blocks` host asking for `how`, with K handed
+/// over where `with_k`, and its counter of solves.
+fn on_blocks(
+    scene: &Scene,
+    how: HostBlocks,
+    with_k: bool,
+    opts: &Options,
+) -> (dualsplit::Result<ContactProblem>, Arc<AtomicUsize>) {
+    let (host, handles) = concrete_host(scene, false);
+    let pb = on_solver(scene, Box::new(Blocks { host, how }), with_k, opts);
+    (pb, handles.calls)
+}
+
+/// The contacts' blocks by the library's own factor of K
+/// (`HostBlocks::Factor`, and `Auto` on these small scenes, where the
+/// factor's flops are fewer than the solves'): no host solve at creation
+/// nor at `set_contacts`, and the answers are the own path's (a history of
+/// two steps in 3D, Coulomb; the 2D scene's first half of contacts after
+/// `set_contacts`) and pass the KKT check. `Factor` without K is refused
+/// with `BadArgument`; `Auto` without K takes the host's solves.
+#[test]
+fn the_contact_blocks_by_the_librarys_own_factor_of_k() {
+    let scene = scene_3d();
+    let mu = vec![0.3; scene.m()];
+    let friction = Friction::Coulomb(&mu);
+    let opts = with(Method::Auto);
+    for how in [HostBlocks::Factor, HostBlocks::Auto] {
+        let (pb, calls) = on_blocks(&scene, how, true, &opts);
+        let mut pb = pb.expect("a valid host problem");
+        assert_eq!(
+            calls.load(Ordering::SeqCst),
+            0,
+            "{how:?}: a solve at creation"
+        );
+        let mut own = scene.problem();
+        for step in 1..=2 {
+            let f: Vec<f64> = scene.f.iter().map(|v| v * step as f64 / 2.0).collect();
+            let want = own.step(&f, &scene.g, friction, &opts).unwrap();
+            let sol = pb.step(&f, &scene.g, friction, &opts).unwrap();
+            let w = format!("{how:?} step {step}");
+            assert_converged(&w, &sol);
+            assert_agree(&w, &want, &sol, 1e-8);
+        }
+        let sol = pb.solve(&scene.f, &scene.g, friction, &opts).unwrap();
+        kkt_of(&scene, friction, &sol).assert_ok(&format!("{how:?}"), 1e-8);
+    }
+    let (pb, _) = on_blocks(&scene, HostBlocks::Factor, false, &opts);
+    let Err(e) = pb else {
+        panic!("HostBlocks::Factor without K must be refused");
+    };
+    assert_eq!(e.kind, ErrorKind::BadArgument, "{e}");
+    assert!(e.message.contains("need K handed over"), "{}", e.message);
+    let (pb, calls) = on_blocks(&scene, HostBlocks::Auto, false, &opts);
+    pb.expect("a valid host problem");
+    assert!(
+        calls.load(Ordering::SeqCst) > 0,
+        "Auto without K: by solves"
+    );
+
+    // set_contacts: the blocks of the new contacts by the factor again.
+    let scene = scene_2d();
+    let half = scene.m() / 2;
+    let first_rows = |a: &dualsplit::Csc| {
+        let mut t = a.transpose();
+        t.ncols = half;
+        t.col_ptr.truncate(half + 1);
+        let nnz = t.col_ptr[half];
+        t.row_idx.truncate(nnz);
+        t.values.truncate(nnz);
+        t.transpose()
+    };
+    let (n2, t2) = (first_rows(&scene.n), first_rows(&scene.t));
+    let (pb, calls) = on_blocks(&scene, HostBlocks::Factor, true, &opts);
+    let mut pb = pb.expect("a valid host problem");
+    pb.set_contacts(&Owned::of(&n2).view(), &Owned::of(&t2).view())
+        .unwrap();
+    assert_eq!(calls.load(Ordering::SeqCst), 0, "a solve at set_contacts");
+    let (g, mu) = (&scene.g[..half], vec![0.3; half]);
+    let friction = Friction::Coulomb(&mu);
+    let sol = pb.solve(&scene.f, g, friction, &opts).unwrap();
+    let mut own =
+        dualsplit::ContactProblem::from_csc_with(2, scene.k.clone(), n2, t2, &opts).unwrap();
+    let want = own.solve(&scene.f, g, friction, &opts).unwrap();
+    assert_converged("set_contacts, blocks by the factor", &sol);
+    assert_agree("set_contacts, blocks by the factor", &want, &sol, 1e-8);
 }

@@ -249,13 +249,17 @@ impl Dual {
         d: usize,
         threads: Arc<Threads>,
         ledger: Arc<Ledger>,
+        by_factor: Option<(Factor, &Csc)>,
     ) -> Result<Dual> {
         let start = Instant::now();
         let m = n.nrows;
         check_shapes(host.n(), d, n, t)?;
         let b = stack_rows(n, t);
         let c = b.nrows;
-        let free = Operator::on_host(host, &b, m, d)?;
+        let blocks = by_factor
+            .map(|(analysis, k)| blocks_by_factor(analysis, k, &b, d))
+            .transpose()?;
+        let free = Operator::on_host(host, &b, m, d, blocks)?;
         let claim = ledger.claim_f64(d * c + host.n());
         Ok(Self::of_operator(
             free,
@@ -618,16 +622,82 @@ pub(crate) fn host_layer(
     threads: &Arc<Threads>,
     ledger: &Arc<Ledger>,
 ) -> Option<crate::dirichlet::Plan> {
-    let l_nnz = Factor::analyse(
+    host_plan(k, b, d, threads, ledger).0
+}
+
+/// What a dual on the host's solves makes of a K handed over: the layered
+/// Dirichlet preconditioner where it pays ([`host_layer`]), and the analysis
+/// of the factor the library would make of K (None where the analysis
+/// failed), its numeric allocations counted on `ledger`: the factor that
+/// gives the contacts' blocks where [`crate::HostBlocks`] asks for it
+/// ([`blocks_by_factor`]).
+pub(crate) fn host_plan(
+    k: &Csc,
+    b: &Csc,
+    d: usize,
+    threads: &Arc<Threads>,
+    ledger: &Arc<Ledger>,
+) -> (Option<crate::dirichlet::Plan>, Option<Factor>) {
+    let analysis = Factor::analyse(
         k,
         &[],
         crate::options::Ordering::Auto,
         d == 3,
         threads.clone(),
-        Ledger::new(),
+        ledger.clone(),
     )
-    .map_or((k.nnz() + k.nrows) / 2, |a| a.nnz_and_flops().0);
-    crate::dirichlet::Plan::within(k, b, l_nnz, threads.clone(), ledger.clone())
+    .ok();
+    let l_nnz = analysis
+        .as_ref()
+        .map_or((k.nnz() + k.nrows) / 2, |a| a.nnz_and_flops().0);
+    let layer = crate::dirichlet::Plan::within(k, b, l_nnz, threads.clone(), ledger.clone());
+    (layer, analysis)
+}
+
+/// Bytes the contacts' blocks by the factor `analysis` of K take above the
+/// dual's own while they are formed ([`blocks_by_factor`]): L's values, and
+/// the larger of the factorisation's workspace and the blocks' selected
+/// inversion or forward solves (`contact_blocks::work_bytes`).
+pub(crate) fn factor_blocks_bytes(analysis: &Factor, b: &Csc, d: usize) -> usize {
+    analysis.values_bytes()
+        + analysis
+            .factor_scratch_bytes()
+            .max(crate::factor_tree::contact_blocks::work_bytes(
+                analysis,
+                b,
+                b.nrows / d,
+                d,
+            ))
+}
+
+/// True where the blocks by the factor `analysis` take fewer flops than by
+/// the host's solves: c solves of 4 nnz(L) flops each (forward and back)
+/// against 2.5 times the factorisation's flops (the factorisation and the
+/// selected inversion, which measured 1.5-2.4 factorisations in all on the
+/// benchmark's 3D blocks).
+pub(crate) fn factor_blocks_pay(analysis: &Factor, c: usize) -> bool {
+    let (nnz, flops) = analysis.nnz_and_flops();
+    4.0 * nnz as f64 * c as f64 >= 2.5 * flops
+}
+
+/// The contacts' d x d blocks of A = B K^-1 B^T (`b`: B) by the library's
+/// own factor of K: `analysis` (of `k`) factored, its selected inversion or
+/// forward solves (`contact_blocks`), the factor dropped on return.
+///
+/// Errors: `NotPositiveDefinite` (K), `OutOfMemory`.
+pub(crate) fn blocks_by_factor(
+    mut analysis: Factor,
+    k: &Csc,
+    b: &Csc,
+    d: usize,
+) -> Result<Vec<f64>> {
+    analysis.refactor(k)?;
+    Ok(crate::factor_tree::contact_blocks::contact_blocks(
+        &analysis,
+        b,
+        b.nrows / d,
+        d,
+    ))
 }
 
 use condense::*;

@@ -218,8 +218,9 @@ impl Operator {
         })
     }
 
-    /// The operator on the host's solves: the contacts' diagonal blocks by
-    /// blocked solves ([`host_blocks`]).
+    /// The operator on the host's solves: the contacts' diagonal blocks as
+    /// given (`blocks`: by the library's own factor of K), else by the
+    /// host ([`host_blocks`]).
     ///
     /// Errors: `HostSolve` when a solve fails, `OutOfMemory`.
     pub(super) fn on_host(
@@ -227,9 +228,13 @@ impl Operator {
         b: &Csc,
         m: usize,
         d: usize,
+        blocks: Option<Vec<f64>>,
     ) -> Result<Operator> {
         let bt = b.transpose();
-        let blocks = host_blocks(host, &bt, m, d)?;
+        let blocks = match blocks {
+            Some(blocks) => blocks,
+            None => host_blocks(host, &bt, m, d)?,
+        };
         let mut on_rows = OnRows::default();
         if host.offers_rows() {
             on_rows.set(&bt, &(0..bt.ncols).collect::<Vec<_>>());

@@ -9,6 +9,7 @@ use super::matrix::DsMatrix;
 use super::options::DsOptions;
 use super::problem::{DsProblem, dimension};
 use super::status::DsStatus;
+use super::types::{CEnum, DsHostBlocks};
 use crate::host::KSolve;
 use crate::problem::ContactProblem;
 use std::ffi::c_void;
@@ -132,6 +133,9 @@ pub struct DsHostSolver {
     /// (optional, NULL: every product is a whole solve). Added in version
     /// 0.10.
     pub solve_rows: DsHostSolveRowsFn,
+    /// How the contacts' blocks are obtained: a DsHostBlocks value (0,
+    /// DS_HOST_BLOCKS_SOLVES, in a zeroed struct). Added in version 0.10.
+    pub blocks: i32,
 }
 
 /// sizeof(DsHostSolver) of version 0.9 (up to inverse_entries).
@@ -187,6 +191,7 @@ struct CHost {
     solve_rows: DsHostSolveRowsFn,
     /// The rows of the last call of `solve_rows`, as the callback takes them.
     rows: Vec<i64>,
+    blocks: crate::HostBlocks,
     inverse: DsHostInverseFn,
     context: *mut c_void,
 }
@@ -199,6 +204,10 @@ unsafe impl Send for CHost {}
 impl KSolve for CHost {
     fn n(&self) -> usize {
         self.n
+    }
+
+    fn blocks(&self) -> crate::HostBlocks {
+        self.blocks
     }
 
     fn solve(&mut self, x: &mut [f64], ncols: usize) -> std::result::Result<(), i32> {
@@ -302,6 +311,7 @@ fn host_of(s: &DsHostSolver) -> Result<CHost> {
         solve_single: s.solve_single,
         solve_rows: s.solve_rows,
         rows: Vec::new(),
+        blocks: DsHostBlocks::parse(s.blocks, "solver->blocks")?.into(),
         inverse: s.inverse_entries,
         context: s.context,
     })
@@ -313,7 +323,10 @@ fn host_of(s: &DsHostSolver) -> Result<CHost> {
 /// operator, the right-hand side and the recovery of u is one call of
 /// solver->solve; the contacts' d x d diagonal blocks of A are formed here
 /// from solver->inverse_entries where given (one call), else by d m solves,
-/// 32 right-hand sides per call. ds_solve and ds_step then work
+/// 32 right-hand sides per call, or, as solver->blocks asks
+/// (DS_HOST_BLOCKS_FACTOR, or DS_HOST_BLOCKS_AUTO where it pays), by the
+/// library's own factor of K, freed before the call returns. ds_solve and
+/// ds_step then work
 /// as on any handle, with the methods that need no entries of A (AUTO, NEWTON,
 /// MPRGP; the others, and dual_form DENSE, return DS_STATUS_BAD_ARGUMENT);
 /// ds_problem_refactor returns DS_STATUS_BAD_ARGUMENT (refactor on the host's
@@ -337,8 +350,10 @@ fn host_of(s: &DsHostSolver) -> Result<CHost> {
 ///
 /// Returns DS_STATUS_OK, or DS_STATUS_NULL_POINTER (solver, solver->solve,
 /// n, t, out), DS_STATUS_BAD_ARGUMENT (d, struct_size, options, dual_form
-/// DENSE), DS_STATUS_BAD_SIZE (n < 1, N or T not n columns, K not n x n),
+/// DENSE, solver->blocks, DS_HOST_BLOCKS_FACTOR without K),
+/// DS_STATUS_BAD_SIZE (n < 1, N or T not n columns, K not n x n),
 /// DS_STATUS_BAD_INDEX, DS_STATUS_NOT_FINITE, DS_STATUS_NOT_SYMMETRIC (K),
+/// DS_STATUS_NOT_POSITIVE_DEFINITE (K, factored for the blocks),
 /// DS_STATUS_HOST_SOLVE_FAILED (a solve for the contact blocks failed),
 /// DS_STATUS_OUT_OF_MEMORY. Added in version 0.9.
 ///

@@ -55,5 +55,7 @@ pub use problem::{
 pub use report::DsReport;
 pub use solve::{ds_solve, ds_step};
 pub use status::{DsStatus, ds_status_string};
-pub use types::{DsDualForm, DsFormat, DsFriction, DsIndexType, DsMethod, DsOrdering, DsStorage};
+pub use types::{
+    DsDualForm, DsFormat, DsFriction, DsHostBlocks, DsIndexType, DsMethod, DsOrdering, DsStorage,
+};
 pub use version::ds_version;

@@ -233,6 +233,51 @@ impl CEnum for DsOrdering {
     ];
 }
 
+/// How a handle on the host's solves obtains the contacts' d x d diagonal
+/// blocks of A (DsHostSolver `blocks`) where the host gives no entries of
+/// K^-1. Added in version 0.10.
+#[repr(C)]
+#[derive(Copy, Clone, Debug, PartialEq, Eq)]
+pub enum DsHostBlocks {
+    /// By d m of the host's solves, 32 right-hand sides per call (from its
+    /// inverse_entries where given): nothing of K's factor in the library's
+    /// memory. 9-75 factorisations of K on the benchmark's 3D blocks. The
+    /// default (a zeroed struct).
+    Solves = 0,
+    /// By the library's own factor of K, which must be handed over
+    /// (DS_STATUS_BAD_ARGUMENT without it): factored once when the blocks
+    /// are formed (creation, ds_problem_set_contacts), its selected inversion
+    /// giving the blocks, and freed before the call returns; its bytes count
+    /// in the call's memory prediction and max_memory. 1.5-2.4
+    /// factorisations of K in all on the benchmark's 3D blocks.
+    /// inverse_entries is not called. Every product still calls the host.
+    Factor = 1,
+    /// DS_HOST_BLOCKS_FACTOR where K is handed over, the factor fits
+    /// max_memory (the machine's memory where 0) and its flops are fewer than
+    /// the solves' (c solves of 4 nnz(L) flops against 2.5 times the
+    /// factorisation's); else DS_HOST_BLOCKS_SOLVES.
+    Auto = 2,
+}
+
+impl CEnum for DsHostBlocks {
+    const NAME: &'static str = "DsHostBlocks";
+    const ALL: &'static [(Self, &'static str)] = &[
+        (DsHostBlocks::Solves, "DS_HOST_BLOCKS_SOLVES"),
+        (DsHostBlocks::Factor, "DS_HOST_BLOCKS_FACTOR"),
+        (DsHostBlocks::Auto, "DS_HOST_BLOCKS_AUTO"),
+    ];
+}
+
+impl From<DsHostBlocks> for crate::HostBlocks {
+    fn from(b: DsHostBlocks) -> crate::HostBlocks {
+        match b {
+            DsHostBlocks::Solves => crate::HostBlocks::Solves,
+            DsHostBlocks::Factor => crate::HostBlocks::Factor,
+            DsHostBlocks::Auto => crate::HostBlocks::Auto,
+        }
+    }
+}
+
 impl From<DsOrdering> for Ordering {
     fn from(o: DsOrdering) -> Ordering {
         match o {
@@ -334,6 +379,7 @@ mod tests {
         check::<DsMethod>(|e| e as i32);
         check::<DsFriction>(|e| e as i32);
         check::<DsDualForm>(|e| e as i32);
+        check::<DsHostBlocks>(|e| e as i32);
         for f in DualForm::ALL {
             assert_eq!(DualForm::from(DsDualForm::from(f)), f);
         }

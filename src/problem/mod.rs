@@ -132,12 +132,72 @@ fn form_dual(
 /// lumped preconditioner where K was given (and the layered Dirichlet one
 /// where it pays: `layer`, its plan where the caller made it for the memory
 /// prediction), its operator A + D for `shift`.
+/// The sizes of a dual on the host's solves of (N, T) (`plan::host_sizes`),
+/// its layered Dirichlet preconditioner where K is handed over and it pays,
+/// and where the contacts' blocks come from the library's own factor of K
+/// (`how`, see [`crate::HostBlocks`]) that factor's analysis, its bytes in
+/// the sizes' `blocks_work`. `Auto` takes the factor where it pays
+/// (`dual::factor_blocks_pay`) and creation with it fits `max_memory`.
+///
+/// Errors: `BadArgument` (`HostBlocks::Factor` without K).
+fn host_setup(
+    k: Option<&Csc>,
+    (n, t): (&Csc, &Csc),
+    d: usize,
+    how: crate::HostBlocks,
+    (threads, ledger): (&Arc<crate::threads::Threads>, &Arc<memory::Ledger>),
+    max_memory: usize,
+) -> Result<(Sizes, Option<crate::dirichlet::Plan>, Option<Factor>)> {
+    use crate::HostBlocks;
+    let b = stack_rows(n, t);
+    let mut sizes = plan::host_sizes(k, n, t, d);
+    let Some(k) = k else {
+        if how == HostBlocks::Factor {
+            return fail(
+                ErrorKind::BadArgument,
+                "the contact blocks by the library's factor of K (HostBlocks::Factor, \
+                 DS_HOST_BLOCKS_FACTOR) need K handed over",
+            );
+        }
+        return Ok((sizes, None, None));
+    };
+    let (layer, analysis) = crate::dual::host_plan(k, &b, d, threads, ledger);
+    sizes.dirichlet = layer.as_ref().map_or(0, |p| p.bytes());
+    let analysis = match (how, analysis) {
+        (HostBlocks::Solves, _) => None,
+        (HostBlocks::Factor, None) => {
+            return fail(
+                ErrorKind::OutOfMemory,
+                "the contact blocks by the library's factor of K: K's analysis failed",
+            );
+        }
+        (_, analysis) => analysis,
+    };
+    let Some(analysis) = analysis else {
+        return Ok((sizes, layer, None));
+    };
+    let with_factor = Sizes {
+        blocks_work: sizes
+            .blocks_work
+            .max(crate::dual::factor_blocks_bytes(&analysis, &b, d)),
+        ..sizes
+    };
+    let need = with_factor.setup(Condensation::MatrixFree);
+    let fits = memory::limit(max_memory).is_none_or(|limit| need <= limit);
+    if how == HostBlocks::Factor || (fits && crate::dual::factor_blocks_pay(&analysis, b.nrows)) {
+        Ok((with_factor, layer, Some(analysis)))
+    } else {
+        Ok((sizes, layer, None))
+    }
+}
+
 fn host_dual(
     stiff: &Stiffness,
     nt: (&Csc, &Csc),
     d: usize,
     shift: &[f64],
     layer: Option<crate::dirichlet::Plan>,
+    by_factor: Option<Factor>,
 ) -> Result<Dual> {
     let Stiffness::Host {
         host,
@@ -149,7 +209,8 @@ fn host_dual(
         unreachable!("the host's solves")
     };
     host.clear();
-    let mut dual = Dual::on_host(host, nt, d, threads.clone(), ledger.clone())?;
+    let by_factor = by_factor.zip(k.as_ref());
+    let mut dual = Dual::on_host(host, nt, d, threads.clone(), ledger.clone(), by_factor)?;
     if let Some(k) = k {
         dual.set_lumped(k, layer);
     }
@@ -173,13 +234,17 @@ impl ContactProblem {
     /// host's solve; the contacts' d x d diagonal blocks of A are formed here
     /// from the host's entries of K^-1 where it gives them
     /// ([`KSolve::inverse_entries`], one call), else by d m solves, 32
-    /// right-hand sides per call. The methods that read entries of A (and
+    /// right-hand sides per call, or, as [`KSolve::blocks`] asks, by the
+    /// library's own factor of K, freed before this returns
+    /// ([`crate::HostBlocks`]). The methods that read entries of A (and
     /// `DualForm::Dense`) are refused with `BadArgument`; `refactor` too
     /// (refactor on the host's side and create a new problem), and
     /// `write_folder` without K.
     ///
-    /// Errors: `BadArgument` (d, options), `BadSize` (shapes against n),
-    /// `BadIndex`, `NotFinite`, `NotSymmetric` (K), `HostSolve` (a solve
+    /// Errors: `BadArgument` (d, options, `HostBlocks::Factor` without K),
+    /// `BadSize` (shapes against n), `BadIndex`, `NotFinite`, `NotSymmetric`
+    /// and `NotPositiveDefinite` (K, the latter where it is factored for the
+    /// blocks), `HostSolve` (a solve
     /// failed or returned a NaN or infinity while the blocks were formed:
     /// the host's code is in the message), `OutOfMemory`.
     pub fn with_host_solver(
@@ -217,11 +282,15 @@ impl ContactProblem {
         check_shapes(ndof, d, &n, &t)?;
         let threads = Arc::new(crate::threads::Threads::new(opts.threads));
         let ledger = memory::Ledger::new();
-        let layer = k
-            .as_ref()
-            .and_then(|k| crate::dual::host_layer(k, &stack_rows(&n, &t), d, &threads, &ledger));
-        let mut sizes = plan::host_sizes(k.as_ref(), &n, &t, d);
-        sizes.dirichlet = layer.as_ref().map_or(0, |p| p.bytes());
+        let how = solver.blocks();
+        let (sizes, layer, by_factor) = host_setup(
+            k.as_ref(),
+            (&n, &t),
+            d,
+            how,
+            (&threads, &ledger),
+            opts.max_memory,
+        )?;
         memory::check(
             sizes.setup(Condensation::MatrixFree),
             memory::limit(opts.max_memory),
@@ -236,7 +305,7 @@ impl ContactProblem {
             threads,
             ledger,
         };
-        let dual = host_dual(&stiff, (&n, &t), d, &[], layer)?;
+        let dual = host_dual(&stiff, (&n, &t), d, &[], layer, by_factor)?;
         let (c, m) = (dual.c, n.nrows);
         Ok(ContactProblem {
             d,
@@ -264,7 +333,7 @@ impl ContactProblem {
     ) -> Result<Dual> {
         match &self.stiff {
             Stiffness::Own { k, factor } => form_dual(factor, k, nt, self.d, how, shift, layer),
-            Stiffness::Host { .. } => host_dual(&self.stiff, nt, self.d, shift, layer),
+            Stiffness::Host { .. } => host_dual(&self.stiff, nt, self.d, shift, layer, None),
         }
     }
 
@@ -474,6 +543,7 @@ impl ContactProblem {
         let t = Csc::from_view(t, "T")?;
         check_shapes(self.n_dofs(), self.d, &n, &t)?;
         let b = stack_rows(&n, &t);
+        let mut by_factor = None;
         let (next, how, layer) = match &self.stiff {
             Stiffness::Own { k, factor } => {
                 let layer = crate::dirichlet::layer_of(k, &b, factor);
@@ -495,13 +565,20 @@ impl ContactProblem {
                 (next, how, layer)
             }
             Stiffness::Host {
-                k, threads, ledger, ..
+                host,
+                k,
+                threads,
+                ledger,
             } => {
-                let layer = k
-                    .as_ref()
-                    .and_then(|k| crate::dual::host_layer(k, &b, self.d, threads, ledger));
-                let mut next = plan::host_sizes(k.as_ref(), &n, &t, self.d);
-                next.dirichlet = layer.as_ref().map_or(0, |p| p.bytes());
+                let (next, layer, analysis) = host_setup(
+                    k.as_ref(),
+                    (&n, &t),
+                    self.d,
+                    host.blocks(),
+                    (threads, ledger),
+                    self.max_memory,
+                )?;
+                by_factor = analysis;
                 (next, Condensation::MatrixFree, layer)
             }
         };
@@ -523,7 +600,13 @@ impl ContactProblem {
         } else {
             Compliance::rigid(m)
         };
-        let dual = self.new_dual((&n, &t), how, &compliance.shift(self.d), layer)?;
+        let shift = compliance.shift(self.d);
+        let dual = match &self.stiff {
+            Stiffness::Host { .. } => {
+                host_dual(&self.stiff, (&n, &t), self.d, &shift, layer, by_factor)?
+            }
+            Stiffness::Own { .. } => self.new_dual((&n, &t), how, &shift, layer)?,
+        };
         self.history.new_contacts(dual.c);
         self.compliance = compliance;
         self.sizes = next;
