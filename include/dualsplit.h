@@ -316,7 +316,7 @@ typedef enum DsHostBlocks {
    (DS_STATUS_BAD_ARGUMENT without it): factored once when the blocks
    are formed (creation, ds_problem_set_contacts), its selected inversion
    giving the blocks, and freed before the call returns; its bytes count
-   in the call's memory prediction and max_memory. 1.5-2.4
+   in the call's memory prediction and max_memory. 1.5-2.5
    factorisations of K in all on the benchmark's 3D blocks.
    inverse_entries is not called. Every product still calls the host.
    */

@@ -29,7 +29,7 @@ pub enum HostBlocks {
     /// By the library's own factor of K, which must be handed over: analysed
     /// and factored at creation, its selected inversion giving the blocks,
     /// and freed before creation returns (its bytes in the creation's
-    /// prediction and under max_memory). 1.5-2.4 factorisations of K in all
+    /// prediction and under max_memory). 1.5-2.5 factorisations of K in all
     /// on the benchmark's 3D blocks. The products still call the host.
     Factor,
     /// `Factor` where K is handed over, its factor fits max_memory and its

@@ -673,7 +673,7 @@ pub(crate) fn factor_blocks_bytes(analysis: &Factor, b: &Csc, d: usize) -> usize
 /// True where the blocks by the factor `analysis` take fewer flops than by
 /// the host's solves: c solves of 4 nnz(L) flops each (forward and back)
 /// against 2.5 times the factorisation's flops (the factorisation and the
-/// selected inversion, which measured 1.5-2.4 factorisations in all on the
+/// selected inversion, which measured 1.5-2.5 factorisations in all on the
 /// benchmark's 3D blocks).
 pub(crate) fn factor_blocks_pay(analysis: &Factor, c: usize) -> bool {
     let (nnz, flops) = analysis.nnz_and_flops();
