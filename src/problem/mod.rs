@@ -128,10 +128,6 @@ fn form_dual(
     Ok(dual)
 }
 
-/// The matrix-free dual of (N, T) on the host's solves of `stiff`, with the
-/// lumped preconditioner where K was given (and the layered Dirichlet one
-/// where it pays: `layer`, its plan where the caller made it for the memory
-/// prediction), its operator A + D for `shift`.
 /// The sizes of a dual on the host's solves of (N, T) (`plan::host_sizes`),
 /// its layered Dirichlet preconditioner where K is handed over and it pays,
 /// and where the contacts' blocks come from the library's own factor of K
@@ -191,6 +187,12 @@ fn host_setup(
     }
 }
 
+/// The matrix-free dual of (N, T) on the host's solves of `stiff`, with the
+/// lumped preconditioner where K was given (and the layered Dirichlet one
+/// where it pays: `layer`, its plan where the caller made it for the memory
+/// prediction), its operator A + D for `shift`; the contacts' blocks by the
+/// library's factor of K where `by_factor` holds its analysis (from
+/// [`host_setup`]), else by the host.
 fn host_dual(
     stiff: &Stiffness,
     nt: (&Csc, &Csc),
