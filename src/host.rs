@@ -20,17 +20,19 @@ use std::time::Instant;
 /// contacts are replaced.
 #[derive(Copy, Clone, Debug, Default, PartialEq, Eq)]
 pub enum HostBlocks {
-    /// By d m of the host's solves, 32 right-hand sides per call (the
-    /// default): nothing of K's factor in the library's memory. Each column
-    /// is a whole solve: 9-75 factorisations of K on the benchmark's 3D
-    /// blocks.
+    /// By d m of the host's solves, 32 right-hand sides per call, or by its
+    /// entries of K^-1 where it gives them (the default): nothing of K's
+    /// factor in the library's memory. Each column is a whole solve: 9-75
+    /// factorisations of K on the benchmark's 3D blocks.
     #[default]
     Solves,
     /// By the library's own factor of K, which must be handed over: analysed
     /// and factored at creation, its selected inversion giving the blocks,
     /// and freed before creation returns (its bytes in the creation's
-    /// prediction and under max_memory). 1.5-2.5 factorisations of K in all
-    /// on the benchmark's 3D blocks. The products still call the host.
+    /// prediction and under max_memory); the same when the contacts are
+    /// replaced. 1.5-2.5 factorisations of K in all on the benchmark's 3D
+    /// blocks. The host's entries of K^-1 are not asked for; the products
+    /// still call the host.
     Factor,
     /// `Factor` where K is handed over, its factor fits max_memory and its
     /// flops are fewer than the solves' (c solves of 4 nnz(L) flops each

@@ -1521,6 +1521,22 @@ unsafe extern "C" fn small_k_solve(
     0
 }
 
+/// A DsHostSolver of the current size for the small problem: small_k_solve
+/// with `context` (its column counter), no optional callback, the blocks by
+/// solves.
+fn small_host_solver(context: *mut std::ffi::c_void) -> DsHostSolver {
+    DsHostSolver {
+        struct_size: std::mem::size_of::<DsHostSolver>() as u32,
+        n: N_DOFS as i64,
+        solve: Some(small_k_solve),
+        context,
+        inverse_entries: None,
+        solve_single: None,
+        solve_rows: None,
+        blocks: 0,
+    }
+}
+
 /// Calls of small_k_solve_single (only the test below uses it).
 static SINGLE_CALLS: std::sync::atomic::AtomicI64 = std::sync::atomic::AtomicI64::new(0);
 
@@ -1548,14 +1564,8 @@ fn the_hosts_single_precision_solve_through_the_c_abi() {
     let mut columns: i64 = 0;
     let (k, n, t) = (k_good(), n_good(), t_good());
     let mut solver = DsHostSolver {
-        struct_size: std::mem::size_of::<DsHostSolver>() as u32,
-        n: N_DOFS as i64,
-        solve: Some(small_k_solve),
-        context: (&raw mut columns).cast(),
-        inverse_entries: None,
         solve_single: Some(small_k_solve_single),
-        solve_rows: None,
-        blocks: 0,
+        ..small_host_solver((&raw mut columns).cast())
     };
     let mut h: *mut DsProblem = null_mut();
     // SAFETY: the solver and the matrices live until the call returns, the
@@ -1663,16 +1673,7 @@ unsafe extern "C" fn small_k_solve_rows(
 fn the_hosts_solve_on_rows_through_the_c_abi() {
     let (k, n, t) = (k_good(), n_good(), t_good());
     let mut whole_columns: i64 = 0;
-    let mut solver = DsHostSolver {
-        struct_size: std::mem::size_of::<DsHostSolver>() as u32,
-        n: N_DOFS as i64,
-        solve: Some(small_k_solve),
-        context: (&raw mut whole_columns).cast(),
-        inverse_entries: None,
-        solve_single: None,
-        solve_rows: None,
-        blocks: 0,
-    };
+    let mut solver = small_host_solver((&raw mut whole_columns).cast());
     let mut plain: *mut DsProblem = null_mut();
     // SAFETY: the solver and the matrices live until the call returns, the
     // counter until the handle is freed.
@@ -1720,14 +1721,8 @@ fn the_contact_blocks_by_the_librarys_factor_through_the_c_abi() {
     let (k, n, t) = (k_good(), n_good(), t_good());
     let mut columns: i64 = 0;
     let mut solver = DsHostSolver {
-        struct_size: std::mem::size_of::<DsHostSolver>() as u32,
-        n: N_DOFS as i64,
-        solve: Some(small_k_solve),
-        context: (&raw mut columns).cast(),
-        inverse_entries: None,
-        solve_single: None,
-        solve_rows: None,
         blocks: DsHostBlocks::Factor as i32,
+        ..small_host_solver((&raw mut columns).cast())
     };
     let mut h: *mut DsProblem = null_mut();
     // SAFETY: the solver and the matrices live until the call returns, the
@@ -1829,16 +1824,7 @@ fn last_cost_splits_the_solve_and_counts_the_hosts_solves() {
 
     // The same problem on the host's solves.
     let mut columns: i64 = 0;
-    let solver = DsHostSolver {
-        struct_size: std::mem::size_of::<DsHostSolver>() as u32,
-        n: N_DOFS as i64,
-        solve: Some(small_k_solve),
-        context: (&raw mut columns).cast(),
-        inverse_entries: None,
-        solve_single: None,
-        solve_rows: None,
-        blocks: 0,
-    };
+    let solver = small_host_solver((&raw mut columns).cast());
     let (k, n, t) = (k_good(), n_good(), t_good());
     let mut hh: *mut DsProblem = null_mut();
     // SAFETY: the solver and the matrices live until the call returns, the
