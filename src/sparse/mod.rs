@@ -21,9 +21,47 @@ use crate::error::{ErrorKind, Result, fail};
 use assemble::{Triplets, assemble, filled, try_copy, zeroed};
 pub(crate) use congruence::{congruence, congruence_bytes};
 use validate::{
-    check_base, check_dense_len, check_sums_finite, check_symmetric, collect, collect_dense,
-    dense_not_finite,
+    check_base, check_dense_len, check_pointers, check_sums_finite, check_symmetric, collect,
+    collect_dense, dense_not_finite, index0,
 };
+
+/// The CSC arrays of `view`, whose pointers [`check_pointers`] passed (`p[0]
+/// = base`, non-decreasing, `nnz` entries in i and x), as a Csc, copied as
+/// they are, where every column's row indices are in range and strictly
+/// increasing and every value is finite: what [`collect`] and
+/// [`assemble()`] would make of them, without the triplets and their sort (a third of a
+/// second for the 5 million entries of a 3D K). None where any of that
+/// fails: the general path then sums the duplicates or names the bad entry.
+///
+/// Errors: `OutOfMemory`.
+fn csc_in_order(view: &MatrixView<'_>, base: usize, nnz: usize) -> Result<Option<Csc>> {
+    let (nrows, ncols) = (view.nrows, view.ncols);
+    let mut col_ptr = zeroed(ncols + 1)?;
+    let mut row_idx = zeroed(nnz)?;
+    for j in 0..ncols {
+        // base <= p[j] <= p[j + 1] <= base + nnz (checked).
+        let lo = (view.p.get(j) - base as i64) as usize;
+        let hi = (view.p.get(j + 1) - base as i64) as usize;
+        let mut next = 0;
+        for (k, slot) in (lo..hi).zip(&mut row_idx[lo..hi]) {
+            match index0(view.i.get(k), base, nrows) {
+                Some(r) if r >= next && view.x[k].is_finite() => {
+                    *slot = r;
+                    next = r + 1;
+                }
+                _ => return Ok(None),
+            }
+        }
+        col_ptr[j + 1] = hi;
+    }
+    Ok(Some(Csc {
+        nrows,
+        ncols,
+        col_ptr,
+        row_idx,
+        values: try_copy(view.x)?,
+    }))
+}
 pub(crate) use validate::{check_internal, check_internal_symmetric, dense_len};
 
 /// Layout of a borrowed sparse matrix, named as in CSparse.
@@ -267,6 +305,14 @@ impl Csc {
             return symmetric_from_dense(view, ld, what, base);
         }
         let n = view.nrows;
+        // The common case, whole CSC arrays in order: taken as they are.
+        if view.format == Format::Csc && view.storage == Storage::Full {
+            let nnz = check_pointers(view, what, base)?;
+            if let Some(a) = csc_in_order(view, base, nnz)? {
+                check_symmetric(&a, what, base)?;
+                return Ok(a);
+            }
+        }
         // Room for the mirrored entries of a one-triangle K.
         let extra = if view.storage == Storage::Full {
             0

@@ -975,3 +975,69 @@ fn absurd_dimensions_do_not_panic() {
     let o = raw(Format::Csc, Storage::Full, 0, 3, usize::MAX, &[0], &[], &[]);
     assert_eq!(general_err(&o).kind, ErrorKind::BadSize);
 }
+
+/// A whole symmetric K in CSC (`symmetric_from_view`'s fast path where the
+/// rows are in order): in order, unsorted, with a duplicate split in two,
+/// base 0 and 1, it gives the same Csc; a NaN or an index out of range in
+/// ordered arrays is still named by the general path.
+#[test]
+fn symmetric_csc_in_order_or_not_agrees() {
+    // K = [[4, 1, 0], [1, 5, 2], [0, 2, 6]].
+    let expect = Csc {
+        nrows: 3,
+        ncols: 3,
+        col_ptr: vec![0, 2, 5, 7],
+        row_idx: vec![0, 1, 0, 1, 2, 1, 2],
+        values: vec![4.0, 1.0, 1.0, 5.0, 2.0, 2.0, 6.0],
+    };
+    let cases: [(&[i64], &[i64], &[f64]); 3] = [
+        (
+            &[0, 2, 5, 7],
+            &[0, 1, 0, 1, 2, 1, 2],
+            &[4.0, 1.0, 1.0, 5.0, 2.0, 2.0, 6.0],
+        ),
+        (
+            &[0, 2, 5, 7],
+            &[1, 0, 2, 1, 0, 2, 1],
+            &[1.0, 4.0, 2.0, 5.0, 1.0, 6.0, 2.0],
+        ),
+        (
+            &[0, 3, 6, 8],
+            &[0, 1, 0, 0, 1, 2, 1, 2],
+            &[4.0, 1.0, 0.0, 1.0, 5.0, 2.0, 2.0, 6.0],
+        ),
+    ];
+    for (p, i, x) in cases {
+        for base in [0i64, 1] {
+            let pb: Vec<i64> = p.iter().map(|v| v + base).collect();
+            let ib: Vec<i64> = i.iter().map(|v| v + base).collect();
+            let o = raw(Format::Csc, Storage::Full, base as usize, 3, 3, &pb, &ib, x);
+            let a = Csc::symmetric_from_view(&o.view(false), "K").unwrap();
+            assert_valid(&a);
+            assert_eq!(a, expect, "{i:?} base {base}");
+        }
+    }
+    let (p, i) = (&[0i64, 2, 5, 7], &[0i64, 1, 0, 1, 2, 1, 2]);
+    let nan = raw(
+        Format::Csc,
+        Storage::Full,
+        0,
+        3,
+        3,
+        p,
+        i,
+        &[4.0, 1.0, 1.0, f64::NAN, 2.0, 2.0, 6.0],
+    );
+    assert_eq!(sym_err(&nan).kind, ErrorKind::NotFinite);
+    let far = raw(
+        Format::Csc,
+        Storage::Full,
+        0,
+        3,
+        3,
+        p,
+        &[0, 1, 0, 1, 3, 1, 2],
+        &[4.0, 1.0, 1.0, 5.0, 2.0, 2.0, 6.0],
+    );
+    assert_eq!(sym_err(&far).kind, ErrorKind::BadIndex);
+}
