@@ -46,6 +46,24 @@ struct Sparse {
     packed: c_int,
 }
 
+impl Dense {
+    /// A header over `x`, real double, `ncol` columns of `nrow` (leading
+    /// dimension `nrow`): no copy.
+    fn over(x: &mut [f64], nrow: usize, ncol: usize) -> Dense {
+        debug_assert!(x.len() >= nrow * ncol);
+        Dense {
+            nrow,
+            ncol,
+            nzmax: nrow * ncol,
+            d: nrow,
+            x: x.as_mut_ptr().cast(),
+            z: std::ptr::null_mut(),
+            xtype: CHOLMOD_REAL,
+            dtype: CHOLMOD_DOUBLE,
+        }
+    }
+}
+
 const CHOLMOD_A: c_int = 0;
 const CHOLMOD_LONG: c_int = 2;
 const CHOLMOD_PATTERN: c_int = 0;
@@ -206,16 +224,7 @@ impl KSolve for Cholmod {
 
     fn solve(&mut self, x: &mut [f64], ncols: usize) -> Result<(), i32> {
         let n = self.n;
-        let mut b = Dense {
-            nrow: n,
-            ncol: ncols,
-            nzmax: n * ncols,
-            d: n,
-            x: x.as_mut_ptr().cast(),
-            z: std::ptr::null_mut(),
-            xtype: CHOLMOD_REAL,
-            dtype: CHOLMOD_DOUBLE,
-        };
+        let mut b = Dense::over(x, n, ncols);
         let c = self.common();
         // SAFETY: b describes x (n x ncols); X, Y, E are CHOLMOD's (or NULL)
         // and reallocated by it as needed.
@@ -271,16 +280,7 @@ impl KSolve for Cholmod {
             rows.iter()
                 .zip(col.iter())
                 .for_each(|(&r, &v)| self.b[r] = v);
-            let mut b = Dense {
-                nrow: self.n,
-                ncol: 1,
-                nzmax: self.n,
-                d: self.n,
-                x: self.b.as_mut_ptr().cast(),
-                z: std::ptr::null_mut(),
-                xtype: CHOLMOD_REAL,
-                dtype: CHOLMOD_DOUBLE,
-            };
+            let mut b = Dense::over(&mut self.b, self.n, 1);
             let c = self.common();
             // SAFETY: b describes self.b (n x 1), read only at Bset; the
             // results and workspace are CHOLMOD's (or NULL).

@@ -509,9 +509,18 @@ impl HostSolves {
     /// failed (the failure is latched on the host and ends the solve:
     /// `host.rs`).
     fn apply(&self, bt: &Csc, x: &[f64], y: &mut [f64], rough: bool) {
+        let (rows_x, rows_y) = (0..x.len(), 0..y.len());
         // On rows where the host offers it (approximate where rough).
         if self.host.offers_rows()
-            && self.on_rows(&self.on_rows, bt, x, 0..x.len(), y, 0..y.len(), rough)
+            && self.on_rows(
+                &self.on_rows,
+                bt,
+                x,
+                rows_x.clone(),
+                y,
+                rows_y.clone(),
+                rough,
+            )
         {
             return;
         }
@@ -520,12 +529,17 @@ impl HostSolves {
         if rough && self.host.offers_single() {
             let mut z = self.work_single.borrow_mut();
             z.resize(self.host.n(), 0.0);
-            if through(bt, x, y, &mut z, |z| self.host.solve_single(z, 1)) {
+            let (from, to) = ((x, rows_x.clone()), (&mut *y, rows_y.clone()));
+            if through(bt, &bt.row_idx, from, to, &mut z, |z| {
+                self.host.solve_single(z, 1)
+            }) {
                 return;
             }
         }
         let mut z = self.work.borrow_mut();
-        through(bt, x, y, &mut z, |z| Some(self.host.solve(z, 1)));
+        through(bt, &bt.row_idx, (x, rows_x), (y, rows_y), &mut z, |z| {
+            Some(self.host.solve(z, 1))
+        });
     }
 }
 
@@ -561,33 +575,31 @@ impl HostSolves {
         rough: bool,
     ) -> bool {
         let mut z = self.work_rows.borrow_mut();
-        z.clear();
         z.resize(set.dofs.len(), 0.0);
-        scatter_at(bt, &set.at, x, from, &mut z);
-        match self.host.solve_rows(&set.dofs, &mut z, 1, rough) {
-            Some(Ok(())) => gather_at(bt, &set.at, &z, to, y),
-            Some(Err(_)) => to.for_each(|r| y[r] = f64::NAN),
-            None => return false,
-        }
-        true
+        through(bt, &set.at, (x, from), (y, to), &mut z, |z| {
+            self.host.solve_rows(&set.dofs, z, 1, rough)
+        })
     }
 }
 
-/// y := B solve(B^T x) with the n-vector `z` in either precision; y is NaN
-/// where the solve failed. False (y untouched) where `solve` is not offered
-/// (None).
-fn through<T: Real>(
+/// y := B solve(B^T x) at the rows `to`, x read at the rows `from`, with
+/// the vector `z` in either precision, B's entries placed in it at `at`
+/// (see [`scatter_at`]: the DOFs of an n-vector, or their places among a
+/// host's rows); y is NaN at `to` where the solve failed. False (y
+/// untouched) where `solve` is not offered (None).
+fn through<T: Real, F: Iterator<Item = usize>, G: Iterator<Item = usize>>(
     bt: &Csc,
-    x: &[f64],
-    y: &mut [f64],
+    at: &[usize],
+    (x, from): (&[f64], F),
+    (y, to): (&mut [f64], G),
     z: &mut [T],
     solve: impl FnOnce(&mut [T]) -> Option<crate::error::Result<()>>,
 ) -> bool {
     z.iter_mut().for_each(|v| *v = T::default());
-    scatter(bt, x, 0..x.len(), z);
+    scatter_at(bt, at, x, from, z);
     match solve(z) {
-        Some(Ok(())) => gather(bt, z, 0..y.len(), y),
-        Some(Err(_)) => y.iter_mut().for_each(|v| *v = f64::NAN),
+        Some(Ok(())) => gather_at(bt, at, z, to, y),
+        Some(Err(_)) => to.for_each(|r| y[r] = f64::NAN),
         None => return false,
     }
     true
