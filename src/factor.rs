@@ -197,18 +197,30 @@ impl Factor {
             _ => crate::ordering::amd_with_last(k, last),
         };
         let failed = |how: Ordering| {
+            let why = match how {
+                Ordering::Metis => "out of memory, or METIS refused K's graph",
+                _ => "out of memory",
+            };
             fail(
                 ErrorKind::OutOfMemory,
-                format!("K: the {} ordering failed (out of memory)", how.name()),
+                format!("K: the {} ordering failed ({why})", how.name()),
             )
         };
-        let first = match ordering {
+        let mut first = match ordering {
             Ordering::Metis => Ordering::Metis,
             Ordering::Auto if nd_first => Ordering::Metis,
             _ => Ordering::Amd,
         };
+        // AUTO goes on with AMD where METIS fails.
         let (fwd, inv) = match order(first) {
             Some(p) => p,
+            None if ordering == Ordering::Auto && first == Ordering::Metis => {
+                first = Ordering::Amd;
+                match order(first) {
+                    Some(p) => p,
+                    None => return failed(first),
+                }
+            }
             None => return failed(first),
         };
         let mut symbolic = analyse(k, &fwd, &inv)?;

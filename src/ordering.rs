@@ -21,6 +21,13 @@
 //! solvers for 3D meshes, where it needs a fraction of AMD's flops. `factor`
 //! chooses between the two by the flop counts of their symbolic factors.
 //!
+//! Both orderings work on the pattern of K + K^T, never on K's stored pattern
+//! alone: a FE code's K may store an entry on one side only (its mirror
+//! cancelled to an exact zero in the assembly and was dropped), and METIS
+//! corrupts its heap on a graph that is not symmetric. The graph handed to
+//! METIS is checked (symmetric, no self-loop, indices in range) before the
+//! call.
+//!
 //! The measurements behind these choices are in BENCHMARKS.md ("Tuning
 //! measurements").
 
@@ -155,6 +162,8 @@ fn compress(k: &Csc, fixed: &[bool]) -> Option<Groups> {
 /// triangles and `last` holds distinct DOFs in range. None when AMD runs out of
 /// memory.
 pub fn amd_with_last(k: &Csc, last: &[usize]) -> Option<(Vec<usize>, Vec<usize>)> {
+    let k = symmetric_pattern(k)?;
+    let k = &*k;
     let (_, groups) = compress_with_fixed(k, last)?;
     let ng = groups.start.len() - 1;
     // The fixed vertices, in the order of their first DOF in `last`.
@@ -210,10 +219,13 @@ pub fn amd_with_last(k: &Csc, last: &[usize]) -> Option<(Vec<usize>, Vec<usize>)
 /// The permutation (forward: new -> old, inverse: old -> new) that orders the DOFs
 /// outside `last` by METIS_NodeND on the compressed graph of K without the fixed
 /// DOFs (vertex weights: the DOFs per vertex), then `last` in its given order. `k`
-/// stores both triangles and `last` holds distinct DOFs in range. None when an
-/// allocation fails, the graph does not fit METIS's 32-bit indices, or METIS
-/// reports an error.
+/// is square with sorted rows (its pattern is taken as that of K + K^T) and
+/// `last` holds distinct DOFs in range. None when an allocation fails, the graph
+/// does not fit METIS's 32-bit indices, fails the check of [`valid_graph`] (a
+/// bug: METIS is then not called), or METIS reports an error.
 pub fn metis_with_last(k: &Csc, last: &[usize]) -> Option<(Vec<usize>, Vec<usize>)> {
+    let k = symmetric_pattern(k)?;
+    let k = &*k;
     let (fixed, groups) = compress_with_fixed(k, last)?;
     let ng = groups.start.len() - 1;
     // The free groups, numbered 0..nv in the order of their first DOF.
@@ -255,6 +267,101 @@ pub fn metis_with_last(k: &Csc, last: &[usize]) -> Option<(Vec<usize>, Vec<usize
     let order = node_nd(nv, &mut xadj, &mut adjncy, &mut vwgt)?;
     drop((xadj, adjncy, vwgt));
     expand(&groups, order.into_iter().map(|v| free[v]), last)
+}
+
+/// `k` itself when its pattern is symmetric, else the pattern of K + K^T
+/// (values zero: only the pattern is read here). None when an allocation fails.
+fn symmetric_pattern(k: &Csc) -> Option<std::borrow::Cow<'_, Csc>> {
+    use std::borrow::Cow;
+    let kt = k.try_transpose().ok()?;
+    if kt.col_ptr == k.col_ptr && kt.row_idx == k.row_idx {
+        return Some(Cow::Borrowed(k));
+    }
+    let n = k.ncols;
+    let mut col_ptr = Vec::new();
+    col_ptr.try_reserve_exact(n + 1).ok()?;
+    col_ptr.push(0);
+    let mut row_idx = Vec::new();
+    row_idx.try_reserve(k.nnz() + k.nnz() / 8).ok()?;
+    for j in 0..n {
+        let a = &k.row_idx[k.col_ptr[j]..k.col_ptr[j + 1]];
+        let b = &kt.row_idx[kt.col_ptr[j]..kt.col_ptr[j + 1]];
+        let (mut p, mut q) = (0, 0);
+        while p < a.len() || q < b.len() {
+            let r = match (a.get(p), b.get(q)) {
+                (Some(&x), Some(&y)) if x == y => {
+                    p += 1;
+                    q += 1;
+                    x
+                }
+                (Some(&x), Some(&y)) if x < y => {
+                    p += 1;
+                    x
+                }
+                (Some(&x), None) => {
+                    p += 1;
+                    x
+                }
+                (_, Some(&y)) => {
+                    q += 1;
+                    y
+                }
+                (None, None) => unreachable!("the loop runs while one list has entries"),
+            };
+            row_idx.try_reserve(1).ok()?;
+            row_idx.push(r);
+        }
+        col_ptr.push(row_idx.len());
+    }
+    drop(kt);
+    let mut values = Vec::new();
+    values.try_reserve_exact(row_idx.len()).ok()?;
+    values.resize(row_idx.len(), 0.0);
+    Some(Cow::Owned(Csc {
+        nrows: n,
+        ncols: n,
+        col_ptr,
+        row_idx,
+        values,
+    }))
+}
+
+/// Whether (`xadj`, `adjncy`) is a graph METIS_NodeND accepts: `nv + 1`
+/// non-decreasing pointers from 0 to `adjncy.len()`, each list sorted without
+/// repeats, every neighbour in range and not the vertex itself, and every edge
+/// present in both directions. METIS checks none of this and corrupts its heap
+/// on an asymmetric graph.
+fn valid_graph(nv: usize, xadj: &[idx_t], adjncy: &[idx_t]) -> bool {
+    let at = |v: usize| usize::try_from(xadj[v]).ok();
+    if xadj.len() != nv + 1 || at(0) != Some(0) || at(nv) != Some(adjncy.len()) {
+        return false;
+    }
+    let list = |v: usize| -> Option<&[idx_t]> {
+        let (s, e) = (at(v)?, at(v + 1)?);
+        (s <= e).then(|| &adjncy[s..e])
+    };
+    for v in 0..nv {
+        let Some(adj) = list(v) else {
+            return false;
+        };
+        let mut prev: Option<usize> = None;
+        for &w in adj {
+            let Some(w) = usize::try_from(w).ok().filter(|&w| w < nv && w != v) else {
+                return false;
+            };
+            if prev.is_some_and(|p| p >= w) {
+                return false;
+            }
+            prev = Some(w);
+            // The mirror edge (w, v): w's list is sorted (checked when w's turn
+            // comes; an unsorted one fails there).
+            let mirrored = list(w).is_some_and(|l| l.binary_search(&(v as idx_t)).is_ok());
+            if !mirrored {
+                return false;
+            }
+        }
+    }
+    true
 }
 
 /// The flags of the DOFs in `last` (distinct, in range) and the groups of `k`
@@ -302,6 +409,9 @@ fn node_nd(
 ) -> Option<Vec<usize>> {
     if nv <= 2 {
         return Some((0..nv).collect());
+    }
+    if !valid_graph(nv, xadj, adjncy) {
+        return None;
     }
     let mut nvtxs = idx_t::try_from(nv).ok()?;
     let mut options = [0 as idx_t; metis_sys::METIS_NOPTIONS as usize];
@@ -439,6 +549,102 @@ mod tests {
         let k1 = grid(1, 2);
         assert_eq!(metis_with_last(&k1, &[]).unwrap().0, vec![0, 1]);
         assert_eq!(metis_with_last(&k1, &[1, 0]).unwrap().0, vec![1, 0]);
+    }
+
+    /// `k` with about a third of its off-diagonal pairs stored on one side
+    /// only (the side chosen by a hash of the pair), as a FE code writes K
+    /// when a mirror cancels to an exact zero and is dropped.
+    fn one_sided(k: &Csc) -> Csc {
+        let mut t = Vec::new();
+        for j in 0..k.ncols {
+            for p in k.col_ptr[j]..k.col_ptr[j + 1] {
+                let i = k.row_idx[p];
+                let (a, b) = (i.min(j), i.max(j));
+                let h = ((a * 7919 + b * 104_729) as u64).wrapping_mul(0x9E37_79B9_7F4A_7C15) >> 40;
+                let drop = i != j && h.is_multiple_of(3) && (h / 3) % 2 == u64::from(i < j);
+                if !drop {
+                    t.push((i, j, k.values[p]));
+                }
+            }
+        }
+        Csc::from_triplets(k.nrows, k.ncols, &t)
+    }
+
+    #[test]
+    fn a_pattern_stored_on_one_side_orders_as_its_symmetric_whole() {
+        let k = two_dofs(30, 12, true);
+        let lop = one_sided(&k);
+        assert!(
+            lop.nnz() < k.nnz() * 9 / 10,
+            "entries dropped: {}",
+            k.nnz() - lop.nnz()
+        );
+        assert_ne!(lop.try_transpose().unwrap().row_idx, lop.row_idx);
+        let sym = symmetric_pattern(&lop).unwrap();
+        assert_eq!((&sym.col_ptr, &sym.row_idx), (&k.col_ptr, &k.row_idx));
+        let last: Vec<usize> = (0..60).rev().collect();
+        // METIS is called (a graph it would refuse gives None) on the graph of
+        // K + K^T, which is the symmetric K's: the same orderings.
+        assert_eq!(metis_with_last(&lop, &last), metis_with_last(&k, &last));
+        assert_eq!(amd_with_last(&lop, &last), amd_with_last(&k, &last));
+        // A symmetric pattern is used as it is.
+        assert!(matches!(
+            symmetric_pattern(&k).unwrap(),
+            std::borrow::Cow::Borrowed(_)
+        ));
+    }
+
+    #[test]
+    fn graphs_without_edges_stars_and_pieces_are_ordered() {
+        let n = 40;
+        let diagonal = Csc::from_triplets(n, n, &(0..n).map(|i| (i, i, 1.0)).collect::<Vec<_>>());
+        let mut star: Vec<(usize, usize, f64)> = (0..n).map(|i| (i, i, 50.0)).collect();
+        for i in 1..n {
+            star.extend([(0, i, -1.0), (i, 0, -1.0)]);
+        }
+        let star = Csc::from_triplets(n, n, &star);
+        // Two grids side by side, not connected.
+        let g = grid(6, 5);
+        let mut pieces = Vec::new();
+        for j in 0..g.ncols {
+            for p in g.col_ptr[j]..g.col_ptr[j + 1] {
+                pieces.push((g.row_idx[p], j, g.values[p]));
+                pieces.push((g.row_idx[p] + 30, j + 30, g.values[p]));
+            }
+        }
+        let pieces = Csc::from_triplets(60, 60, &pieces);
+        for (name, k) in [("diagonal", diagonal), ("star", star), ("pieces", pieces)] {
+            for last in [vec![], vec![3, 1]] {
+                for (fwd, inv) in [
+                    metis_with_last(&k, &last).expect(name),
+                    amd_with_last(&k, &last).expect(name),
+                ] {
+                    assert_eq!(&fwd[fwd.len() - last.len()..], &last[..], "{name}");
+                    for (new, &old) in fwd.iter().enumerate() {
+                        assert_eq!(inv[old], new, "{name}");
+                    }
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn only_a_symmetric_simple_graph_reaches_metis() {
+        // 0 - 1 - 2, sorted lists.
+        let xadj = [0, 1, 3, 4];
+        assert!(valid_graph(3, &xadj, &[1, 0, 2, 1]));
+        // Asymmetric (2 lists 0, 0 does not list 2).
+        assert!(!valid_graph(3, &[0, 1, 3, 5], &[1, 0, 2, 0, 1]));
+        // A self-loop, an index out of range, a repeat, unsorted, bad pointers.
+        assert!(!valid_graph(3, &xadj, &[1, 0, 1, 1]));
+        assert!(!valid_graph(3, &xadj, &[1, 0, 3, 1]));
+        assert!(!valid_graph(3, &[0, 1, 3, 4], &[1, 2, 2, 1]));
+        assert!(!valid_graph(3, &[0, 1, 3, 4], &[1, 2, 0, 1]));
+        assert!(!valid_graph(3, &[0, 3, 1, 4], &[1, 0, 2, 1]));
+        assert!(!valid_graph(3, &[0, 1, 3], &[1, 0, 2]));
+        // node_nd refuses it rather than calling METIS.
+        let (mut x, mut a, mut w) = (vec![0, 1, 3, 5], vec![1, 0, 2, 0, 1], vec![1; 3]);
+        assert!(node_nd(3, &mut x, &mut a, &mut w).is_none());
     }
 
     #[test]

@@ -226,3 +226,111 @@ fn the_c_report_carries_the_ordering_for_new_callers_only() {
     // SAFETY: a handle from ds_problem_new_opts, freed once.
     unsafe { ds_problem_free(h) };
 }
+
+/// K as a FE code may write it: entries whose value cancelled in the assembly
+/// (below 1e-13 max|K|) stored on one side only with a tiny value (`zeros`
+/// false), or with an exact zero stored on the other side (`zeros` true),
+/// the side chosen by a hash of the pair; and every diagonal entry given as
+/// two duplicates that sum to it.
+fn as_fe_codes_write_it(k: &dualsplit::Csc, zeros: bool) -> Owned {
+    let max = k.values.iter().fold(0.0f64, |a, v| a.max(v.abs()));
+    let (mut p, mut i, mut x) = (vec![0i64], Vec::new(), Vec::new());
+    for j in 0..k.ncols {
+        for q in k.col_ptr[j]..k.col_ptr[j + 1] {
+            let r = k.row_idx[q];
+            let v = k.values[q];
+            if r == j {
+                i.extend([r as i64, r as i64]);
+                x.extend([0.25 * v, 0.75 * v]);
+                continue;
+            }
+            if v.abs() > 1e-13 * max {
+                i.push(r as i64);
+                x.push(v);
+                continue;
+            }
+            let (a, b) = (r.min(j) as u64, r.max(j) as u64);
+            let upper_kept = (a * 1_000_003 + b).wrapping_mul(0x9E37_79B9_7F4A_7C15) >> 63 == 0;
+            if (r < j) == upper_kept {
+                i.push(r as i64);
+                x.push(3.5e-18 * max);
+            } else if zeros {
+                i.push(r as i64);
+                x.push(0.0);
+            }
+        }
+        p.push(i.len() as i64);
+    }
+    Owned {
+        nrows: k.nrows as i64,
+        ncols: k.ncols as i64,
+        p,
+        i,
+        x,
+    }
+}
+
+#[test]
+fn a_k_with_one_sided_entries_zeros_and_duplicates_solves_under_every_ordering() {
+    // A 3D block whose uniform hexahedra cancel many couplings exactly (as
+    // GetFEM's K of a thin slab does, where METIS_NodeND used to corrupt its
+    // heap on the one-sided graph).
+    let sc = block3d(10, 4);
+    let mu = vec![0.3; sc.m()];
+    let mut whole = problem(&sc, Ordering::Amd, 1);
+    let want = solve(&sc, &mut whole, &mu);
+    let (n, t) = (Owned::of(&sc.n), Owned::of(&sc.t));
+    for zeros in [false, true] {
+        let k = as_fe_codes_write_it(&sc.k, zeros);
+        // Every pair and the duplicated diagonal, less the dropped mirrors.
+        let one_sided = k.i.len() < sc.k.nnz() + sc.k.nrows;
+        assert_eq!(one_sided, !zeros, "the test K has one-sided entries");
+        for ordering in [DsOrdering::Amd, DsOrdering::Metis, DsOrdering::Auto] {
+            let (kd, nd, td) = (k.ds(), n.ds(), t.ds());
+            let opts = DsOptions {
+                threads: 1,
+                ordering: ordering as i32,
+                tol: 1e-12,
+                method: DsMethod::Newton as i32,
+                ..DsOptions::default()
+            };
+            let mut h: *mut DsProblem = null_mut();
+            // SAFETY: valid matrices, options and out pointer.
+            let st = unsafe { ds_problem_new_opts(3, &kd, &nd, &td, &opts, &mut h) };
+            assert_eq!(st, DsStatus::Ok, "zeros {zeros} {ordering:?}");
+            let m = sc.m();
+            let (mut u, mut ln, mut lt) = (vec![0.0; sc.k.nrows], vec![0.0; m], vec![0.0; 2 * m]);
+            // SAFETY: DsReport is plain old data; zero is a value.
+            let mut report: DsReport = unsafe { std::mem::zeroed() };
+            // SAFETY: the handle is live and every array is sized for the problem.
+            let st = unsafe {
+                ds_solve(
+                    h,
+                    &opts,
+                    DsFriction::Coulomb as i32,
+                    sc.f.as_ptr(),
+                    sc.g.as_ptr(),
+                    mu.as_ptr(),
+                    u.as_mut_ptr(),
+                    ln.as_mut_ptr(),
+                    lt.as_mut_ptr(),
+                    &mut report,
+                )
+            };
+            assert_eq!(st, DsStatus::Ok, "zeros {zeros} {ordering:?}");
+            // SAFETY: a handle from ds_problem_new_opts, freed once.
+            unsafe { ds_problem_free(h) };
+            for (name, x, y) in [
+                ("u", &u, &want.u),
+                ("lambda_n", &ln, &want.lambda_n),
+                ("lambda_t", &lt, &want.lambda_t),
+            ] {
+                let d = max_diff(x, y) / norm_inf(y);
+                assert!(
+                    d <= 1e-9,
+                    "zeros {zeros} {ordering:?}: {name} differs by {d:.2e}"
+                );
+            }
+        }
+    }
+}
