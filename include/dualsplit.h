@@ -1290,7 +1290,8 @@ enum DsStatus ds_problem_sizes(const struct DsProblem *problem,
 
  Returns DS_STATUS_OK, DS_STATUS_NULL_POINTER (problem), DS_STATUS_NOT_FINITE
  (NaN, -INFINITY, an infinite m_N), DS_STATUS_BAD_ARGUMENT (c_N <= 0, m_N
- outside [1, 10], k_T <= 0). On error the handle keeps its previous law.
+ outside [1, 10], k_T <= 0, a c_N or k_T below about 5.6e-309 whose
+ reciprocal overflows). On error the handle keeps its previous law.
 
  # Safety
  `problem` must be NULL or a live handle; each array NULL or valid for m

@@ -76,7 +76,8 @@ impl Compliance {
     ///
     /// Errors: `BadSize` (a length is not m), `NotFinite` (NaN, or an infinite
     /// m_N or -inf), `BadArgument` (c_N <= 0, m_N < 1 or above
-    /// [`MAX_EXPONENT`], k_T <= 0).
+    /// [`MAX_EXPONENT`], k_T <= 0, a c_N or k_T whose reciprocal overflows,
+    /// below about 5.6e-309).
     pub fn of(
         m: usize,
         cn: Option<&[f64]>,
@@ -90,8 +91,9 @@ impl Compliance {
                 cn,
                 m,
                 true,
-                |v| v > 0.0,
-                "the normal compliance stiffness must be > 0 (+inf: rigid)",
+                |v| v > 0.0 && (1.0 / v).is_finite(),
+                "the normal compliance stiffness must be > 0 with a finite reciprocal \
+                 (+inf: rigid)",
             )?;
             law.cn.copy_from_slice(cn);
         }
@@ -112,8 +114,9 @@ impl Compliance {
                 kt,
                 m,
                 true,
-                |v| v > 0.0,
-                "the tangential stiffness must be > 0 (+inf: rigid stick)",
+                |v| v > 0.0 && (1.0 / v).is_finite(),
+                "the tangential stiffness must be > 0 with a finite reciprocal \
+                 (+inf: rigid stick)",
             )?;
             law.kt.copy_from_slice(kt);
         }

@@ -728,3 +728,93 @@ fn one_node_on_a_power_law_foundation() {
         }
     }
 }
+
+#[test]
+fn a_power_law_step_that_loads_an_unloaded_contact_meets_the_law() {
+    // K = I on two 2D nodes, both on power-law foundations (c = 1e4, m = 2),
+    // frictionless. Step 1 presses node A with 1e6; step 2 adds 0.1 at node B,
+    // which starts the round open. Node B's penetration x solves
+    // x + c x^2 = 0.1 (u_y = -0.1 + lambda, lambda = c x^2): closed form.
+    let (c, e) = (1e4, 2.0);
+    let k = Csc {
+        nrows: 4,
+        ncols: 4,
+        col_ptr: (0..=4).collect(),
+        row_idx: (0..4).collect(),
+        values: vec![1.0; 4],
+    };
+    let n = Csc {
+        nrows: 2,
+        ncols: 4,
+        col_ptr: vec![0, 0, 1, 1, 2],
+        row_idx: vec![0, 1],
+        values: vec![-1.0, -1.0],
+    };
+    let t = Csc {
+        nrows: 2,
+        ncols: 4,
+        col_ptr: vec![0, 1, 1, 2, 2],
+        row_idx: vec![0, 1],
+        values: vec![1.0, 1.0],
+    };
+    let x_b = (-1.0 + (1.0f64 + 4.0 * c * 0.1).sqrt()) / (2.0 * c);
+    let x_a = (-1.0 + (1.0f64 + 4.0 * c * 1e6).sqrt()) / (2.0 * c);
+    for method in [Method::Auto, Method::Newton, Method::Pgs, Method::Mprgp] {
+        let mut pb = ContactProblem::from_csc(2, k.clone(), n.clone(), t.clone()).unwrap();
+        pb.set_compliance(Some(&[c, c]), Some(&[e, e]), None)
+            .unwrap();
+        let law = Friction::Tresca(&[0.0, 0.0]);
+        let o = opts(method);
+        let what = format!("{} step 1", method.name());
+        let s1 = pb
+            .step(&[0.0, -1e6, 0.0, 0.0], &[0.0, 0.0], law, &o)
+            .unwrap();
+        converged(&what, &s1);
+        close(&what, s1.lambda_n[0], c * x_a * x_a);
+        assert_eq!(s1.lambda_n[1], 0.0, "{what}");
+        let what = format!("{} step 2", method.name());
+        let s2 = pb
+            .step(&[0.0, -1e6, 0.0, -0.1], &[0.0, 0.0], law, &o)
+            .unwrap();
+        converged(&what, &s2);
+        // err <= tol is relative to |lambda| (about 1e6 here): node B's force
+        // within a few tol |lambda| of the law's (0 before the law's own err
+        // was measured: 1e-7 |lambda| off, reported converged).
+        let scale = s2.lambda_n[0];
+        assert!(
+            (s2.lambda_n[1] - c * x_b * x_b).abs() <= 4.0 * o.tol * scale,
+            "{what}: lambda_N,B = {}, the law gives {} ({:?})",
+            s2.lambda_n[1],
+            c * x_b * x_b,
+            s2.report
+        );
+        assert!(
+            (s2.u[3] + x_b).abs() <= 4.0 * o.tol * scale,
+            "{what}: u {}",
+            s2.u[3]
+        );
+        close(&what, s2.lambda_n[0], c * x_a * x_a);
+    }
+}
+
+#[test]
+fn a_stiffness_whose_reciprocal_overflows_is_refused() {
+    let mut pb = one_node(2, 10.0);
+    for (cn, kt) in [(Some(&[1e-310][..]), None), (None, Some(&[4e-309][..]))] {
+        let err = pb.set_compliance(cn, None, kt).unwrap_err();
+        assert_eq!(err.kind, ErrorKind::BadArgument, "{}", err.message);
+        assert!(err.message.contains("reciprocal"), "{}", err.message);
+    }
+    // The smallest normal double with a finite reciprocal is taken.
+    pb.set_compliance(Some(&[1e-300]), None, Some(&[1e-300]))
+        .unwrap();
+    let sol = pb
+        .solve(
+            &[0.0, -20.0],
+            &[0.1],
+            Friction::Tresca(&[1.0]),
+            &opts(Method::Auto),
+        )
+        .unwrap();
+    assert!(!sol.report.err.is_nan(), "{:?}", sol.report);
+}

@@ -344,6 +344,22 @@ impl Dual {
         self.rho = rho_of(self.m, self.d, |j| self.diag(j));
     }
 
+    /// rho (section 5) of A + D with D left out at the normal components
+    /// `rigid` (contact indices below m): the rho of a nonlinear normal law's
+    /// error, which no round's tangent may scale (at an open contact the
+    /// tangent's D, capped at 1e4 A_ii, would discount a penetration there
+    /// about 1e4 times).
+    pub(crate) fn rho_rigid_at(&self, rigid: &[usize]) -> Vec<f64> {
+        let mut own = vec![false; self.m];
+        for &i in rigid {
+            own[i] = true;
+        }
+        rho_of(self.m, self.d, |j| match self.shift.get(j) {
+            Some(&s) if j < self.m && own[j] => self.diag(j) - s,
+            _ => self.diag(j),
+        })
+    }
+
     /// The compliance diagonal D of [`Dual::set_shift`] (empty: rigid).
     pub(crate) fn shift(&self) -> &[f64] {
         &self.shift

@@ -372,6 +372,8 @@ impl ContactProblem {
         let mut v = vec![0.0; c];
         let mut p = vec![0.0; m];
         let mut err = f64::INFINITY;
+        // rho of the nonlinear law's error (empty: the dual's own).
+        let mut law_rho = Vec::new();
         loop {
             if !nonlinear.is_empty() {
                 // A cold start's first round is rigid at the nonlinear
@@ -457,21 +459,25 @@ impl ContactProblem {
                 }
                 target *= 0.1;
             }
-            if nonlinear.is_empty() || end != End::Converged {
+            if nonlinear.is_empty() || end == End::Infeasible {
                 break;
             }
-            // The error of the nonlinear law: v_N,i = N u - g - (lambda_N,i / c_N)^(1/m),
-            // and the penetrations the next tangent is taken at.
-            for &i in &nonlinear {
-                let raw = v[i] + offset[i] + shift[i] * lam[i];
+            // The error of the nonlinear law, whatever way the round ended (a
+            // round's own err is its tangent's), and the penetrations the next
+            // tangent is taken at.
+            let raw = self.law_gaps(&nonlinear, lam, &offset, &mut v);
+            for (&i, &x) in nonlinear.iter().zip(&raw) {
                 delta[i] = if rounds == 0 && cold {
                     self.compliance.penetration(i, lam[i])
                 } else {
-                    raw
+                    x
                 };
-                v[i] = raw - self.compliance.penetration(i, lam[i]);
             }
-            err = natural_map_error(lam, &v, &self.dual.rho, &b, &p, self.d);
+            law_rho = self.dual.rho_rigid_at(&nonlinear);
+            err = natural_map_error(lam, &v, &law_rho, &b, &p, self.d);
+            if end != End::Converged {
+                break;
+            }
             rounds += 1;
             if err <= opts.tol {
                 break;
@@ -490,7 +496,17 @@ impl ContactProblem {
             Some(k) => equilibrium_residual(k, &u, f, &bt_lam),
             None => f64::NAN,
         };
-        let (n_open, n_stick, n_slip) = contact_states(lam, &v, &self.dual.rho, &p, self.d);
+        if err.is_nan() {
+            // Non-finite arithmetic (an input at the edge of the doubles):
+            // nothing was measured, and NaN compares as neither side of tol.
+            err = f64::INFINITY;
+        }
+        let rho = if law_rho.is_empty() {
+            &self.dual.rho
+        } else {
+            &law_rho
+        };
+        let (n_open, n_stick, n_slip) = contact_states(lam, &v, rho, &p, self.d);
         let status = match end {
             End::Stopped => SolveStatus::Stopped,
             _ if err <= opts.tol => SolveStatus::Converged,
@@ -551,6 +567,31 @@ impl ContactProblem {
             load,
             forward: (!forward.is_empty()).then_some(forward),
         })
+    }
+}
+
+impl ContactProblem {
+    /// Turns `v` (the last round's v = [N u - g; T u] - D lambda - s, its
+    /// tangent law's) into the nonlinear law's at the contacts `nonlinear`:
+    /// v_N,i = N u - g - (lambda_N,i / c_N,i)^(1 / m_N,i). Returns their
+    /// penetrations N u - g (in the order of `nonlinear`), where the next
+    /// tangent is taken. `offset` is the round's s.
+    fn law_gaps(
+        &self,
+        nonlinear: &[usize],
+        lam: &[f64],
+        offset: &[f64],
+        v: &mut [f64],
+    ) -> Vec<f64> {
+        let shift = self.dual.shift();
+        nonlinear
+            .iter()
+            .map(|&i| {
+                let raw = v[i] + offset[i] + shift[i] * lam[i];
+                v[i] = raw - self.compliance.penetration(i, lam[i]);
+                raw
+            })
+            .collect()
     }
 }
 
