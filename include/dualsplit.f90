@@ -75,6 +75,7 @@ module dualsplit
    integer(c_int32_t), parameter, public :: DS_STATUS_STALLED = 14
    integer(c_int32_t), parameter, public :: DS_STATUS_TIME_LIMIT = 15
    integer(c_int32_t), parameter, public :: DS_STATUS_HOST_SOLVE_FAILED = 16
+   integer(c_int32_t), parameter, public :: DS_STATUS_BUSY = 17
 
    !> DsFormat: layout of a DsMatrix (CSparse naming).
    integer(c_int32_t), parameter, public :: DS_FORMAT_CSR = 0

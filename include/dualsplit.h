@@ -131,6 +131,13 @@ typedef enum DsStatus {
    (the history does not advance).
    */
   DS_STATUS_HOST_SOLVE_FAILED = 16,
+  /*
+   The handle is inside another call on it: a callback (monitor, log sink,
+   the host's solve) called an entry point on the handle whose call is
+   running it. Nothing is changed or written; the running call goes on.
+   Added in version 0.10.
+   */
+  DS_STATUS_BUSY = 17,
 } DsStatus;
 
 /*
@@ -350,7 +357,9 @@ typedef enum DsFriction {
  An opaque contact problem: K factored once, the contact matrices N and T, the
  condensed dual, and the history of a quasistatic simulation (ds_step). Created by
  ds_problem_new, freed by ds_problem_free. A handle may be used from any thread,
- but by one thread at a time.
+ but by one thread at a time. A call on a handle that is inside another call on it
+ (a monitor, log sink or host callback re-entering it) returns DS_STATUS_BUSY and
+ changes nothing.
  */
 typedef struct DsProblem DsProblem;
 
@@ -1214,7 +1223,8 @@ enum DsStatus ds_problem_new_opts(int32_t d,
 
 /*
  Frees a handle created by ds_problem_new or ds_problem_new_opts. NULL is a no-op. The handle must not be
- used afterwards.
+ used afterwards. A handle inside another call on it (freed by a callback of
+ that call) is not freed: ds_last_error_message() says so.
 
  # Safety
  `problem` must be NULL or a handle from ds_problem_new not freed before.
@@ -1402,8 +1412,10 @@ enum DsStatus ds_problem_dump(const struct DsProblem *problem,
  and DS_STATUS_TIME_LIMIT (the iterate with the lowest err and the report
  written);
  DS_STATUS_NULL_POINTER, DS_STATUS_BAD_ARGUMENT (friction, options),
- DS_STATUS_NOT_FINITE, DS_STATUS_NEGATIVE_FRICTION, DS_STATUS_OUT_OF_MEMORY
- (nothing written). The handle stays usable in every case.
+ DS_STATUS_NOT_FINITE, DS_STATUS_NEGATIVE_FRICTION, DS_STATUS_OUT_OF_MEMORY,
+ DS_STATUS_HOST_SOLVE_FAILED (a handle on the host's solves), DS_STATUS_BUSY
+ (called from a callback of a call on the same handle), DS_STATUS_PANIC (a
+ bug) (nothing written). The handle stays usable in every case.
 
  # Safety
  `problem` must be NULL or a live handle; `opts` NULL or a DsOptions; each array

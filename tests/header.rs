@@ -191,6 +191,7 @@ fn header_compiles_and_matches_the_rust_layout() {
         "STALLED",
         "TIME_LIMIT",
         "HOST_SOLVE_FAILED",
+        "BUSY",
     ];
     assert_eq!(statuses.len(), DsStatus::ALL.len());
     for (name, status) in statuses.iter().zip(DsStatus::ALL) {

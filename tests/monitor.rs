@@ -6,8 +6,9 @@ mod common;
 
 use common::{Mesh, Scene, opts};
 use dualsplit::internals::ffi::{
-    DsMatrix, DsProblem, DsProgress, DsReport, DsStatus, ds_problem_free, ds_problem_new,
-    ds_problem_set_log, ds_problem_set_monitor, ds_solve, ds_step,
+    DsInfo, DsMatrix, DsProblem, DsProgress, DsReport, DsStatus, ds_history_reset, ds_problem_free,
+    ds_problem_info, ds_problem_new, ds_problem_refactor, ds_problem_set_log,
+    ds_problem_set_monitor, ds_solve, ds_step,
 };
 use dualsplit::{Csc, Friction, Method, Progress, SolveStatus};
 use std::ffi::{CStr, c_char, c_void};
@@ -292,4 +293,163 @@ fn log_is_silent_by_default_and_per_iteration_when_asked() {
     lines.clear();
     solve(&h);
     assert_eq!(lines.len() as i64, outer + 2);
+}
+
+#[test]
+fn a_panic_inside_a_step_leaves_the_handle_and_its_history_usable() {
+    // Own route (2D, the dense dual from the trailing block) and a power-law
+    // interface (its rounds change the dual's diagonal).
+    let sc = scene();
+    let mu = vec![0.3; sc.m()];
+    let law = Friction::Coulomb(&mu);
+    let o = opts(Method::Auto);
+    let scaled = |s: f64| sc.f.iter().map(|v| s * v).collect::<Vec<f64>>();
+    let (f1, f2) = (scaled(0.5), scaled(1.0));
+    for power_law in [false, true] {
+        let setup = |pb: &mut dualsplit::ContactProblem| {
+            if power_law {
+                let m = sc.m();
+                pb.set_compliance(Some(&vec![5e4; m]), Some(&vec![1.5; m]), None)
+                    .unwrap();
+            }
+        };
+        let (mut pb, mut twin) = (sc.problem(), sc.problem());
+        setup(&mut pb);
+        setup(&mut twin);
+        pb.step(&f1, &sc.g, law, &o).unwrap();
+        twin.step(&f1, &sc.g, law, &o).unwrap();
+        let mut calls = 0;
+        let mut boom = |_: &Progress| -> bool {
+            calls += 1;
+            panic!("a monitor's bug");
+        };
+        let caught = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
+            pb.step_monitored(&f2, &sc.g, law, &o, Some(&mut boom))
+        }));
+        assert!(caught.is_err() && calls == 1, "the monitor panicked once");
+        // The next step is the step the twin takes from the same history.
+        let got = pb.step(&f2, &sc.g, law, &o).unwrap();
+        let want = twin.step(&f2, &sc.g, law, &o).unwrap();
+        assert_eq!(got.report.status, SolveStatus::Converged);
+        let d = got
+            .lambda_n
+            .iter()
+            .zip(&want.lambda_n)
+            .chain(got.u.iter().zip(&want.u))
+            .map(|(a, b)| (a - b).abs())
+            .fold(0.0, f64::max);
+        let scale = want.lambda_n.iter().fold(0.0f64, |a, v| a.max(v.abs()));
+        assert!(d <= 1e-9 * scale, "power law {power_law}: differs by {d:e}");
+        // Reset gives a fresh handle's first step.
+        pb.reset_history();
+        let mut fresh = sc.problem();
+        setup(&mut fresh);
+        let got = pb.step(&f2, &sc.g, law, &o).unwrap();
+        let want = fresh.step(&f2, &sc.g, law, &o).unwrap();
+        let d = got
+            .lambda_n
+            .iter()
+            .zip(&want.lambda_n)
+            .map(|(a, b)| (a - b).abs())
+            .fold(0.0, f64::max);
+        assert!(
+            d <= 1e-9 * scale,
+            "power law {power_law}: after reset {d:e}"
+        );
+    }
+}
+
+/// What the re-entering monitor below did: the handle and a K to refactor
+/// with, and the statuses its calls on the handle returned.
+struct Reenter {
+    handle: *mut DsProblem,
+    k: DsMatrix,
+    statuses: Vec<DsStatus>,
+}
+
+/// Calls every kind of entry point on its own handle, from inside the call
+/// that runs the monitor.
+unsafe extern "C" fn reenter(_: *const DsProgress, user_data: *mut c_void) -> i32 {
+    // SAFETY: the test passes a *mut Reenter that outlives the solve.
+    let r = unsafe { &mut *(user_data as *mut Reenter) };
+    // SAFETY: DsInfo is plain old data; zero is a value.
+    let mut info: DsInfo = unsafe { std::mem::zeroed() };
+    info.struct_size = std::mem::size_of::<DsInfo>() as _;
+    // SAFETY: live handle and K; the calls are refused before they read more.
+    unsafe {
+        r.statuses.push(ds_problem_refactor(r.handle, &r.k));
+        r.statuses.push(ds_history_reset(r.handle));
+        r.statuses
+            .push(ds_problem_info(r.handle, std::ptr::null(), &mut info));
+        r.statuses
+            .push(ds_problem_set_monitor(r.handle, None, std::ptr::null_mut()));
+        // Freed from inside its own call: kept (the call goes on with it).
+        ds_problem_free(r.handle);
+    }
+    0
+}
+
+#[test]
+fn a_callback_that_re_enters_its_handle_gets_busy_and_changes_nothing() {
+    let sc = scene();
+    let mu = vec![0.3; sc.m()];
+    let h = new_handle(&sc);
+    let (kp, ki) = csc_i64(&sc.k);
+    let mut r = Reenter {
+        handle: h.0,
+        k: view(&sc.k, &kp, &ki),
+        statuses: Vec::new(),
+    };
+    // SAFETY: live handle; r outlives the step.
+    let s = unsafe { ds_problem_set_monitor(h.0, Some(reenter), (&mut r as *mut Reenter).cast()) };
+    assert_eq!(s, DsStatus::Ok);
+    let opts = dualsplit::internals::ffi::DsOptions {
+        method: 2,
+        ..Default::default()
+    };
+    let f2: Vec<f64> = sc.f.iter().map(|v| 1.3 * v).collect();
+    let run_step = |h: *mut DsProblem, f: &[f64], u: &mut [f64], ln: &mut [f64], lt: &mut [f64]| {
+        // SAFETY: arrays sized for the problem; report may be NULL.
+        unsafe {
+            ds_step(
+                h,
+                &opts,
+                1,
+                f.as_ptr(),
+                sc.g.as_ptr(),
+                mu.as_ptr(),
+                u.as_mut_ptr(),
+                ln.as_mut_ptr(),
+                lt.as_mut_ptr(),
+                std::ptr::null_mut(),
+            )
+        }
+    };
+    let (mut u, mut ln, mut lt) = (vec![0.0; sc.f.len()], vec![0.0; sc.m()], vec![0.0; sc.m()]);
+    assert_eq!(run_step(h.0, &sc.f, &mut u, &mut ln, &mut lt), DsStatus::Ok);
+    assert!(!r.statuses.is_empty(), "the monitor ran");
+    assert!(
+        r.statuses.iter().all(|&s| s == DsStatus::Busy),
+        "{:?}",
+        r.statuses
+    );
+    // Nothing changed: the monitor is still set (its set_monitor was refused),
+    // and the step advanced the history as a fresh handle's does.
+    let calls = r.statuses.len();
+    let fresh = new_handle(&sc);
+    let (mut u2, mut ln2, mut lt2) = (vec![0.0; sc.f.len()], vec![0.0; sc.m()], vec![0.0; sc.m()]);
+    assert_eq!(
+        run_step(fresh.0, &sc.f, &mut u2, &mut ln2, &mut lt2),
+        DsStatus::Ok
+    );
+    assert_eq!((&u, &ln, &lt), (&u2, &ln2, &lt2));
+    assert_eq!(run_step(h.0, &f2, &mut u, &mut ln, &mut lt), DsStatus::Ok);
+    assert!(r.statuses.len() > calls, "the monitor is still set");
+    assert_eq!(
+        run_step(fresh.0, &f2, &mut u2, &mut ln2, &mut lt2),
+        DsStatus::Ok
+    );
+    assert_eq!((&u, &ln, &lt), (&u2, &ln2, &lt2));
+    // SAFETY: clearing the monitor before r goes.
+    unsafe { ds_problem_set_monitor(h.0, None, std::ptr::null_mut()) };
 }

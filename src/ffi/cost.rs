@@ -1,7 +1,7 @@
 //! What the last solve on a handle cost, beyond DsReport: DsCost and
 //! ds_problem_last_cost (where the seconds went, the host's solves).
 
-use super::boundary::{entry, ref_in, write_sized};
+use super::boundary::{entry, write_sized};
 use super::error::CResult as Result;
 use super::problem::DsProblem;
 use super::status::DsStatus;
@@ -85,7 +85,7 @@ pub unsafe extern "C" fn ds_problem_last_cost(
 ) -> DsStatus {
     entry("ds_problem_last_cost", || -> Result<()> {
         // SAFETY: the handle pointer is NULL or live (contract); NULL is rejected.
-        let problem = unsafe { ref_in(problem, "problem")? };
+        let problem = unsafe { super::problem::lend(problem, "problem")? };
         let value = problem.last_cost.unwrap_or_default();
         // SAFETY: cost is NULL or writable for its struct_size bytes (contract).
         unsafe { write_sized(cost, value, "cost", "DsCost") }

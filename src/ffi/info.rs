@@ -186,7 +186,7 @@ pub unsafe extern "C" fn ds_problem_info(
 ) -> DsStatus {
     entry("ds_problem_info", || {
         // SAFETY: pointer validity is this function's contract; NULL is rejected.
-        let p = unsafe { ref_in(problem, "problem")? };
+        let p = unsafe { super::problem::lend(problem, "problem")? };
         // SAFETY: opts is NULL or a readable DsOptions prefix (contract).
         let opts = unsafe { DsOptions::read(opts)? };
         // SAFETY: info is NULL or writable for its struct_size bytes (contract).

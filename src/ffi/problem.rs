@@ -14,13 +14,25 @@ use super::status::DsStatus;
 use super::types::{CEnum, DsFriction};
 use crate::friction::Friction;
 use crate::problem::ContactProblem;
+use std::cell::UnsafeCell;
 use std::panic::{AssertUnwindSafe, catch_unwind};
+use std::sync::atomic::{AtomicBool, Ordering as AtomicOrdering};
 
 /// An opaque contact problem: K factored once, the contact matrices N and T, the
 /// condensed dual, and the history of a quasistatic simulation (ds_step). Created by
 /// ds_problem_new, freed by ds_problem_free. A handle may be used from any thread,
-/// but by one thread at a time.
+/// but by one thread at a time. A call on a handle that is inside another call on it
+/// (a monitor, log sink or host callback re-entering it) returns DS_STATUS_BUSY and
+/// changes nothing.
 pub struct DsProblem {
+    /// Set while a call holds the handle (see [`lend`]).
+    busy: AtomicBool,
+    /// What the handle holds; reached only through a [`Lent`].
+    state: UnsafeCell<Handle>,
+}
+
+/// What a handle holds.
+pub(super) struct Handle {
     /// The safe Rust problem this handle owns.
     pub(super) inner: ContactProblem,
     /// Monitor callback and log settings.
@@ -34,11 +46,78 @@ impl DsProblem {
     /// A handle owning `inner`, without monitor, log or past solve.
     pub(super) fn boxed(inner: ContactProblem) -> *mut DsProblem {
         Box::into_raw(Box::new(DsProblem {
-            inner,
-            watch: Watch::default(),
-            last_cost: None,
+            busy: AtomicBool::new(false),
+            state: UnsafeCell::new(Handle {
+                inner,
+                watch: Watch::default(),
+                last_cost: None,
+            }),
         }))
     }
+}
+
+/// A handle lent to one call: its state, exclusively, until the lease drops.
+pub(super) struct Lent<'a> {
+    busy: &'a AtomicBool,
+    handle: &'a mut Handle,
+}
+
+impl std::ops::Deref for Lent<'_> {
+    type Target = Handle;
+    fn deref(&self) -> &Handle {
+        self.handle
+    }
+}
+
+impl std::ops::DerefMut for Lent<'_> {
+    fn deref_mut(&mut self) -> &mut Handle {
+        self.handle
+    }
+}
+
+impl Drop for Lent<'_> {
+    fn drop(&mut self) {
+        self.busy.store(false, AtomicOrdering::Release);
+    }
+}
+
+/// The handle at `ptr` for one call. The lease ends when the value drops,
+/// also when the call panics.
+///
+/// Errors: `NullPointer`, `BadArgument` (misaligned), `Busy` (a call on the
+/// handle is running: a callback re-entered it).
+///
+/// # Safety
+/// If not NULL, `ptr` must point to a live handle from ds_problem_new*.
+pub(super) unsafe fn lend<'a>(ptr: *const DsProblem, what: &str) -> Result<Lent<'a>> {
+    // SAFETY: validity is the caller's contract. A shared reference may
+    // coexist with the running call's lease: its state sits in an UnsafeCell
+    // and `busy` is atomic.
+    let problem: &'a DsProblem = unsafe { ref_in(ptr, what)? };
+    if problem
+        .busy
+        .compare_exchange(
+            false,
+            true,
+            AtomicOrdering::Acquire,
+            AtomicOrdering::Relaxed,
+        )
+        .is_err()
+    {
+        return Err(Error::new(
+            DsStatus::Busy,
+            format!(
+                "{what} is inside another call on it (a callback re-entered its own \
+                 handle): nothing was changed"
+            ),
+        ));
+    }
+    Ok(Lent {
+        busy: &problem.busy,
+        // SAFETY: `busy` was false and is now ours: no other reference to the
+        // state exists until this lease drops and clears it.
+        handle: unsafe { &mut *problem.state.get() },
+    })
 }
 
 /// The contact dimension d as `usize`, or `BadArgument`.
@@ -145,13 +224,25 @@ pub unsafe extern "C" fn ds_problem_new_opts(
 }
 
 /// Frees a handle created by ds_problem_new or ds_problem_new_opts. NULL is a no-op. The handle must not be
-/// used afterwards.
+/// used afterwards. A handle inside another call on it (freed by a callback of
+/// that call) is not freed: ds_last_error_message() says so.
 ///
 /// # Safety
 /// `problem` must be NULL or a handle from ds_problem_new not freed before.
 #[unsafe(no_mangle)]
 pub unsafe extern "C" fn ds_problem_free(problem: *mut DsProblem) {
     if problem.is_null() {
+        return;
+    }
+    // A handle freed from inside a call on it (by a callback) would be used
+    // after the free when the callback returns: it is kept, and the message says so.
+    // SAFETY: a live handle (contract): its `busy` flag is atomic and may be
+    // read beside a running call.
+    if unsafe { (*problem).busy.load(AtomicOrdering::Acquire) } {
+        super::last_error::set(
+            "ds_problem_free: the handle is inside another call on it (a callback \
+             re-entered it): not freed; free it after that call returns",
+        );
         return;
     }
     // SAFETY: the handle came from Box::into_raw in ds_problem_new (contract).
@@ -181,7 +272,7 @@ pub unsafe extern "C" fn ds_problem_refactor(
 ) -> DsStatus {
     entry("ds_problem_refactor", || {
         // SAFETY: pointer validity is this function's contract; NULL is rejected.
-        let (problem, k) = unsafe { (ref_mut(problem, "problem")?, ref_in(k, "k")?) };
+        let (mut problem, k) = unsafe { (lend(problem, "problem")?, ref_in(k, "k")?) };
         // SAFETY: K's arrays match its fields (contract).
         let kv = unsafe { k.view("K")? };
         Ok(problem.inner.refactor(&kv)?)
@@ -203,13 +294,8 @@ pub unsafe extern "C" fn ds_problem_set_contacts(
 ) -> DsStatus {
     entry("ds_problem_set_contacts", || {
         // SAFETY: pointer validity is this function's contract; NULL is rejected.
-        let (problem, n, t) = unsafe {
-            (
-                ref_mut(problem, "problem")?,
-                ref_in(n, "n")?,
-                ref_in(t, "t")?,
-            )
-        };
+        let (mut problem, n, t) =
+            unsafe { (lend(problem, "problem")?, ref_in(n, "n")?, ref_in(t, "t")?) };
         // SAFETY: the matrices' arrays match their fields (contract).
         let (nv, tv) = unsafe { (n.view("N")?, t.view("T")?) };
         Ok(problem.inner.set_contacts(&nv, &tv)?)
@@ -234,7 +320,7 @@ pub unsafe extern "C" fn ds_problem_sizes(
 ) -> DsStatus {
     entry("ds_problem_sizes", || {
         // SAFETY: the handle is NULL or live (contract); NULL is rejected.
-        let problem = unsafe { ref_in(problem, "problem")? };
+        let problem = unsafe { lend(problem, "problem")? };
         // The outputs are written through raw pointers, never as references: a
         // caller may pass the same address twice.
         let n_dofs = OutArray::new(n_dofs, 1, "n_dofs")?;
@@ -299,7 +385,7 @@ pub unsafe extern "C" fn ds_problem_set_compliance(
 ) -> DsStatus {
     entry("ds_problem_set_compliance", || {
         // SAFETY: NULL is rejected; otherwise a live handle (contract).
-        let problem = unsafe { ref_mut(problem, "problem")? };
+        let mut problem = unsafe { lend(problem, "problem")? };
         let m = problem.inner.n_contacts();
         // SAFETY: each array is NULL or holds m values (contract).
         let (cn, mn, kt) = unsafe {
@@ -323,7 +409,7 @@ pub unsafe extern "C" fn ds_problem_set_compliance(
 pub unsafe extern "C" fn ds_history_reset(problem: *mut DsProblem) -> DsStatus {
     entry("ds_history_reset", || {
         // SAFETY: NULL is rejected; otherwise a live handle (contract).
-        let problem = unsafe { ref_mut(problem, "problem")? };
+        let mut problem = unsafe { lend(problem, "problem")? };
         problem.inner.reset_history();
         Ok(())
     })
@@ -349,7 +435,7 @@ pub unsafe extern "C" fn ds_problem_set_monitor(
 ) -> DsStatus {
     entry("ds_problem_set_monitor", || {
         // SAFETY: NULL is rejected; otherwise a live handle (contract).
-        let problem = unsafe { ref_mut(problem, "problem")? };
+        let mut problem = unsafe { lend(problem, "problem")? };
         problem.watch.monitor = monitor;
         problem.watch.monitor_data = user_data;
         Ok(())
@@ -376,7 +462,7 @@ pub unsafe extern "C" fn ds_problem_set_log(
 ) -> DsStatus {
     entry("ds_problem_set_log", || {
         // SAFETY: NULL is rejected; otherwise a live handle (contract).
-        let problem = unsafe { ref_mut(problem, "problem")? };
+        let mut problem = unsafe { lend(problem, "problem")? };
         if !(LOG_SILENT..=LOG_ITERATIONS).contains(&level) {
             return Err(Error::new(
                 DsStatus::BadArgument,
@@ -422,7 +508,7 @@ pub unsafe extern "C" fn ds_problem_dump(
 ) -> DsStatus {
     entry("ds_problem_dump", || {
         // SAFETY: NULL is rejected; otherwise a live handle (contract).
-        let problem = unsafe { ref_in(problem, "problem")? };
+        let problem = unsafe { lend(problem, "problem")? };
         if dir.is_null() {
             return Err(Error::new(DsStatus::NullPointer, "dir is NULL"));
         }

@@ -1,7 +1,7 @@
 //! ds_solve and ds_step: the checks of every pointer before the core runs, the
 //! solve, and the outputs written per status after it returned.
 
-use super::boundary::{OutArray, entry, ref_mut, slice_in};
+use super::boundary::{OutArray, entry, slice_in};
 use super::cost::DsCost;
 use super::error::{CError as Error, CResult as Result};
 use super::monitor::LOG_ITERATIONS;
@@ -47,7 +47,8 @@ unsafe fn solve_impl(
         Mode::Step => ("f_total", "g0"),
     };
     // SAFETY: the handle pointer is NULL or live (contract); NULL is rejected.
-    let problem = unsafe { ref_mut(problem, "problem")? };
+    let mut lent = unsafe { super::problem::lend(problem, "problem")? };
+    let problem = &mut *lent;
     // SAFETY: opts is NULL or a DsOptions of struct_size bytes (contract).
     let options = unsafe { DsOptions::read(opts)? };
     // SAFETY: as above; read accepted opts.
@@ -179,8 +180,10 @@ unsafe fn solve_impl(
 /// and DS_STATUS_TIME_LIMIT (the iterate with the lowest err and the report
 /// written);
 /// DS_STATUS_NULL_POINTER, DS_STATUS_BAD_ARGUMENT (friction, options),
-/// DS_STATUS_NOT_FINITE, DS_STATUS_NEGATIVE_FRICTION, DS_STATUS_OUT_OF_MEMORY
-/// (nothing written). The handle stays usable in every case.
+/// DS_STATUS_NOT_FINITE, DS_STATUS_NEGATIVE_FRICTION, DS_STATUS_OUT_OF_MEMORY,
+/// DS_STATUS_HOST_SOLVE_FAILED (a handle on the host's solves), DS_STATUS_BUSY
+/// (called from a callback of a call on the same handle), DS_STATUS_PANIC (a
+/// bug) (nothing written). The handle stays usable in every case.
 ///
 /// # Safety
 /// `problem` must be NULL or a live handle; `opts` NULL or a DsOptions; each array

@@ -64,6 +64,11 @@ pub enum DsStatus {
     /// and which call failed; no output is written and the handle stays usable
     /// (the history does not advance).
     HostSolveFailed = 16,
+    /// The handle is inside another call on it: a callback (monitor, log sink,
+    /// the host's solve) called an entry point on the handle whose call is
+    /// running it. Nothing is changed or written; the running call goes on.
+    /// Added in version 0.10.
+    Busy = 17,
 }
 
 impl From<ErrorKind> for DsStatus {
@@ -85,7 +90,7 @@ impl From<ErrorKind> for DsStatus {
 
 impl DsStatus {
     /// Every status, in the order of their values (index = value).
-    pub const ALL: [DsStatus; 17] = [
+    pub const ALL: [DsStatus; 18] = [
         DsStatus::Ok,
         DsStatus::NullPointer,
         DsStatus::BadSize,
@@ -103,6 +108,7 @@ impl DsStatus {
         DsStatus::Stalled,
         DsStatus::TimeLimit,
         DsStatus::HostSolveFailed,
+        DsStatus::Busy,
     ];
 
     /// The status with C value `v`, if any.
@@ -132,6 +138,7 @@ impl DsStatus {
             DsStatus::Stalled => c"the iteration stopped making progress",
             DsStatus::TimeLimit => c"the time limit was reached before the tolerance",
             DsStatus::HostSolveFailed => c"the host's solve of K failed",
+            DsStatus::Busy => c"the handle is inside another call on it (a callback re-entered it)",
         }
     }
 }

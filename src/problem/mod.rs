@@ -825,20 +825,25 @@ impl ContactProblem {
         let g: Vec<f64> = (0..m).map(|i| g0[i] - nu[i]).collect();
         let mut lam = vec![0.0; self.dual.c];
         // The history is lent to the solve (which needs the handle mutable:
-        // a nonlinear law changes the dual's diagonal) and put back after.
+        // a nonlinear law changes the dual's diagonal) and put back after,
+        // also when the solve panics (a monitor's or a `KSolve`'s panic, or a
+        // bug), so that the handle keeps its history and stays usable.
         let history = std::mem::replace(&mut self.history, History::new(0, 0));
-        let hist = (Some(&history), &history.lt[..]);
-        let solved = self.solve_from(
-            (&f, f_total),
-            &g,
-            friction,
-            opts,
-            &mut lam,
-            hist,
-            monitor,
-            predicted,
-        );
+        let solved = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
+            let hist = (Some(&history), &history.lt[..]);
+            self.solve_from(
+                (&f, f_total),
+                &g,
+                friction,
+                opts,
+                &mut lam,
+                hist,
+                monitor,
+                predicted,
+            )
+        }));
         self.history = history;
+        let solved = solved.unwrap_or_else(|payload| std::panic::resume_unwind(payload));
         let solve::Solved {
             mut sol,
             load,
