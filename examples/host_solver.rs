@@ -1,4 +1,4 @@
-//! The library on a host's solves of K (issue 31) against its own matrix-free
+//! The library on a host's solves of K against its own matrix-free
 //! path, per scene: the host here is a plain supernodal factor of K (faer,
 //! the best ordering, as a CHOLMOD or MUMPS host would hold one) that solves
 //! a block of right-hand sides in one call. Measured in one run, 1 thread:
@@ -56,16 +56,11 @@ struct Host {
     factor: Arc<Factor>,
     single: Option<(Arc<Vec<f32>>, MemBuffer)>,
     rows: Option<RowSolves>,
-    blocks: HostBlocks,
 }
 
 impl KSolve for Host {
     fn n(&self) -> usize {
         self.factor.n()
-    }
-
-    fn blocks(&self) -> HostBlocks {
-        self.blocks
     }
 
     fn solve(&mut self, x: &mut [f64], ncols: usize) -> Result<(), i32> {
@@ -231,7 +226,6 @@ fn main() {
                         .clone()
                         .map(|v| (v, MemBuffer::new(host_factor.solve_scratch_single()))),
                     rows: rows.then(|| RowSolves::new(host_factor.clone(), single).unwrap()),
-                    blocks,
                 })
             };
             let t2 = Instant::now();
@@ -241,7 +235,10 @@ fn main() {
                 with_k.then_some(&kv),
                 &arrays.1.view(&sc.n),
                 &arrays.2.view(&sc.t),
-                &opts,
+                &Options {
+                    host_blocks: blocks,
+                    ..opts
+                },
             )
             .unwrap();
             let t_host = t2.elapsed().as_secs_f64();

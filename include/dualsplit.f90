@@ -246,14 +246,15 @@ module dualsplit
    !> with the interface ds_host_solve_single_fn for the loose products in
    !> single precision); solve_rows (0.10, optional: c_null_funptr by default,
    !> or a function with the interface ds_host_solve_rows_fn for the products
-   !> on the contact DOFs alone); blocks (0.10: DS_HOST_BLOCKS_SOLVES by
-   !> default, DS_HOST_BLOCKS_FACTOR or DS_HOST_BLOCKS_AUTO).
+   !> on the contact DOFs alone); blocks (0.10: DS_HOST_BLOCKS_AUTO by
+   !> default, DS_HOST_BLOCKS_SOLVES or DS_HOST_BLOCKS_FACTOR). context and
+   !> inverse_entries default to c_null_ptr and c_null_funptr.
    type, bind(C), public :: DsHostSolver
       integer(c_int32_t) :: struct_size   !< uint32_t in C: sizeof(DsHostSolver)
       integer(c_int64_t) :: n             !< DOFs of K, >= 1
       type(c_funptr)     :: solve         !< DsHostSolveFn: x := K^-1 x (required)
-      type(c_ptr)        :: context       !< passed back to solve unchanged
-      type(c_funptr)     :: inverse_entries !< DsHostInverseFn or c_null_funptr (optional)
+      type(c_ptr)        :: context = c_null_ptr !< passed back to solve unchanged
+      type(c_funptr)     :: inverse_entries = c_null_funptr !< DsHostInverseFn (optional)
       type(c_funptr)     :: solve_single = c_null_funptr !< DsHostSolveSingleFn (optional, 0.10)
       type(c_funptr)     :: solve_rows = c_null_funptr !< DsHostSolveRowsFn (optional, 0.10)
       integer(c_int32_t) :: blocks = 0    !< DS_HOST_BLOCKS_*: the contact blocks (0.10)
@@ -263,11 +264,12 @@ module dualsplit
    integer(c_int32_t), parameter, public :: DS_HOST_SOLVER_SIZE = 64
 
    !> DsHostBlocks: how the contacts' blocks are obtained (DsHostSolver%blocks):
-   !> by the host's solves (the default), by the library's own factor of K
-   !> (handed over), or the cheaper of the two.
-   integer(c_int32_t), parameter, public :: DS_HOST_BLOCKS_SOLVES = 0
-   integer(c_int32_t), parameter, public :: DS_HOST_BLOCKS_FACTOR = 1
-   integer(c_int32_t), parameter, public :: DS_HOST_BLOCKS_AUTO = 2
+   !> the host's inverse_entries where given, else the cheaper of the library's
+   !> own factor of K (handed over) and the host's solves (AUTO, the default);
+   !> by the host's solves; by the library's own factor of K.
+   integer(c_int32_t), parameter, public :: DS_HOST_BLOCKS_AUTO = 0
+   integer(c_int32_t), parameter, public :: DS_HOST_BLOCKS_SOLVES = 1
+   integer(c_int32_t), parameter, public :: DS_HOST_BLOCKS_FACTOR = 2
 
    ! ---------------------------------------------------------------------------------
    ! Callbacks (DsMonitorFn, DsLogFn): write them as BIND(C) procedures of a module

@@ -312,12 +312,20 @@ typedef enum DsOrdering {
  */
 typedef enum DsHostBlocks {
   /*
+   The host's inverse_entries where given (one call); else
+   DS_HOST_BLOCKS_FACTOR where K is handed over, the factor fits
+   max_memory (the machine's memory where 0) and its flops are fewer than
+   the solves' (c solves of 4 nnz(L) flops against 2.5 times the
+   factorisation's); else DS_HOST_BLOCKS_SOLVES. The default (a zeroed
+   struct): a host that hands K over expects it used.
+   */
+  DS_HOST_BLOCKS_AUTO = 0,
+  /*
    By d m of the host's solves, 32 right-hand sides per call (from its
    inverse_entries where given): nothing of K's factor in the library's
-   memory. 9-75 factorisations of K on the benchmark's 3D blocks. The
-   default (a zeroed struct).
+   memory. 9-75 factorisations of K on the benchmark's 3D blocks.
    */
-  DS_HOST_BLOCKS_SOLVES = 0,
+  DS_HOST_BLOCKS_SOLVES = 1,
   /*
    By the library's own factor of K, which must be handed over
    (DS_STATUS_BAD_ARGUMENT without it): factored once when the blocks
@@ -327,14 +335,7 @@ typedef enum DsHostBlocks {
    factorisations of K in all on the benchmark's 3D blocks.
    inverse_entries is not called. Every product still calls the host.
    */
-  DS_HOST_BLOCKS_FACTOR = 1,
-  /*
-   DS_HOST_BLOCKS_FACTOR where K is handed over, the factor fits
-   max_memory (the machine's memory where 0) and its flops are fewer than
-   the solves' (c solves of 4 nnz(L) flops against 2.5 times the
-   factorisation's); else DS_HOST_BLOCKS_SOLVES.
-   */
-  DS_HOST_BLOCKS_AUTO = 2,
+  DS_HOST_BLOCKS_FACTOR = 2,
 } DsHostBlocks;
 
 /*
@@ -556,7 +557,7 @@ typedef struct DsHostSolver {
   DsHostSolveRowsFn solve_rows;
   /*
    How the contacts' blocks are obtained: a DsHostBlocks value (0,
-   DS_HOST_BLOCKS_SOLVES, in a zeroed struct). Added in version 0.10.
+   DS_HOST_BLOCKS_AUTO, in a zeroed struct). Added in version 0.10.
    */
   int32_t blocks;
 } DsHostSolver;

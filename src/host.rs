@@ -1,4 +1,4 @@
-//! The host's own solver of K (issue 31): a problem built on the solves a
+//! The host's own solver of K: a problem built on the solves a
 //! host code already has (a CHOLMOD factor it holds, a distributed Krylov
 //! solve) instead of a factor of the library's. Every matrix-free method needs
 //! K only through solves: the products A x = B K^-1 B^T x, the right-hand side
@@ -10,35 +10,12 @@
 //! calling the host, the solve stops at its next outer iteration, and the
 //! call that ran it returns `ErrorKind::HostSolve` with the host's code.
 
+#[cfg(doc)]
+use crate::Options;
 use crate::error::{Error, ErrorKind, Result};
+use crate::options::HostBlocks;
 use std::sync::Mutex;
 use std::time::Instant;
-
-/// How a problem on the host's solves obtains the contacts' d x d diagonal
-/// blocks of A = B K^-1 B^T where the host gives no entries of K^-1
-/// ([`KSolve::inverse_entries`]): once at creation, and again when the
-/// contacts are replaced.
-#[derive(Copy, Clone, Debug, Default, PartialEq, Eq)]
-pub enum HostBlocks {
-    /// By d m of the host's solves, 32 right-hand sides per call, or by its
-    /// entries of K^-1 where it gives them (the default): nothing of K's
-    /// factor in the library's memory. Each column is a whole solve: 9-75
-    /// factorisations of K on the benchmark's 3D blocks.
-    #[default]
-    Solves,
-    /// By the library's own factor of K, which must be handed over: analysed
-    /// and factored at creation, its selected inversion giving the blocks,
-    /// and freed before creation returns (its bytes in the creation's
-    /// prediction and under max_memory); the same when the contacts are
-    /// replaced. 1.5-2.5 factorisations of K in all on the benchmark's 3D
-    /// blocks. The host's entries of K^-1 are not asked for; the products
-    /// still call the host.
-    Factor,
-    /// `Factor` where K is handed over, its factor fits max_memory and its
-    /// flops are fewer than the solves' (c solves of 4 nnz(L) flops each
-    /// against 2.5 times the factorisation's flops); else `Solves`.
-    Auto,
-}
 
 /// K^-1 applied by the host code. The library calls it only from the thread
 /// that calls into the problem, never concurrently.
@@ -103,12 +80,6 @@ pub trait KSolve: Send {
         None
     }
 
-    /// How the contacts' diagonal blocks are obtained where the host gives
-    /// no entries of K^-1 (see [`HostBlocks`]); the default: by its solves.
-    fn blocks(&self) -> HostBlocks {
-        HostBlocks::Solves
-    }
-
     /// Optional: entry k of `values` := the entry of K^-1 at (entry k of
     /// `rows`, entry k of `cols`) for every k (0-based
     /// DOFs, as MUMPS's selected inversion, ICNTL(30), or PETSc's
@@ -159,7 +130,7 @@ pub(crate) struct Host {
     single: std::sync::atomic::AtomicBool,
     /// False once the host answered that it offers no solve on rows.
     rows: std::sync::atomic::AtomicBool,
-    /// How the contacts' blocks are obtained ([`KSolve::blocks`]).
+    /// How the contacts' blocks are obtained ([`Options::host_blocks`]).
     blocks: HostBlocks,
 }
 
@@ -177,10 +148,11 @@ pub(crate) struct Counts {
 }
 
 impl Host {
-    pub(crate) fn new(solver: Box<dyn KSolve>) -> Host {
+    /// The host `solver`, its contacts' blocks obtained as `blocks` asks.
+    pub(crate) fn new(solver: Box<dyn KSolve>, blocks: HostBlocks) -> Host {
         Host {
             n: solver.n(),
-            blocks: solver.blocks(),
+            blocks,
             solver: Mutex::new(solver),
             ledger: Mutex::new(Ledger::default()),
             single: std::sync::atomic::AtomicBool::new(true),
@@ -193,7 +165,7 @@ impl Host {
         self.n
     }
 
-    /// How the contacts' blocks are obtained ([`KSolve::blocks`]).
+    /// How the contacts' blocks are obtained ([`Options::host_blocks`]).
     pub(crate) fn blocks(&self) -> HostBlocks {
         self.blocks
     }
@@ -394,12 +366,15 @@ mod tests {
     }
 
     fn host(fail_at: usize, nan: bool) -> Host {
-        Host::new(Box::new(Diagonal {
-            n: 3,
-            calls: 0,
-            fail_at,
-            nan,
-        }))
+        Host::new(
+            Box::new(Diagonal {
+                n: 3,
+                calls: 0,
+                fail_at,
+                nan,
+            }),
+            HostBlocks::Solves,
+        )
     }
 
     #[test]

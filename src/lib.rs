@@ -41,10 +41,12 @@ mod threads;
 
 pub use error::{Error, ErrorKind, Result};
 pub use friction::Friction;
-pub use host::{HostBlocks, KSolve};
+pub use host::KSolve;
 pub use info::Info;
 pub use methods::{Monitor, Progress};
-pub use options::{DENSE_MAX, DualForm, Method, Options, Ordering, STALL_FACTOR, STALL_WINDOW};
+pub use options::{
+    DENSE_MAX, DualForm, HostBlocks, Method, Options, Ordering, STALL_FACTOR, STALL_WINDOW,
+};
 pub use problem::{ContactProblem, Solution};
 pub use report::{Report, SolveStatus};
 pub use sparse::{Csc, Format, Indices, MatrixView, SYMMETRY_TOL, Storage};

@@ -147,6 +147,35 @@ impl Ordering {
 pub const DENSE_MAX: usize = 8_000;
 
 /// Options of one solve. `Options::default()` gives the documented defaults.
+/// How a problem on the host's solves (`ContactProblem::with_host_solver`)
+/// obtains the contacts' d x d diagonal blocks of A = B K^-1 B^T: once at
+/// creation, and again when the contacts are replaced.
+#[derive(Copy, Clone, Debug, Default, PartialEq, Eq)]
+pub enum HostBlocks {
+    /// The host's entries of K^-1 where it gives them
+    /// (`KSolve::inverse_entries`, one call); else `Factor` where K is
+    /// handed over, its factor fits `max_memory` and its flops are fewer than
+    /// the solves' (c solves of 4 nnz(L) flops each against 2.5 times the
+    /// factorisation's flops); else `Solves`. The default: a host that hands
+    /// K over expects it used (its analysis is made at creation for the
+    /// memory prediction even where the host's entries then serve).
+    #[default]
+    Auto,
+    /// By d m of the host's solves, 32 right-hand sides per call, or by its
+    /// entries of K^-1 where it gives them: nothing of K's factor in the
+    /// library's memory. Each column is a whole solve: 9-75 factorisations of
+    /// K on the benchmark's 3D blocks.
+    Solves,
+    /// By the library's own factor of K, which must be handed over
+    /// (`BadArgument` without it): analysed and factored at creation, its
+    /// selected inversion giving the blocks, and freed before creation
+    /// returns (its bytes in the creation's prediction and under
+    /// max_memory); the same when the contacts are replaced. 1.5-2.5
+    /// factorisations of K in all on the benchmark's 3D blocks. The host's
+    /// entries of K^-1 are not asked for; the products still call the host.
+    Factor,
+}
+
 #[derive(Copy, Clone, Debug, PartialEq)]
 pub struct Options {
     /// Method (default `Auto`: the library's choice, see [`Method::Auto`]).
@@ -213,6 +242,11 @@ pub struct Options {
     /// at once, and of `set_contacts`) and by every `solve` and `step` (a refused
     /// call leaves the problem as it was).
     pub max_memory: usize,
+    /// How a problem on the host's solves obtains the contacts' blocks (see
+    /// [`HostBlocks`]; default `Auto`). Read by
+    /// `ContactProblem::with_host_solver` (kept for `set_contacts`); ignored
+    /// elsewhere.
+    pub host_blocks: HostBlocks,
 }
 
 /// Default window of the stagnation test, in outer iterations.
@@ -291,6 +325,7 @@ impl Default for Options {
             ordering: Ordering::Auto,
             threads: 0,
             max_memory: 0,
+            host_blocks: HostBlocks::Auto,
         }
     }
 }

@@ -1332,7 +1332,7 @@ fn not_converged() {
 
 #[test]
 fn status_strings_and_messages() {
-    for v in 0..=16 {
+    for v in 0..=17 {
         let p = ds_status_string(v);
         assert!(!p.is_null());
         // SAFETY: static NUL-terminated string.
@@ -1340,7 +1340,7 @@ fn status_strings_and_messages() {
         assert!(!s.is_empty() && s != "unknown status", "{v}");
     }
     // SAFETY: static NUL-terminated string.
-    let s = unsafe { CStr::from_ptr(ds_status_string(17)) };
+    let s = unsafe { CStr::from_ptr(ds_status_string(18)) };
     assert_eq!(s.to_str().unwrap(), "unknown status");
     // The message is per thread, and cleared by the next successful call.
     let h = new_problem();

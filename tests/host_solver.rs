@@ -120,7 +120,13 @@ fn concrete_host(scene: &Scene, nan: bool) -> (Host, Handles) {
 
 fn on_host(scene: &Scene, with_k: bool, nan: bool, opts: &Options) -> (ContactProblem, Handles) {
     let (solver, handles) = host(scene, nan);
-    let pb = on_solver(scene, solver, with_k, opts).expect("a valid host problem");
+    // The contact blocks by the host's solves, whose calls these tests count
+    // (the default, `Auto`, takes the library's factor of K on these scenes).
+    let opts = Options {
+        host_blocks: HostBlocks::Solves,
+        ..*opts
+    };
+    let pb = on_solver(scene, solver, with_k, &opts).expect("a valid host problem");
     (pb, handles)
 }
 
@@ -434,8 +440,9 @@ fn bad_sizes_and_methods_that_need_entries_are_refused() {
 }
 
 /// A host that gives entries of K^-1: the blocks come from one call of it
-/// (no solve at creation), and the answers are the own path's; a failing
-/// entries call fails the creation with its code.
+/// (no solve at creation), also where K is handed over (`HostBlocks::Auto`
+/// asks the host's entries first), and the answers are the own path's; a
+/// failing entries call fails the creation with its code.
 #[test]
 fn the_contact_blocks_from_the_hosts_entries_of_the_inverse() {
     let scene = scene_3d();
@@ -446,7 +453,7 @@ fn the_contact_blocks_from_the_hosts_entries_of_the_inverse() {
         .problem()
         .solve(&scene.f, &scene.g, friction, &opts)
         .unwrap();
-    for fail in [false, true] {
+    for (fail, with_k) in [(false, false), (false, true), (true, false)] {
         let (inner, handles) = concrete_host(&scene, false);
         let entries = Arc::new(AtomicUsize::new(0));
         let with = WithEntries {
@@ -454,7 +461,7 @@ fn the_contact_blocks_from_the_hosts_entries_of_the_inverse() {
             entries: entries.clone(),
             fail,
         };
-        let made = on_solver(&scene, Box::new(with), false, &opts);
+        let made = on_solver(&scene, Box::new(with), with_k, &opts);
         if fail {
             let e = made.err().expect("the entries call fails");
             assert_eq!(e.kind, ErrorKind::HostSolve);
@@ -474,7 +481,7 @@ fn the_contact_blocks_from_the_hosts_entries_of_the_inverse() {
         kkt_of(&scene, friction, &sol).assert_ok("blocks from entries", 1e-8);
         assert_agree("blocks from entries", &own, &sol, 1e-8);
         // The same blocks as by solves (to rounding): the same iterations.
-        let (mut by_solves, _) = on_host(&scene, false, false, &opts);
+        let (mut by_solves, _) = on_host(&scene, with_k, false, &opts);
         let b = by_solves
             .solve(&scene.f, &scene.g, friction, &opts)
             .unwrap();
@@ -681,7 +688,10 @@ fn on_single(scene: &Scene, fail_at: usize, nan: bool) -> (ContactProblem, Arc<A
         fail_at,
         nan,
     };
-    let opts = with(Method::Newton);
+    let opts = Options {
+        host_blocks: HostBlocks::Solves,
+        ..with(Method::Newton)
+    };
     let pb = on_solver(scene, Box::new(solver), true, &opts).expect("a valid host problem");
     (pb, singles)
 }
@@ -842,7 +852,10 @@ fn on_rows(scene: &Scene, nan: bool) -> (ContactProblem, Arc<RowsLog>, Arc<Atomi
         log: log.clone(),
         nan,
     };
-    let opts = with(Method::Newton);
+    let opts = Options {
+        host_blocks: HostBlocks::Solves,
+        ..with(Method::Newton)
+    };
     let pb = on_solver(scene, Box::new(solver), true, &opts).expect("a valid host problem");
     (pb, log, handles.calls)
 }
@@ -938,28 +951,9 @@ fn a_failing_solve_on_rows_is_an_error_and_the_problem_stays_usable() {
     }
 }
 
-/// A host that asks for the contact blocks by `how` ([`HostBlocks`]).
-struct Blocks {
-    host: Host,
-    how: HostBlocks,
-}
-
-impl KSolve for Blocks {
-    fn n(&self) -> usize {
-        self.host.n
-    }
-
-    fn solve(&mut self, x: &mut [f64], ncols: usize) -> Result<(), i32> {
-        self.host.solve(x, ncols)
-    }
-
-    fn blocks(&self) -> HostBlocks {
-        self.how
-    }
-}
-
-/// The scene's problem on a `Blocks` host asking for `how`, with K handed
-/// over where `with_k`, and its counter of solves.
+/// The scene's problem on a host with the contact blocks asked `how`
+/// (`Options::host_blocks`), with K handed over where `with_k`, and its
+/// counter of solves.
 fn on_blocks(
     scene: &Scene,
     how: HostBlocks,
@@ -967,7 +961,11 @@ fn on_blocks(
     opts: &Options,
 ) -> (dualsplit::Result<ContactProblem>, Arc<AtomicUsize>) {
     let (host, handles) = concrete_host(scene, false);
-    let pb = on_solver(scene, Box::new(Blocks { host, how }), with_k, opts);
+    let opts = Options {
+        host_blocks: how,
+        ..*opts
+    };
+    let pb = on_solver(scene, Box::new(host), with_k, &opts);
     (pb, handles.calls)
 }
 

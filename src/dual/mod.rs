@@ -256,9 +256,20 @@ impl Dual {
         check_shapes(host.n(), d, n, t)?;
         let b = stack_rows(n, t);
         let c = b.nrows;
-        let blocks = by_factor
-            .map(|(analysis, k)| blocks_by_factor(analysis, k, &b, d))
-            .transpose()?;
+        // Under `HostBlocks::Auto` the host's entries of K^-1 come first
+        // where it gives them (one call), even where the factor would pay.
+        let entries = match by_factor {
+            Some(_) if host.blocks() == crate::HostBlocks::Auto => {
+                operator::blocks_from_entries(host, &b.transpose(), m, d).transpose()?
+            }
+            _ => None,
+        };
+        let blocks = match entries {
+            Some(blocks) => Some(blocks),
+            None => by_factor
+                .map(|(analysis, k)| blocks_by_factor(analysis, k, &b, d))
+                .transpose()?,
+        };
         let free = Operator::on_host(host, &b, m, d, blocks)?;
         let claim = ledger.claim_f64(d * c + host.n());
         Ok(Self::of_operator(
@@ -643,7 +654,7 @@ pub(crate) fn host_layer(
 
 /// What a dual on the host's solves makes of a K handed over: the layered
 /// Dirichlet preconditioner where it pays ([`host_layer`]), and the analysis
-/// of the factor the library would make of K (None where the analysis
+/// of the factor the library would make of K (its error where the analysis
 /// failed), its numeric allocations counted on `ledger`: the factor that
 /// gives the contacts' blocks where [`crate::HostBlocks`] asks for it
 /// ([`blocks_by_factor`]).
@@ -653,7 +664,7 @@ pub(crate) fn host_plan(
     d: usize,
     threads: &Arc<Threads>,
     ledger: &Arc<Ledger>,
-) -> (Option<crate::dirichlet::Plan>, Option<Factor>) {
+) -> (Option<crate::dirichlet::Plan>, Result<Factor>) {
     let analysis = Factor::analyse(
         k,
         &[],
@@ -661,8 +672,7 @@ pub(crate) fn host_plan(
         d == 3,
         threads.clone(),
         ledger.clone(),
-    )
-    .ok();
+    );
     let l_nnz = analysis
         .as_ref()
         .map_or((k.nnz() + k.nrows) / 2, |a| a.nnz_and_flops().0);

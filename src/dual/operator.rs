@@ -687,7 +687,7 @@ pub(super) fn host_blocks(
 /// offers none): per contact i, the DOFs S_i its d rows touch, the entries
 /// (p, q) of K^-1 for p <= q in S_i asked in one call, and block (la, lb) =
 /// sum over p, q in S_i of B_la,p (K^-1)_pq B_lb,q.
-fn blocks_from_entries(
+pub(super) fn blocks_from_entries(
     host: &crate::host::Host,
     bt: &Csc,
     m: usize,

@@ -134,7 +134,7 @@ pub struct DsHostSolver {
     /// 0.10.
     pub solve_rows: DsHostSolveRowsFn,
     /// How the contacts' blocks are obtained: a DsHostBlocks value (0,
-    /// DS_HOST_BLOCKS_SOLVES, in a zeroed struct). Added in version 0.10.
+    /// DS_HOST_BLOCKS_AUTO, in a zeroed struct). Added in version 0.10.
     pub blocks: i32,
 }
 
@@ -191,7 +191,6 @@ struct CHost {
     solve_rows: DsHostSolveRowsFn,
     /// The rows of the last call of `solve_rows`, as the callback takes them.
     rows: Vec<i64>,
-    blocks: crate::HostBlocks,
     inverse: DsHostInverseFn,
     context: *mut c_void,
 }
@@ -204,10 +203,6 @@ unsafe impl Send for CHost {}
 impl KSolve for CHost {
     fn n(&self) -> usize {
         self.n
-    }
-
-    fn blocks(&self) -> crate::HostBlocks {
-        self.blocks
     }
 
     fn solve(&mut self, x: &mut [f64], ncols: usize) -> std::result::Result<(), i32> {
@@ -311,7 +306,6 @@ fn host_of(s: &DsHostSolver) -> Result<CHost> {
         solve_single: s.solve_single,
         solve_rows: s.solve_rows,
         rows: Vec::new(),
-        blocks: DsHostBlocks::parse(s.blocks, "solver->blocks")?.into(),
         inverse: s.inverse_entries,
         context: s.context,
     })
@@ -391,9 +385,10 @@ pub unsafe extern "C" fn ds_problem_new_host(
             Some(unsafe { ref_in(k, "k")? })
         };
         // SAFETY: opts is NULL or a readable DsOptions prefix (contract).
-        let opts = unsafe { DsOptions::read(opts)? };
+        let mut opts = unsafe { DsOptions::read(opts)? };
         let d = dimension(d)?;
         let host = host_of(&solver)?;
+        opts.host_blocks = DsHostBlocks::parse(solver.blocks, "solver->blocks")?.into();
         // SAFETY: the matrices' arrays match their fields (contract).
         let (nv, tv) = unsafe { (n.view("N")?, t.view("T")?) };
         // SAFETY: as above, for K where given.

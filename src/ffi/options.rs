@@ -177,6 +177,8 @@ impl DsOptions {
             threads: count(i64::from(self.threads), "threads", 0)?,
             ordering: ordering.into(),
             max_memory: usize::try_from(self.max_memory).unwrap_or(usize::MAX),
+            // Set from DsHostSolver.blocks by ds_problem_new_host.
+            host_blocks: crate::HostBlocks::Auto,
         };
         opts.check("opts.")?;
         Ok(opts)

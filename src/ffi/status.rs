@@ -165,7 +165,7 @@ mod tests {
             assert_eq!(DsStatus::from_i32(i as i32), Some(*s));
         }
         assert_eq!(DsStatus::from_i32(-1), None);
-        assert_eq!(DsStatus::from_i32(17), None);
+        assert_eq!(DsStatus::from_i32(18), None);
     }
 
     #[test]
@@ -193,6 +193,7 @@ mod tests {
             DsStatus::Stopped,
             DsStatus::Stalled,
             DsStatus::TimeLimit,
+            DsStatus::Busy,
         ];
         for s in DsStatus::ALL {
             let from_kinds = mapped.iter().filter(|&&m| m == s).count();

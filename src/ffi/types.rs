@@ -239,11 +239,17 @@ impl CEnum for DsOrdering {
 #[repr(C)]
 #[derive(Copy, Clone, Debug, PartialEq, Eq)]
 pub enum DsHostBlocks {
+    /// The host's inverse_entries where given (one call); else
+    /// DS_HOST_BLOCKS_FACTOR where K is handed over, the factor fits
+    /// max_memory (the machine's memory where 0) and its flops are fewer than
+    /// the solves' (c solves of 4 nnz(L) flops against 2.5 times the
+    /// factorisation's); else DS_HOST_BLOCKS_SOLVES. The default (a zeroed
+    /// struct): a host that hands K over expects it used.
+    Auto = 0,
     /// By d m of the host's solves, 32 right-hand sides per call (from its
     /// inverse_entries where given): nothing of K's factor in the library's
-    /// memory. 9-75 factorisations of K on the benchmark's 3D blocks. The
-    /// default (a zeroed struct).
-    Solves = 0,
+    /// memory. 9-75 factorisations of K on the benchmark's 3D blocks.
+    Solves = 1,
     /// By the library's own factor of K, which must be handed over
     /// (DS_STATUS_BAD_ARGUMENT without it): factored once when the blocks
     /// are formed (creation, ds_problem_set_contacts), its selected inversion
@@ -251,20 +257,15 @@ pub enum DsHostBlocks {
     /// in the call's memory prediction and max_memory. 1.5-2.5
     /// factorisations of K in all on the benchmark's 3D blocks.
     /// inverse_entries is not called. Every product still calls the host.
-    Factor = 1,
-    /// DS_HOST_BLOCKS_FACTOR where K is handed over, the factor fits
-    /// max_memory (the machine's memory where 0) and its flops are fewer than
-    /// the solves' (c solves of 4 nnz(L) flops against 2.5 times the
-    /// factorisation's); else DS_HOST_BLOCKS_SOLVES.
-    Auto = 2,
+    Factor = 2,
 }
 
 impl CEnum for DsHostBlocks {
     const NAME: &'static str = "DsHostBlocks";
     const ALL: &'static [(Self, &'static str)] = &[
+        (DsHostBlocks::Auto, "DS_HOST_BLOCKS_AUTO"),
         (DsHostBlocks::Solves, "DS_HOST_BLOCKS_SOLVES"),
         (DsHostBlocks::Factor, "DS_HOST_BLOCKS_FACTOR"),
-        (DsHostBlocks::Auto, "DS_HOST_BLOCKS_AUTO"),
     ];
 }
 

@@ -161,13 +161,16 @@ fn host_setup(
     sizes.dirichlet = layer.as_ref().map_or(0, |p| p.bytes());
     let analysis = match (how, analysis) {
         (HostBlocks::Solves, _) => None,
-        (HostBlocks::Factor, None) => {
-            return fail(
-                ErrorKind::OutOfMemory,
-                "the contact blocks by the library's factor of K: K's analysis failed",
-            );
+        (HostBlocks::Factor, Err(e)) => {
+            return Err(crate::Error::new(
+                e.kind,
+                format!(
+                    "the contact blocks by the library's factor of K: K's analysis failed: {}",
+                    e.message
+                ),
+            ));
         }
-        (_, analysis) => analysis,
+        (_, analysis) => analysis.ok(),
     };
     let Some(analysis) = analysis else {
         return Ok((sizes, layer, None));
@@ -284,7 +287,7 @@ impl ContactProblem {
         check_shapes(ndof, d, &n, &t)?;
         let threads = Arc::new(crate::threads::Threads::new(opts.threads));
         let ledger = memory::Ledger::new();
-        let how = solver.blocks();
+        let how = opts.host_blocks;
         let (sizes, layer, by_factor) = host_setup(
             k.as_ref(),
             (&n, &t),
@@ -302,7 +305,7 @@ impl ContactProblem {
         )?;
         let inputs = ledger.claim(sizes.inputs);
         let stiff = Stiffness::Host {
-            host: Arc::new(crate::host::Host::new(solver)),
+            host: Arc::new(crate::host::Host::new(solver, how)),
             k,
             threads,
             ledger,
@@ -657,6 +660,8 @@ impl ContactProblem {
             self.compliance.carry(&law, &mut self.history.lt, self.d);
         }
         self.dual.set_shift(&law.shift(self.d));
+        // The predictor's loads were those of the old A + D.
+        self.history.forget_loads();
         self.compliance = law;
         Ok(())
     }
