@@ -31,20 +31,44 @@ fn code_of(text: &str) -> String {
         .join("\n")
 }
 
-/// The names `crate::name` mentions in `code`.
+/// The identifier at the start of `s` (a module name: lower case, digits, _).
+fn ident(s: &str) -> String {
+    s.chars()
+        .take_while(|c| c.is_ascii_lowercase() || *c == '_' || c.is_ascii_digit())
+        .collect()
+}
+
+/// The names `crate::name` mentions in `code`, grouped imports included
+/// (`use crate::{a, b::C, d::{e, f}}` mentions a, b and d).
 fn mentions(code: &str) -> BTreeSet<String> {
     let mut out = BTreeSet::new();
     let mut rest = code;
     while let Some(i) = rest.find("crate::") {
         rest = &rest[i + "crate::".len()..];
-        let name: String = rest
-            .chars()
-            .take_while(|c| c.is_ascii_lowercase() || *c == '_' || c.is_ascii_digit())
-            .collect();
-        if !name.is_empty() {
-            out.insert(name);
+        if let Some(group) = rest.strip_prefix('{') {
+            // The items at the group's own depth, up to its closing brace.
+            let mut depth = 0usize;
+            let mut item_start = 0;
+            for (k, ch) in group.char_indices() {
+                match ch {
+                    '{' => depth += 1,
+                    '}' if depth == 0 => {
+                        out.insert(ident(group[item_start..k].trim_start()));
+                        break;
+                    }
+                    '}' => depth -= 1,
+                    ',' if depth == 0 => {
+                        out.insert(ident(group[item_start..k].trim_start()));
+                        item_start = k + 1;
+                    }
+                    _ => {}
+                }
+            }
+        } else {
+            out.insert(ident(rest));
         }
     }
+    out.remove("");
     out
 }
 
@@ -152,4 +176,11 @@ fn the_cycle_finder_finds_a_planted_cycle() {
     let cycle = find_cycle(&g).expect("problem -> ... -> factor -> problem");
     assert_eq!(cycle.first(), cycle.last());
     assert!(cycle.iter().any(|m| m == "factor"));
+}
+
+#[test]
+fn grouped_and_nested_imports_are_read() {
+    let got = mentions("use crate::{a, b::C, d::{e, f},\n    g_2};\nlet x = crate::h::y();");
+    let want: BTreeSet<String> = ["a", "b", "d", "g_2", "h"].map(String::from).into();
+    assert_eq!(got, want);
 }

@@ -139,13 +139,17 @@ fn newton_warm_step_2d_coulomb_no_more_iterations_than_cold() {
 }
 
 #[test]
-fn newton_warm_step_2d_tresca_no_more_iterations_than_cold() {
+fn newton_warm_step_2d_tresca_fewer_iterations_than_cold() {
     let sc = block(400, 50);
     // The benchmark's Tresca bound: mu times the mean pressure E delta / height.
     let p = vec![0.3 * 2e-3; sc.m()];
-    let (_, warm, cold) = warm_against_cold(&sc, Friction::Tresca(&p), 1.05, "2d-400x50 Tresca");
+    // A load raised by 30 %: the cold start of the same increment needs a
+    // second Newton step (measured: 2), the warm one does not (1). At 1.05,
+    // 2 and 3 both take one, which would test nothing.
+    let (_, warm, cold) = warm_against_cold(&sc, Friction::Tresca(&p), 1.3, "2d-400x50 Tresca");
+    assert!(cold >= 2, "the cold start takes {cold} Newton iterations");
     assert!(
-        warm <= cold,
+        warm < cold,
         "warm step: {warm} Newton iterations, cold start on the same increment: {cold}"
     );
 }

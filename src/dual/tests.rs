@@ -267,11 +267,15 @@ fn matrix_free_products_and_diagonal_match_the_dense_a() {
         for (a, b) in y0.iter().zip(&y1) {
             assert!((a - b).abs() <= 1e-13 * scale * xs * c as f64, "{a} vs {b}");
         }
-        // In single precision (the rough products): to about 1e-7.
+        // In single precision (the rough products): to about 1e-7 of the
+        // largest entry of A times |x| (1.0-1.5e-7 measured here).
         free.apply_rough(&x, &mut y1);
-        for (a, b) in y0.iter().zip(&y1) {
-            assert!((a - b).abs() <= 1e-5 * scale * xs * c as f64, "{a} vs {b}");
-        }
+        let worst = y0
+            .iter()
+            .zip(&y1)
+            .map(|(a, b)| (a - b).abs())
+            .fold(0.0f64, f64::max);
+        assert!(worst <= 1e-6 * scale * xs, "single precision: {worst:e}");
     }
     // A leading block (the normal unknowns alone), with a dense x.
     let m = dense.m;
@@ -321,4 +325,32 @@ fn the_norm_estimate_is_kept_until_the_operator_changes() {
     assert_eq!(dual.whole_norm(), Some(2.5));
     dual.set_shift(&[1.0; 6]);
     assert_eq!(dual.whole_norm(), None, "A + D is another operator");
+}
+
+/// A compliance shift on a dense A is undone exactly: A's own diagonal is
+/// kept while D sits on it, so an empty shift gives A back bitwise (and rho
+/// with it), after several shifts in a row.
+#[test]
+fn an_empty_shift_restores_a_bitwise() {
+    let (nx, ny) = (8, 5);
+    let k = grid(nx, ny);
+    let (n, t) = contacts_at(&[0, 2, 4], nx * ny);
+    let f = metis_factor(&k, 1);
+    let mut dual = Dual::build(&f, &n, &t, 2, DualForm::Dense).unwrap();
+    let (a, rho) = (dual.a.clone(), dual.rho.clone());
+    let c = dual.c;
+    let third: Vec<f64> = (0..c).map(|j| 1.0 / 3.0 + j as f64 * 0.1).collect();
+    dual.set_shift(&third);
+    assert_ne!(dual.a, a, "the shift is on A's diagonal");
+    dual.set_shift(&vec![1e-3; c]);
+    dual.set_shift(&[]);
+    assert!(
+        dual.a
+            .iter()
+            .zip(&a)
+            .all(|(x, y)| x.to_bits() == y.to_bits()),
+        "A restored bitwise"
+    );
+    assert_eq!(dual.rho, rho);
+    assert!(dual.shift().is_empty());
 }

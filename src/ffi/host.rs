@@ -33,6 +33,19 @@ use std::ffi::c_void;
 /// every rank computes bitwise identical multipliers and u
 /// (c_examples/petsc_operator.c checks it on 2 ranks). With more threads the
 /// library's own parallel kernels may sum in another order on each rank.
+/// The same calls take the same branches only where nothing local to a rank
+/// decides one:
+/// - max_seconds = 0 (a time limit ends each rank's solve at its own
+///   iteration);
+/// - the same nonzero max_memory on every rank (with 0 the limit is each
+///   machine's own memory, and the AUTO choices that weigh memory, such as
+///   DS_HOST_BLOCKS_AUTO's factor, may differ between ranks);
+/// - a monitor that returns the same value on every rank, and a callback that
+///   fails on every rank or on none (a failure on one rank ends its call
+///   there while the others wait in the next collective solve);
+/// - no allocation that fails on one rank alone (the library's fallbacks for
+///   a failed large allocation, such as AMD where METIS runs out of memory,
+///   are taken per rank): size max_memory below what every rank has.
 pub type DsHostSolveFn = Option<
     unsafe extern "C" fn(context: *mut c_void, n: i64, ncols: i64, x: *mut f64, ld: i64) -> i32,
 >;
