@@ -14,10 +14,12 @@
  * deviation exceeds --check-tol (default 1e-10).
  *
  * The failure path: with --fail-at N the callback returns the code 77 on its
- * N-th call (counted from the start of the history); the step in which that
+ * N-th call (counted from the handle's creation, whose contact blocks take the
+ * first calls); the step in which that
  * happens must return DS_STATUS_HOST_SOLVE_FAILED with the code in the message,
  * leave its outputs untouched, and the step redone must give the own path's
- * answer again ("FAILURE ... ok" line).
+ * answer again (a line "FAILURE step=.. call=.. named=0|1 untouched=0|1
+ * message=\"..\""; the redone step's deviation counts in the SUMMARY check).
  *
  * Options: --nx N --ny N (default 40 x 20), --no-k (do not hand K over: Jacobi
  * instead of the lumped preconditioner, K u_k from the last equilibrium),
@@ -30,9 +32,11 @@
  *      target/release/libdualsplit.a -lcholmod -lsuitesparseconfig -lm -lpthread -ldl \
  *      -o cholmod_operator
  *
- * Output: a table per step and a line "SUMMARY steps=.. max_dev=.. host_solves=..
- * host_seconds=.. check=ok|FAILED". Exit status: 0 on success, 1 if a step did not
- * converge or a check failed, 2 on a library or CHOLMOD error, 3 on bad options.
+ * Output: a table per step (unless --quiet) and a line "SUMMARY steps=..
+ * contacts=.. dofs=.. max_dev=.. host_calls=.. with_k=0|1 check=ok|FAILED"
+ * (host_calls: every call of the callback, those for the contact blocks at
+ * creation included). Exit status: 0 on success, 1 if a step did not converge
+ * or a check failed, 2 on a library or CHOLMOD error, 3 on bad options.
  */
 
 #include <errno.h>
@@ -214,6 +218,9 @@ int main(int argc, char **argv)
     solver.n = s.neq;
     solver.solve = cholmod_solve_cb;
     solver.context = &host;
+    /* K is factored once, by the host: the contact blocks by its solves too
+       (the default, DS_HOST_BLOCKS_AUTO, may factor the K handed over). */
+    solver.blocks = DS_HOST_BLOCKS_SOLVES;
     st = ds_problem_new_host(2, &solver, with_k ? &kc : NULL, &nm, &tm, &opts, &onh);
     if (st != DS_STATUS_OK) {
         library_error("ds_problem_new_host", st);

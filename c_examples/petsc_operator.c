@@ -5,7 +5,12 @@
  * and every rank running the library's identical contact iteration on those
  * solves (ds_problem_new_host, SPMD): the callback is collective, every rank
  * calls it the same number of times, and every rank gets bitwise the same
- * multipliers and u.
+ * multipliers and u. That holds where nothing local to a rank decides a
+ * branch: threads = 1, max_seconds = 0, the same nonzero max_memory on every
+ * rank (0 would let each rank weigh its own machine's memory in the AUTO
+ * choices), a callback that fails on every rank or none, and no allocation
+ * failing on one rank alone (see DsHostSolveFn in dualsplit.h); this example
+ * sets threads = 1 and max_memory explicitly.
  *
  * The block: nx x ny x nz trilinear hexahedra on 1 x 1 x (nz / nx), E = 1,
  * nu = 0.3; the top face is pressed down (3 steps) then sheared along x (3
@@ -34,7 +39,9 @@
  *   mpirun -np 2 ./petsc_operator
  *
  * Output (rank 0): a table per step, "CREATE seconds=.. host_solves=..
- * host_seconds=.." (the creation, its contact blocks by d m solves) and
+ * host_seconds=.." (the creation, its contact blocks as DS_HOST_BLOCKS_AUTO,
+ * the default, takes them: MUMPS's entries with --mumps-inverse, else the
+ * library's own factor of the K handed over where it pays, else d m solves) and
  * "SUMMARY ranks=.. dofs=.. contacts=.. dual=.. steps=.. max_err=.. max_dev=..
  * identical=.. host_solves=.. loose_solves=.. host_seconds=.. library_seconds=..
  * cost_matches=.. check=ok|FAILED" (over the steps: the host's solves, of them
@@ -432,6 +439,9 @@ int main(int argc, char **argv)
     ds_options_default(&opts);
     opts.tol = 1e-10;
     opts.threads = 1;
+    /* The same limit on every rank (SPMD): with 0 each rank would weigh its
+       own machine's memory in the AUTO choices. */
+    opts.max_memory = (uint64_t)16 << 30;
     opts.method = DS_METHOD_AUTO;
     opts.dual_form = DS_DUAL_FORM_MATRIX_FREE;
     memset(&solver, 0, sizeof solver);

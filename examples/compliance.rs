@@ -1,4 +1,4 @@
-//! Interface compliance (issue 32): per scene, the best plain factorisation of
+//! Interface compliance: per scene, the best plain factorisation of
 //! K (the baseline, as in `history`), then one contact problem solved cold,
 //! rigid and with a compliant interface at three stiffnesses, and a 10-step
 //! history (press, then shear) per law. A contact's stiffness is measured in

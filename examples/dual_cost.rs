@@ -1,4 +1,4 @@
-//! What a dual path without A costs (issue 17): on the benchmark's scenes, the best
+//! What a dual path without A costs: on the benchmark's scenes, the best
 //! plain factorisation of K, one solve with it (one product A x = B K^-1 B^T x
 //! costs one solve), a block of 16 solves, and what the diagonal blocks of A (the
 //! rho_i of the error measure) would cost without A: by one sparse forward solve

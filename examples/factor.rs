@@ -1,4 +1,4 @@
-//! The factorisation benchmark (issue 16): what one factorisation of K costs with
+//! The factorisation benchmark: what one factorisation of K costs with
 //! each fill-reducing ordering, plain and with the contact DOFs last, on 1 and 2
 //! threads, next to CHOLMOD's own factorisation of the same K.
 //!

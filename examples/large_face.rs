@@ -1,4 +1,4 @@
-//! The matrix-free path on large contact faces (issue 17): per scene, the best
+//! The matrix-free path on large contact faces: per scene, the best
 //! plain factorisation of K (the baseline: AMD and METIS, analysis and numeric
 //! factorisation, each the median of FACTOR_REPS runs, the faster), then a
 //! contact problem created matrix-free (the plain factor and the contacts'

@@ -1,4 +1,4 @@
-//! The work-precision benchmark of dualsplit (issue 4).
+//! The work-precision benchmark of dualsplit.
 //!
 //! ```text
 //! cargo run --release --example bench -- [--quick | --big | --slabs] [--scenes A,B,..]
@@ -92,7 +92,7 @@ const BIG: &[&str] = &["2d-5000x100", "3d-50x50x25"];
 
 const QUICK: &[&str] = &["2d-100x50", "2d-200x25", "3d-10x10x5"];
 
-/// `--slabs` (issue 17): thin 3D slabs whose whole bottom face is a contact, c =
+/// `--slabs`: thin 3D slabs whose whole bottom face is a contact, c =
 /// 3,267, 12,675 and 41,067, and the 2D strip of `--big` (c = 10,002). Run them
 /// with `--only ours-free`: the dense dual of the largest does not fit 24 GB.
 const SLABS: &[&str] = &["3d-32x32x4", "3d-64x64x6", "3d-116x116x4", "2d-5000x100"];
