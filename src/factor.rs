@@ -902,7 +902,7 @@ impl Factor {
     /// each through the supernodes on the elimination-tree paths from its
     /// nonzeros to the root only (w^2 + 2 w r per supernode of width w with r rows
     /// below): what the diagonal of B K^-1 B^T costs from this factor without
-    /// forming anything c x c (issue 17's measurement; `examples/dual_cost.rs`).
+    /// forming anything c x c (`examples/dual_cost.rs` measures it).
     #[cfg(any(test, feature = "internals"))]
     pub fn forward_flops_per_row(&self, b: &Csc) -> f64 {
         let sym = self.supernodal_symbolic();

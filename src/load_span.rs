@@ -1,5 +1,5 @@
 //! The loads a handle has solved for, kept with their solutions, so that a
-//! load in their span is solved by combining them (issue 29: histories).
+//! load in their span is solved by combining them (histories).
 //!
 //! Under proportional loading, and along any straight stretch of a load path
 //! (press ramped, then shear ramped at full press), the host's total load f

@@ -1,4 +1,4 @@
-//! Bad input through the C ABI (issue 5), beyond what tests/ffi_errors.rs covers
+//! Bad input through the C ABI, beyond what tests/ffi_errors.rs covers
 //! (null pointers and null handles, negative sizes, out-of-range indices, NaN in
 //! K/N/f/g/p, a grossly unsymmetric K, small dense singular/indefinite K, negative
 //! p/mu, d = 4, 1, 0, -2, bad enums and options are all there):

@@ -1,4 +1,4 @@
-//! Interface compliance (issue 32, docs/design.md section 8): the linear
+//! Interface compliance (docs/design.md section 8): the linear
 //! normal compliance law lambda_N = c_N (N u - g)_+ and the elastic slip
 //! lambda_T = proj_{|x| <= p}(lambda_T,prev + k_T T u), checked against
 //! - closed forms on one node on springs (the forces by hand), in a single

@@ -1,5 +1,5 @@
 //! A dense K (`Format::Dense` / DS_FORMAT_DENSE): the Schur-complement workflow of
-//! issue 18. Checked against independent truths:
+//! Checked against independent truths:
 //! - the same scene with K sparse (the library's other factorisation): u and the
 //!   multipliers agree to 1e-12 relative at tol 1e-13, every method, Tresca and
 //!   Coulomb, 2D and 3D, full / upper / lower storage with a padded leading

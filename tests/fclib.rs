@@ -552,7 +552,7 @@ fn fclib_problems() {
 }
 
 /// The problem that made the default method run for 18 minutes without progress
-/// (issue: solves that never hang). With the default options but the tolerance,
+/// (solves that never hang). With the default options but the tolerance,
 /// every method must end within a bounded number of outer iterations, far below
 /// max_outer = 10,000, with an honest status: Converged (checked against the
 /// independent reference) or Stalled with the best iterate it met. Release

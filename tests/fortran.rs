@@ -1021,7 +1021,7 @@ fn block2d_f90_rejects_bad_options() {
     }
 }
 
-/// `ds_matrix_dense` (the Schur-complement workflow of issue 18): a dense K in a
+/// `ds_matrix_dense` (the Schur-complement workflow): a dense K in a
 /// padded array, one triangle read, gives the COO answer and DS_ORDERING_DENSE.
 #[test]
 fn dense_k_through_the_module() {

@@ -1,4 +1,4 @@
-//! Numerically hard scenes (issue 5): every method of `Method::ALL` runs on each, a
+//! Numerically hard scenes: every method of `Method::ALL` runs on each, a
 //! table of (method, status, outer/inner iterations, err) is printed (run with
 //! `--nocapture`), and every assertion is made against an independent truth: the
 //! KKT checker of tests/common (whenever a solve says Converged), a closed form, a

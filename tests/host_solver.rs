@@ -1,5 +1,5 @@
-//! A problem on the host's own solver of K (`ContactProblem::with_host_solver`,
-//! issue 31): the host here is a callback written in the test that factors K
+//! A problem on the host's own solver of K (`ContactProblem::with_host_solver`):
+//! the host here is a callback written in the test that factors K
 //! itself. Its answers must pass the KKT check and agree with the library's
 //! own path (same K, N, T) for Newton and MPRGP, 2D and 3D, Tresca and
 //! Coulomb, single solves and histories, with and without K handed over; a

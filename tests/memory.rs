@@ -1,4 +1,4 @@
-//! Memory (issue 19): the prediction made after the analysis against what the
+//! Memory: the prediction made after the analysis against what the
 //! library allocates, counted by a global allocator that wraps the system's (not
 //! read from the operating system); the limit `max_memory` refusing a creation
 //! before any numeric work and a solve before its method runs, with the problem
@@ -500,7 +500,7 @@ fn refactor_and_new_contacts_respect_the_handles_max_memory() {
     }
 }
 
-/// The matrix-free path (issue 17) allocates no c x c array: on a slab whose
+/// The matrix-free path allocates no c x c array: on a slab whose
 /// every bottom node is a contact (c = 1,875 = n, so that even a dense factor of K
 /// stays below c^2 doubles), no single allocation of the creation and a Coulomb
 /// solve by the default method reaches c^2 doubles; the dense route on the same

@@ -1,4 +1,4 @@
-//! Watching a solve (issue 7): the monitor callback sees err fall to the reported
+//! Watching a solve: the monitor callback sees err fall to the reported
 //! err, stopping after k iterations stops after exactly k with the last iterate
 //! written, and the log sink is silent unless asked.
 

@@ -1,4 +1,4 @@
-//! Keep your own direct solver (issue 18): c_examples/mumps_schur.c factors K with
+//! Keep your own direct solver: c_examples/mumps_schur.c factors K with
 //! the sequential MUMPS and hands its Schur complement onto the contact DOFs to the
 //! library as a dense K; c_examples/mumps_mpi_schur.c does the same with the
 //! parallel MUMPS over 2 MPI ranks (K distributed). Both run the demo's 15-step

@@ -1,5 +1,5 @@
 //! The fill-reducing ordering (`Options::ordering`: AMD, METIS or the cheaper of
-//! the two) and the problem's own threads (`Options::threads`), issue 16.
+//! the two) and the problem's own threads (`Options::threads`).
 //!
 //! Checked: AMD and METIS give the same solution (to 1e-12, and each one passes
 //! the KKT check) on a 3D block and a 2D strip; AUTO keeps the ordering with fewer

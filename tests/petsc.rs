@@ -1,4 +1,4 @@
-//! The library on a distributed K (issue 31): c_examples/petsc_operator.c
+//! The library on a distributed K: c_examples/petsc_operator.c
 //! assembles a 3D elastic block into a PETSc MPIAIJ matrix on 2 MPI ranks,
 //! applies K^-1 by a KSP (MUMPS's Cholesky, or CG with algebraic multigrid),
 //! and runs the library's contact iteration on every rank on those solves

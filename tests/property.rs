@@ -1,4 +1,4 @@
-//! Property test (issue 5): random small SPD K and random N, T in 2D and 3D (a
+//! Property test: random small SPD K and random N, T in 2D and 3D (a
 //! deterministic SplitMix64 stream, no dependencies). For every case and every
 //! method of `Method::ALL`:
 //!

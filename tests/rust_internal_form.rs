@@ -1,6 +1,6 @@
 //! Matrices a Rust caller builds in internal form (`dualsplit::Csc`, whose
 //! fields are public) are checked by `ContactProblem::from_csc`,
-//! `from_csc_with` and `analyse_csc` (issue 30): a broken invariant is an error
+//! `from_csc_with` and `analyse_csc`: a broken invariant is an error
 //! of the right kind with a message naming the matrix, never a panic inside
 //! the factorisation and never a silently wrong answer (an unsymmetric K used
 //! through one triangle).

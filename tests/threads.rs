@@ -1,4 +1,4 @@
-//! Several handles used at once from several threads (issue 5). The documented rule
+//! Several handles used at once from several threads. The documented rule
 //! (src/ffi/problem.rs): a handle may be used from any thread, by one thread at a
 //! time; distinct handles are independent; the last error message is per thread.
 //!

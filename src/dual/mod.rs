@@ -641,7 +641,7 @@ mod operator;
 /// analysis fails. A direct host's factor is about that size; an iterative
 /// host's solve reads far more. Weighed against K's lower triangle alone
 /// the preconditioner was refused on most scenes, and the host's steps took
-/// 30-50 % more products than the own path's (BENCHMARKS.md, session 21).
+/// 30-50 % more products than the own path's (BENCHMARKS.md, "The host's solver of K").
 pub(crate) fn host_layer(
     k: &Csc,
     b: &Csc,
