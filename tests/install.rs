@@ -11,7 +11,7 @@
 //! - the Fortran module source compiled from the prefix with c_examples/minimal.f90
 //!   (gfortran) and linked through pkg-config;
 //! - lib/cmake/dualsplit/dualsplitConfig.cmake and its version file:
-//!   `find_package(dualsplit 0.3 REQUIRED)` and `dualsplit::dualsplit` build and run
+//!   `find_package(dualsplit <this major.minor> REQUIRED)` and `dualsplit::dualsplit` build and run
 //!   a C program, and a request for another minor version is refused (0.x);
 //! - README's CMake snippet (pkg-config from CMake);
 //! - `make demo` with CARGO_TARGET_DIR set: the Makefile links the library cargo
