@@ -100,12 +100,12 @@ pub trait KSolve: Send {
 /// What the host's solver did for one problem: calls, right-hand sides,
 /// seconds inside it, and the failure latched since the last [`Host::clear`].
 #[derive(Default)]
-struct Ledger {
+struct Tally {
     counts: Counts,
     failure: Option<Error>,
 }
 
-impl Ledger {
+impl Tally {
     /// Ok where `failure` is None; else latches it as a `HostSolve` error
     /// and returns it.
     fn latch(&mut self, failure: Option<String>) -> Result<()> {
@@ -121,11 +121,11 @@ impl Ledger {
 }
 
 /// The host's solver as a problem holds it: the callback, behind a lock (it
-/// takes `&mut self`), and what it did (see [`Ledger`]).
+/// takes `&mut self`), and what it did (see [`Tally`]).
 pub(crate) struct Host {
     n: usize,
     solver: Mutex<Box<dyn KSolve>>,
-    ledger: Mutex<Ledger>,
+    tally: Mutex<Tally>,
     /// False once the host answered that it offers no single-precision solve.
     single: std::sync::atomic::AtomicBool,
     /// False once the host answered that it offers no solve on rows.
@@ -154,7 +154,7 @@ impl Host {
             n: solver.n(),
             blocks,
             solver: Mutex::new(solver),
-            ledger: Mutex::new(Ledger::default()),
+            tally: Mutex::new(Tally::default()),
             single: std::sync::atomic::AtomicBool::new(true),
             rows: std::sync::atomic::AtomicBool::new(true),
         }
@@ -170,9 +170,9 @@ impl Host {
         self.blocks
     }
 
-    /// The ledger, locked (a poisoned lock still holds valid counters).
-    fn ledger(&self) -> std::sync::MutexGuard<'_, Ledger> {
-        self.ledger.lock().unwrap_or_else(|e| e.into_inner())
+    /// The tally, locked (a poisoned lock still holds valid counters).
+    fn tally(&self) -> std::sync::MutexGuard<'_, Tally> {
+        self.tally.lock().unwrap_or_else(|e| e.into_inner())
     }
 
     /// x (n x ncols, column-major) := K^-1 x by the host. On a failure (the
@@ -249,8 +249,8 @@ impl Host {
     ) -> Option<Result<()>> {
         let len = rows.map_or(self.n, <[usize]>::len);
         debug_assert_eq!(x.len(), len * ncols);
-        let mut ledger = self.ledger();
-        if let Some(e) = &ledger.failure {
+        let mut tally = self.tally();
+        if let Some(e) = &tally.failure {
             return Some(Err(e.clone()));
         }
         let start = Instant::now();
@@ -258,7 +258,7 @@ impl Host {
             let mut solver = self.solver.lock().unwrap_or_else(|e| e.into_inner());
             f(&mut **solver, x)?
         };
-        let counts = &mut ledger.counts;
+        let counts = &mut tally.counts;
         counts.seconds += start.elapsed().as_secs_f64();
         counts.calls += 1;
         counts.columns += ncols;
@@ -278,7 +278,7 @@ impl Host {
                 )
             }),
         };
-        Some(ledger.latch(failure))
+        Some(tally.latch(failure))
     }
 
     /// The entries of K^-1 at (`rows`, `cols`) into `values` by the host where it offers
@@ -289,8 +289,8 @@ impl Host {
         cols: &[usize],
         values: &mut [f64],
     ) -> Option<Result<()>> {
-        let mut ledger = self.ledger();
-        if let Some(e) = &ledger.failure {
+        let mut tally = self.tally();
+        if let Some(e) = &tally.failure {
             return Some(Err(e.clone()));
         }
         let start = Instant::now();
@@ -298,8 +298,8 @@ impl Host {
             let mut solver = self.solver.lock().unwrap_or_else(|e| e.into_inner());
             solver.inverse_entries(rows, cols, values)?
         };
-        ledger.counts.seconds += start.elapsed().as_secs_f64();
-        ledger.counts.entries += rows.len();
+        tally.counts.seconds += start.elapsed().as_secs_f64();
+        tally.counts.entries += rows.len();
         let failure = match outcome {
             Err(code) => Some(format!(
                 "the host's entries of K^-1 failed with its code {code} ({} entries asked)",
@@ -312,22 +312,22 @@ impl Host {
                 )
             }),
         };
-        Some(ledger.latch(failure))
+        Some(tally.latch(failure))
     }
 
     /// The failure latched since the last [`Host::clear`], if any.
     pub(crate) fn failure(&self) -> Option<Error> {
-        self.ledger().failure.clone()
+        self.tally().failure.clone()
     }
 
     /// Forgets a latched failure (each solve of the problem starts afresh).
     pub(crate) fn clear(&self) {
-        self.ledger().failure = None;
+        self.tally().failure = None;
     }
 
     /// What the host's solver did so far.
     pub(crate) fn counts(&self) -> Counts {
-        self.ledger().counts
+        self.tally().counts
     }
 }
 

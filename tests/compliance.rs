@@ -604,7 +604,7 @@ fn a_compliant_increment_replays_from_its_folder() {
     let fric = folder.friction.as_friction();
     let lt = law.lt_prev.as_deref();
     let sol = replay
-        .solve_from_force(&folder.f, &folder.g, fric, lt, &o, None)
+        .solve_history_increment(&folder.f, &folder.g, fric, lt, &o, None)
         .unwrap();
     converged("replay", &sol);
     let scale = norm_inf(&step.lambda_n);

@@ -675,7 +675,7 @@ fn solve(args: &SolveArgs) -> ExitCode {
         .set_compliance(law.cn.as_deref(), law.mn.as_deref(), law.kt.as_deref())
         .and_then(|()| {
             let lt = law.lt_prev.as_deref();
-            problem.solve_from_force(&f, &g, friction.as_friction(), lt, &args.opts, monitor)
+            problem.solve_history_increment(&f, &g, friction.as_friction(), lt, &args.opts, monitor)
         });
     progress.finish();
     let sol = match result {

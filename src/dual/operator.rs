@@ -44,7 +44,7 @@ pub(super) struct HostSolves {
     pub(super) work_single: std::cell::RefCell<Vec<f32>>,
     /// The products on the host's solve on rows (`KSolve::solve_rows`), where
     /// it offers one: the contact DOFs and B's entries' places among them.
-    pub(super) on_rows: OnRows,
+    pub(super) contact_rows: OnRows,
     /// A Newton step's products narrowed to its rows' DOFs (see
     /// [`Dual::narrow_to`]); `held` empty: not narrowed.
     pub(super) narrow: std::cell::RefCell<OnRows>,
@@ -235,9 +235,9 @@ impl Operator {
             Some(blocks) => blocks,
             None => host_blocks(host, &bt, m, d)?,
         };
-        let mut on_rows = OnRows::default();
+        let mut contact_rows = OnRows::default();
         if host.offers_rows() {
-            on_rows.set(&bt, &(0..bt.ncols).collect::<Vec<_>>());
+            contact_rows.set(&bt, &(0..bt.ncols).collect::<Vec<_>>());
         }
         Ok(Operator {
             diag: diag_of(&blocks, m, d),
@@ -252,7 +252,7 @@ impl Operator {
                     "the matrix-free dual's work space",
                 )?),
                 work_single: std::cell::RefCell::new(Vec::new()),
-                on_rows,
+                contact_rows,
                 narrow: std::cell::RefCell::new(OnRows::default()),
                 work_rows: std::cell::RefCell::new(Vec::new()),
             })),
@@ -513,7 +513,7 @@ impl HostSolves {
         // On rows where the host offers it (approximate where rough).
         if self.host.offers_rows()
             && self.on_rows(
-                &self.on_rows,
+                &self.contact_rows,
                 bt,
                 x,
                 rows_x.clone(),

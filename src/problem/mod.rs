@@ -742,7 +742,7 @@ impl ContactProblem {
         opts: &Options,
         monitor: Option<Monitor<'_>>,
     ) -> Result<Solution> {
-        self.solve_from_force(f, g, friction, None, opts, monitor)
+        self.solve_history_increment(f, g, friction, None, opts, monitor)
     }
 
     /// As [`ContactProblem::solve_monitored`], with the tangential force the
@@ -753,7 +753,7 @@ impl ContactProblem {
     /// with a finite k_T ([`ContactProblem::set_compliance`]).
     ///
     /// Errors: those of `solve`, and `BadSize` / `NotFinite` for `lt_prev`.
-    pub fn solve_from_force(
+    pub fn solve_history_increment(
         &mut self,
         f: &[f64],
         g: &[f64],
@@ -899,7 +899,7 @@ impl ContactProblem {
     /// warm start is not part of a folder. A compliant law
     /// ([`ContactProblem::set_compliance`]) is: `cn.txt`, `mn.txt`, `kt.txt`,
     /// and in a history the force the next step's return mapping starts from,
-    /// `lt_prev.txt` (replayed by [`ContactProblem::solve_from_force`]); a
+    /// `lt_prev.txt` (replayed by [`ContactProblem::solve_history_increment`]); a
     /// rigid one removes those files.
     ///
     /// Errors: `BadSize`, `NotFinite`, `NegativeFriction` (checked as in

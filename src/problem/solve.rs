@@ -380,13 +380,7 @@ impl ContactProblem {
                 // contacts (D = 0); its forces give the first tangent.
                 let rigid = vec![0.0; m];
                 let cap = if rounds == 0 && cold { &rigid } else { &d_max };
-                let (shift, s) = self.compliance.linearised(self.d, &delta, cap);
-                self.dual.set_shift(&shift);
-                b_round.copy_from_slice(&b);
-                for &i in &nonlinear {
-                    b_round[i] -= s[i];
-                }
-                offset = s;
+                offset = self.take_tangent(&nonlinear, (&delta, cap), &b, &mut b_round);
                 target = round_tol;
             }
             let problem = DualProblem {
@@ -398,7 +392,6 @@ impl ContactProblem {
                 predicted: extrapolated && rounds == 0,
                 near: rounds > 0,
             };
-            let shift = self.dual.shift();
             for _ in 0..=REFINEMENTS {
                 let local = Options {
                     max_outer: opts.max_outer.saturating_sub(outer),
@@ -419,26 +412,27 @@ impl ContactProblem {
                 base.set(outer);
                 end = o.end;
                 // u = K^-1 (f - B^T lambda), and the error measured on it.
-                self.dual.rows.mul_t_vec(lam, &mut bt_lam);
-                self.recover_u(f, &y_f, &bt_lam, &mut u, &mut forward)?;
-                self.dual.rows.mul_vec(&u, &mut v);
-                for i in 0..m {
-                    v[i] -= g[i];
-                }
-                // The compliance's part of the gap: v := v - D (lambda - [0; lt_prev]).
-                if !shift.is_empty() {
-                    for ((vj, dj), lj) in v.iter_mut().zip(shift).zip(lam.iter()) {
-                        *vj -= dj * lj;
-                    }
-                    for ((vj, dj), lj) in v[m..].iter_mut().zip(&shift[m..]).zip(lt_prev) {
-                        *vj += dj * lj;
-                    }
-                }
-                for &i in &nonlinear {
-                    v[i] -= offset[i];
-                }
-                friction.bounds(&lam[..m], &mut p);
-                err = natural_map_error(lam, &v, &self.dual.rho, &b_round, &p, self.d);
+                let recovered = Recovered {
+                    u: &mut u,
+                    bt_lam: &mut bt_lam,
+                    v: &mut v,
+                    p: &mut p,
+                    forward: &mut forward,
+                };
+                let at = Increment {
+                    f,
+                    y_f: &y_f,
+                    g,
+                    lt_prev,
+                };
+                err = self.recover_and_measure(
+                    lam,
+                    at,
+                    (&nonlinear, &offset),
+                    friction,
+                    &b_round,
+                    recovered,
+                )?;
                 recover_seconds += t1.elapsed().as_secs_f64();
                 if end == End::Infeasible {
                     // No u satisfies N u <= g: no error can be small (report.rs).
@@ -570,7 +564,90 @@ impl ContactProblem {
     }
 }
 
+/// What an increment's error is measured against: the load f, its forward
+/// half y_f (see [`ContactProblem::recover_u`]), the gaps g and the force the
+/// elastic slip's return mapping starts from (empty: zero).
+struct Increment<'a> {
+    f: &'a [f64],
+    y_f: &'a [f64],
+    g: &'a [f64],
+    lt_prev: &'a [f64],
+}
+
+/// What the recovery of an iterate writes: u (n), B^T lambda (n), v = [N u -
+/// g; T u] less the compliance's part (c), the friction bounds p (m) and the
+/// forward half u came from (see [`ContactProblem::recover_u`]).
+struct Recovered<'a> {
+    u: &'a mut [f64],
+    bt_lam: &'a mut [f64],
+    v: &'a mut [f64],
+    p: &'a mut [f64],
+    forward: &'a mut Vec<f64>,
+}
+
 impl ContactProblem {
+    /// The error measure of the iterate `lam` (docs/design.md section 5):
+    /// u = K^-1 (f - B^T lambda) recovered, v = [N u - g; T u] - D (lambda -
+    /// [0; lt_prev]) less the round's gap offset `s` at the nonlinear
+    /// contacts (`law` = (those contacts, s)), the bounds p of `friction`, and
+    /// the natural map's err against `b` (the round's right-hand side) with
+    /// the dual's rho.
+    ///
+    /// Errors: `HostSolve` (the recovery's solve on the host failed).
+    fn recover_and_measure(
+        &self,
+        lam: &[f64],
+        at: Increment<'_>,
+        (nonlinear, offset): (&[usize], &[f64]),
+        friction: Friction<'_>,
+        b: &[f64],
+        out: Recovered<'_>,
+    ) -> Result<f64> {
+        let m = self.n_contacts();
+        self.dual.rows.mul_t_vec(lam, out.bt_lam);
+        self.recover_u(at.f, at.y_f, out.bt_lam, out.u, out.forward)?;
+        let v = out.v;
+        self.dual.rows.mul_vec(out.u, v);
+        for (vi, gi) in v.iter_mut().zip(at.g) {
+            *vi -= gi;
+        }
+        // The compliance's part of the gap: v := v - D (lambda - [0; lt_prev]).
+        let shift = self.dual.shift();
+        if !shift.is_empty() {
+            for ((vj, dj), lj) in v.iter_mut().zip(shift).zip(lam.iter()) {
+                *vj -= dj * lj;
+            }
+            for ((vj, dj), lj) in v[m..].iter_mut().zip(&shift[m..]).zip(at.lt_prev) {
+                *vj += dj * lj;
+            }
+        }
+        for &i in nonlinear {
+            v[i] -= offset[i];
+        }
+        friction.bounds(&lam[..m], out.p);
+        Ok(natural_map_error(lam, v, &self.dual.rho, b, out.p, self.d))
+    }
+
+    /// Puts the tangent of the nonlinear normal laws (`nonlinear`) at the
+    /// penetrations `delta`, D capped at `cap`, on the dual
+    /// (`Compliance::linearised`), and `b_round` := `b` less its gap offset s
+    /// at those contacts; returns s (m).
+    fn take_tangent(
+        &mut self,
+        nonlinear: &[usize],
+        (delta, cap): (&[f64], &[f64]),
+        b: &[f64],
+        b_round: &mut [f64],
+    ) -> Vec<f64> {
+        let (shift, s) = self.compliance.linearised(self.d, delta, cap);
+        self.dual.set_shift(&shift);
+        b_round.copy_from_slice(b);
+        for &i in nonlinear {
+            b_round[i] -= s[i];
+        }
+        s
+    }
+
     /// Turns `v` (the last round's v = [N u - g; T u] - D lambda - s, its
     /// tangent law's) into the nonlinear law's at the contacts `nonlinear`:
     /// v_N,i = N u - g - (lambda_N,i / c_N,i)^(1 / m_N,i). Returns their
