@@ -15,8 +15,17 @@
 //! ```text
 //! cargo run --release --example history -- [--scenes A,B,..] [--threads K]
 //!     [--steps N] [--laws tresca,coulomb] [--form auto|dense|matrix-free]
-//!     [--path press-shear|proportional] [--csv FILE] [--svg FILE]
+//!     [--path press-shear|proportional|reversal] [--theta DEG --slip R]
+//!     [--gap G] [--trace STEP] [--csv FILE] [--svg FILE]
 //! ```
+//!
+//! `--theta DEG --slip R`: the shear moves the top by R mu delta (delta the
+//! press, mu Coulomb's) in the direction DEG degrees off the x axis (off the
+//! T rows), instead of 0.5 delta along x; R above 1 is gross slip. `--gap G`
+//! scales the paraboloid gap by G (below 1: more of the face closes).
+//! `--trace K` prints step K's progress per outer iteration.
+//! `--path reversal`: press then shear as `press-shear`, the last quarter of
+//! the steps taking the shear back to its negative.
 //!
 //! `--path proportional`: step k of N takes k / N of the whole top motion
 //! (press and shear together), as a host that ramps one load does.
@@ -47,6 +56,11 @@ fn main() {
     let mut svg: Option<String> = None;
     let mut form = DualForm::Auto;
     let mut proportional = false;
+    let mut reversal = false;
+    let mut oblique: Option<(f64, f64)> = None;
+    let (mut theta, mut slip) = (0.0, None);
+    let mut gap_scale = 1.0;
+    let mut trace: Option<usize> = None;
     // (scene and law, time / factor per step) for the figure.
     let mut lines: Vec<(String, Vec<f64>)> = Vec::new();
     let args: Vec<String> = std::env::args().skip(1).collect();
@@ -60,13 +74,26 @@ fn main() {
             "--laws" => laws = value().split(',').map(str::to_string).collect(),
             "--csv" => csv = Some(value()),
             "--svg" => svg = Some(value()),
-            "--path" => proportional = value() == "proportional",
+            "--path" => {
+                let v = value();
+                proportional = v == "proportional";
+                reversal = v == "reversal";
+            }
+            "--theta" => theta = value().parse().expect("--theta DEG"),
+            "--slip" => slip = Some(value().parse().expect("--slip R")),
+            "--gap" => gap_scale = value().parse().expect("--gap G"),
+            "--trace" => trace = Some(value().parse().expect("--trace STEP")),
             "--form" => form = DualForm::from_name(&value()).expect("a dual form"),
             a => panic!("unknown argument {a}"),
         }
         k += 2;
     }
     let steps = steps.max(2);
+    if let Some(r) = slip {
+        oblique = Some((r, theta));
+    } else {
+        assert!(theta == 0.0, "--theta needs --slip");
+    }
     let mut csv = csv.map(|p| {
         let mut f = std::fs::File::create(&p).expect("the csv file");
         writeln!(
@@ -79,8 +106,12 @@ fn main() {
     let mut summary = Vec::new();
     for name in &scenes {
         let spec = Spec::parse(name).unwrap_or_else(|| panic!("bad scene {name}"));
-        let sc = Scene::build(spec);
-        let (press, shear) = sc.press_and_shear();
+        let mut sc = Scene::build(spec);
+        sc.g.iter_mut().for_each(|g| *g *= gap_scale);
+        let (press, mut shear) = sc.press_and_shear();
+        if let Some((r, th)) = oblique {
+            shear = sc.oblique_shear(r, th);
+        }
         let t_factor = baseline::best_plain_factor(&sc.k, threads, FACTOR_REPS);
         let opts = Options {
             threads,
@@ -121,10 +152,31 @@ fn main() {
             println!("|---|---|---|---|---|---|---|---|---|---|---|---|");
             let mut times = Vec::new();
             for k in 1..=steps {
-                let (a, b) = stats::load_factors(k, steps, proportional);
+                let (a, mut b) = stats::load_factors(k, steps, proportional);
+                // The reversal: the shear reaches +1 at three quarters of the
+                // steps, then goes back to -1 at the last.
+                let (half, back) = (steps / 2, steps - steps / 4);
+                if reversal && k > half {
+                    b = if k <= back {
+                        (k - half) as f64 / (back - half) as f64
+                    } else {
+                        1.0 - 2.0 * (k - back) as f64 / (steps - back) as f64
+                    };
+                }
                 let f = stats::history_load(&press, &shear, (a, b));
                 let t0 = Instant::now();
-                let sol = pb.step(&f, &sc.g, friction, &opts).expect("solves");
+                let mut show = |p: &dualsplit::Progress| {
+                    println!(
+                        "    step {k} iteration {}: err {:.2e}, open / stick / slip {} / {} / {}, {:.3} s",
+                        p.iteration, p.err, p.n_open, p.n_stick, p.n_slip, p.elapsed_seconds
+                    );
+                    true
+                };
+                let monitor: Option<dualsplit::Monitor<'_>> =
+                    (trace == Some(k)).then_some(&mut show as dualsplit::Monitor<'_>);
+                let sol = pb
+                    .step_monitored(&f, &sc.g, friction, &opts, monitor)
+                    .expect("solves");
                 let t = t0.elapsed().as_secs_f64();
                 times.push(t);
                 let r = &sol.report;

@@ -1039,6 +1039,9 @@ extern "C" {
  DS_STATUS_BAD_ARGUMENT when cost is misaligned or cost->struct_size is
  below 8. *cost is written only on DS_STATUS_OK.
 
+ DS_STATUS_BUSY when called from a callback of a call on the same
+ handle (nothing changed).
+
  # Safety
  problem must be NULL or a live handle; cost must be NULL or point to a
  writable DsCost of at least cost->struct_size bytes.
@@ -1133,6 +1136,9 @@ enum DsStatus ds_analyse(int32_t d,
  Returns DS_STATUS_OK, DS_STATUS_NULL_POINTER or DS_STATUS_BAD_ARGUMENT
  (invalid options, info->struct_size below 8). *info is written only on
  DS_STATUS_OK.
+
+ DS_STATUS_BUSY when called from a callback of a call on the same
+ handle (nothing changed).
 
  # Safety
  problem must be NULL or a live handle; opts NULL or a DsOptions initialised
@@ -1253,6 +1259,9 @@ void ds_problem_free(struct DsProblem *problem);
  Returns DS_STATUS_OK, or the errors of ds_problem_new for K, and
  DS_STATUS_BAD_ARGUMENT if the pattern differs.
 
+ DS_STATUS_BUSY when called from a callback of a call on the same
+ handle (nothing changed).
+
  # Safety
  `problem` must be NULL or a live handle; `k` NULL or a valid DsMatrix.
  */
@@ -1263,6 +1272,9 @@ enum DsStatus ds_problem_refactor(struct DsProblem *problem, const struct DsMatr
  K; m may change. Rebuilds the condensed dual. On error the handle is unchanged.
 
  Returns DS_STATUS_OK, or the errors of ds_problem_new for N and T.
+
+ DS_STATUS_BUSY when called from a callback of a call on the same
+ handle (nothing changed).
 
  # Safety
  `problem` must be NULL or a live handle; `n`, `t` NULL or valid DsMatrix structs.
@@ -1278,6 +1290,9 @@ enum DsStatus ds_problem_set_contacts(struct DsProblem *problem,
  Returns DS_STATUS_OK or DS_STATUS_NULL_POINTER (any argument NULL); outputs are
  written only on success, in the order n_dofs, n_contacts, d (two of them may be
  the same address: the later value stays).
+
+ DS_STATUS_BUSY when called from a callback of a call on the same
+ handle (nothing changed).
 
  # Safety
  `problem` must be NULL or a live handle; the outputs NULL or writable.
@@ -1317,6 +1332,9 @@ enum DsStatus ds_problem_sizes(const struct DsProblem *problem,
  outside [1, 10], k_T <= 0, a c_N or k_T below about 5.6e-309 whose
  reciprocal overflows). On error the handle keeps its previous law.
 
+ DS_STATUS_BUSY when called from a callback of a call on the same
+ handle (nothing changed).
+
  # Safety
  `problem` must be NULL or a live handle; each array NULL or valid for m
  reads.
@@ -1330,6 +1348,9 @@ enum DsStatus ds_problem_set_compliance(struct DsProblem *problem,
  Forgets the history of ds_step: u_0 = 0 and no warm start.
 
  Returns DS_STATUS_OK or DS_STATUS_NULL_POINTER.
+
+ DS_STATUS_BUSY when called from a callback of a call on the same
+ handle (nothing changed).
 
  # Safety
  `problem` must be NULL or a live handle.
@@ -1345,6 +1366,9 @@ enum DsStatus ds_history_reset(struct DsProblem *problem);
  callback must not do.
 
  Returns DS_STATUS_OK or DS_STATUS_NULL_POINTER (problem).
+
+ DS_STATUS_BUSY when called from a callback of a call on the same
+ handle (nothing changed).
 
  # Safety
  `problem` must be NULL or a live handle; `monitor` NULL or a function that is
@@ -1362,6 +1386,9 @@ enum DsStatus ds_problem_set_monitor(struct DsProblem *problem,
 
  Returns DS_STATUS_OK, DS_STATUS_NULL_POINTER (problem) or DS_STATUS_BAD_ARGUMENT
  (level not 0, 1 or 2; nothing changed).
+
+ DS_STATUS_BUSY when called from a callback of a call on the same
+ handle (nothing changed).
 
  # Safety
  `problem` must be NULL or a live handle; `log` NULL or a function that is safe to
@@ -1390,6 +1417,9 @@ enum DsStatus ds_problem_set_log(struct DsProblem *problem,
  Returns DS_STATUS_OK, DS_STATUS_NULL_POINTER, DS_STATUS_BAD_ARGUMENT (friction,
  dir not UTF-8), DS_STATUS_NOT_FINITE, DS_STATUS_NEGATIVE_FRICTION or
  DS_STATUS_IO_ERROR (the folder or a file cannot be written).
+
+ DS_STATUS_BUSY when called from a callback of a call on the same
+ handle (nothing changed).
 
  # Safety
  `problem` must be NULL or a live handle, `dir` NULL or a NUL-terminated string,

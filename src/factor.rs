@@ -192,9 +192,13 @@ impl Factor {
             return Ok(Self::analyse_dense(n, last, threads, ledger));
         }
         let start = Instant::now();
+        // The orderings' graphs come from the pattern of K + K^T (a FE code's
+        // K may store an entry on one side only), made once for both.
+        let sym = crate::ordering::symmetric_pattern(k)
+            .ok_or_else(|| crate::Error::new(ErrorKind::OutOfMemory, "K: its pattern's mirror"))?;
         let order = |how: Ordering| match how {
-            Ordering::Metis => crate::ordering::metis_with_last(k, last),
-            _ => crate::ordering::amd_with_last(k, last),
+            Ordering::Metis => crate::ordering::metis_with_last(&sym, last),
+            _ => crate::ordering::amd_with_last(&sym, last),
         };
         let failed = |how: Ordering| {
             let why = match how {
@@ -211,11 +215,14 @@ impl Factor {
             Ordering::Auto if nd_first => Ordering::Metis,
             _ => Ordering::Amd,
         };
-        // AUTO goes on with AMD where METIS fails.
+        // AUTO goes on with AMD where METIS fails (and does not try METIS
+        // again as its second ordering).
+        let mut fell_back = false;
         let (fwd, inv) = match order(first) {
             Some(p) => p,
             None if ordering == Ordering::Auto && first == Ordering::Metis => {
                 first = Ordering::Amd;
+                fell_back = true;
                 match order(first) {
                     Some(p) => p,
                     None => return failed(first),
@@ -238,6 +245,7 @@ impl Factor {
             _ => Ordering::Amd,
         };
         if ordering == Ordering::Auto
+            && !fell_back
             && large == (first == Ordering::Amd)
             && let Some((fwd_2, inv_2)) = order(second)
         {
@@ -253,6 +261,7 @@ impl Factor {
                 (symbolic, ordering_used, fwd) = (symbolic_2, second, fwd_2);
             }
         }
+        drop(sym);
         let analyse_seconds = start.elapsed().as_secs_f64();
         let mut f = Factor {
             l_values: Vec::new(),

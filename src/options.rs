@@ -146,7 +146,6 @@ impl Ordering {
 /// (8,000: A then takes at most 512 MB).
 pub const DENSE_MAX: usize = 8_000;
 
-/// Options of one solve. `Options::default()` gives the documented defaults.
 /// How a problem on the host's solves (`ContactProblem::with_host_solver`)
 /// obtains the contacts' d x d diagonal blocks of A = B K^-1 B^T: once at
 /// creation, and again when the contacts are replaced.
@@ -176,6 +175,7 @@ pub enum HostBlocks {
     Factor,
 }
 
+/// Options of one solve. `Options::default()` gives the documented defaults.
 #[derive(Copy, Clone, Debug, PartialEq)]
 pub struct Options {
     /// Method (default `Auto`: the library's choice, see [`Method::Auto`]).

@@ -442,7 +442,8 @@ fn bad_sizes_and_methods_that_need_entries_are_refused() {
 /// A host that gives entries of K^-1: the blocks come from one call of it
 /// (no solve at creation), also where K is handed over (`HostBlocks::Auto`
 /// asks the host's entries first), and the answers are the own path's; a
-/// failing entries call fails the creation with its code.
+/// failing entries call fails the creation with its code, unless K was
+/// handed over: then the library's factor of K gives the blocks.
 #[test]
 fn the_contact_blocks_from_the_hosts_entries_of_the_inverse() {
     let scene = scene_3d();
@@ -453,7 +454,7 @@ fn the_contact_blocks_from_the_hosts_entries_of_the_inverse() {
         .problem()
         .solve(&scene.f, &scene.g, friction, &opts)
         .unwrap();
-    for (fail, with_k) in [(false, false), (false, true), (true, false)] {
+    for (fail, with_k) in [(false, false), (false, true), (true, false), (true, true)] {
         let (inner, handles) = concrete_host(&scene, false);
         let entries = Arc::new(AtomicUsize::new(0));
         let with = WithEntries {
@@ -462,6 +463,19 @@ fn the_contact_blocks_from_the_hosts_entries_of_the_inverse() {
             fail,
         };
         let made = on_solver(&scene, Box::new(with), with_k, &opts);
+        if fail && with_k {
+            // Auto leaves the blocks to the library's factor of K.
+            let mut pb = made.expect("the factor serves where the entries fail");
+            assert_eq!(
+                handles.calls.load(Ordering::SeqCst),
+                0,
+                "no solve at creation"
+            );
+            let sol = pb.solve(&scene.f, &scene.g, friction, &opts).unwrap();
+            assert_converged("blocks by the factor after the entries", &sol);
+            assert_agree("blocks by the factor after the entries", &own, &sol, 1e-8);
+            continue;
+        }
         if fail {
             let e = made.err().expect("the entries call fails");
             assert_eq!(e.kind, ErrorKind::HostSolve);

@@ -704,3 +704,94 @@ fn set_contacts_keeps_the_dual_form_and_predicts_the_solve_after_it() {
         unsafe { ds_problem_free(h) };
     }
 }
+
+/// A host for the memory tests: K's factor, solving column by column with
+/// scratch allocated once, so that its calls add nothing to the counted
+/// peaks (its factor is made before the measured creation).
+struct QuietHost {
+    factor: std::sync::Arc<dualsplit::internals::Factor>,
+    scratch: faer::dyn_stack::MemBuffer,
+}
+
+impl dualsplit::KSolve for QuietHost {
+    fn n(&self) -> usize {
+        self.factor.n()
+    }
+
+    fn solve(&mut self, x: &mut [f64], _ncols: usize) -> Result<(), i32> {
+        let n = self.factor.n();
+        for col in x.chunks_mut(n) {
+            let m = faer::MatMut::from_column_major_slice_mut(col, n, 1);
+            self.factor
+                .solve_in_place(m, faer::dyn_stack::MemStack::new(&mut self.scratch));
+        }
+        Ok(())
+    }
+}
+
+/// On the host's solves with K handed over: the creation's counted peak
+/// within 25 % of its prediction for every way of forming the contact blocks
+/// (the library's transient factor of K included under `Factor` and
+/// `Auto`), and `max_memory` between the two needs refuses `Factor` before
+/// any work while `Auto` falls back to the host's solves.
+#[test]
+fn the_host_routes_creation_is_predicted_and_kept_under_max_memory() {
+    use dualsplit::HostBlocks;
+    let _serial = SERIAL.lock().unwrap_or_else(|e| e.into_inner());
+    warm_up();
+    let sc = block3d();
+    let host = || {
+        let factor = dualsplit::internals::Factor::new(&sc.k).expect("K factors");
+        let scratch = faer::dyn_stack::MemBuffer::new(factor.solve_scratch(1));
+        Box::new(QuietHost { factor, scratch })
+    };
+    let (k, n, t) = (
+        common::Owned::of(&sc.k),
+        common::Owned::of(&sc.n),
+        common::Owned::of(&sc.t),
+    );
+    let create = |how: HostBlocks, max_memory: usize| {
+        let opts = Options {
+            host_blocks: how,
+            max_memory,
+            ..one_thread()
+        };
+        let solver = host();
+        peak_of(|| {
+            ContactProblem::with_host_solver(
+                sc.d,
+                solver,
+                Some(&k.view()),
+                &n.view(),
+                &t.view(),
+                &opts,
+            )
+        })
+    };
+    let mut need = Vec::new();
+    for how in [HostBlocks::Solves, HostBlocks::Factor, HostBlocks::Auto] {
+        let (pb, counted) = create(how, 0);
+        let pb = pb.expect("a host problem");
+        let predicted = pb.info(&one_thread()).setup_bytes;
+        eprintln!("{how:?}: creation {counted} bytes counted, {predicted} predicted");
+        assert_within(&format!("{how:?} creation"), counted, predicted, 0.25);
+        need.push(predicted);
+    }
+    let (solves, factor) = (need[0], need[1]);
+    assert!(factor > solves + solves / 4, "the factor's bytes: {need:?}");
+    // A limit between the two needs.
+    let limit = (solves + factor) / 2;
+    let (pb, counted) = create(HostBlocks::Factor, limit);
+    let Err(e) = pb else {
+        panic!("Factor over max_memory must be refused");
+    };
+    assert_eq!(e.kind, ErrorKind::OutOfMemory, "{e}");
+    assert!(
+        counted < limit / 4,
+        "refused before the work: {counted} bytes"
+    );
+    let (pb, counted) = create(HostBlocks::Auto, limit);
+    let pb = pb.expect("Auto takes the host's solves under the limit");
+    assert!(counted <= limit, "{counted} bytes over the limit {limit}");
+    assert_eq!(pb.info(&one_thread()).setup_bytes, solves);
+}

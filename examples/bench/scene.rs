@@ -195,6 +195,34 @@ impl Scene {
         (press, shear)
     }
 
+    /// The shear load of a top moved sideways by `ratio` times mu delta
+    /// (the press's delta, Coulomb's mu) in the direction `theta_deg`
+    /// degrees off the x axis (off the T rows of x), in 3D; in 2D along x.
+    /// `ratio` above 1 drags the face into gross slip.
+    #[allow(dead_code)] // examples/history.rs's
+    pub fn oblique_shear(&self, ratio: f64, theta_deg: f64) -> Vec<f64> {
+        let dim = self.d;
+        let ke = if dim == 2 {
+            q4_stiffness(YOUNG, POISSON)
+        } else {
+            h8_stiffness(YOUNG, POISSON)
+        };
+        let height = if dim == 2 {
+            self.spec.ny as f64
+        } else {
+            self.spec.nz as f64
+        };
+        let (delta, _) = top_motion(height);
+        let s = ratio * MU * delta;
+        let th = theta_deg.to_radians();
+        let mut top = vec![0.0; dim];
+        top[0] = s * th.cos();
+        if dim == 3 {
+            top[1] = s * th.sin();
+        }
+        assemble(&self.spec, &ke, &top).1
+    }
+
     /// The load vector of the same scene with the top motion scaled by `s` (f is
     /// linear in the prescribed displacement).
     pub fn scaled_load(&self, s: f64) -> Vec<f64> {

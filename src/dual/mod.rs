@@ -257,10 +257,18 @@ impl Dual {
         let b = stack_rows(n, t);
         let c = b.nrows;
         // Under `HostBlocks::Auto` the host's entries of K^-1 come first
-        // where it gives them (one call), even where the factor would pay.
+        // where it gives them (one call), even where the factor would pay; a
+        // failed entries call leaves the blocks to the factor.
         let entries = match by_factor {
             Some(_) if host.blocks() == crate::HostBlocks::Auto => {
-                operator::blocks_from_entries(host, &b.transpose(), m, d).transpose()?
+                match operator::blocks_from_entries(host, &b.transpose(), m, d) {
+                    Some(Ok(blocks)) => Some(blocks),
+                    Some(Err(_)) => {
+                        host.clear();
+                        None
+                    }
+                    None => None,
+                }
             }
             _ => None,
         };

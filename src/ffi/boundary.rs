@@ -12,14 +12,19 @@ use std::any::Any;
 use std::panic::{AssertUnwindSafe, catch_unwind};
 
 /// Runs the body of the entry point `name` with the boundary rules: clears the last
-/// error, catches panics (-> `DsStatus::Panic`), maps `Err(e)` to its status `e.status`
-/// and records "name: message" as the last error.
+/// error (before the body, and after it on success, so that a message a callback's
+/// refused call left inside it does not outlive the call), catches panics (->
+/// `DsStatus::Panic`), maps `Err(e)` to its status `e.status` and records "name:
+/// message" as the last error.
 pub(crate) fn entry(name: &str, body: impl FnOnce() -> Result<()>) -> DsStatus {
     last_error::clear();
     // AssertUnwindSafe: after a panic the caller only sees a status; the core keeps
     // its state consistent by validating before mutating.
     match catch_unwind(AssertUnwindSafe(body)) {
-        Ok(Ok(())) => DsStatus::Ok,
+        Ok(Ok(())) => {
+            last_error::clear();
+            DsStatus::Ok
+        }
         Ok(Err(e)) => {
             last_error::set(&format!("{name}: {}", e.message));
             e.status

@@ -75,6 +75,9 @@ impl From<&Report> for DsCost {
 /// DS_STATUS_BAD_ARGUMENT when cost is misaligned or cost->struct_size is
 /// below 8. *cost is written only on DS_STATUS_OK.
 ///
+/// DS_STATUS_BUSY when called from a callback of a call on the same
+/// handle (nothing changed).
+///
 /// # Safety
 /// problem must be NULL or a live handle; cost must be NULL or point to a
 /// writable DsCost of at least cost->struct_size bytes.

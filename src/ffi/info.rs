@@ -174,6 +174,9 @@ pub unsafe extern "C" fn ds_analyse(
 /// (invalid options, info->struct_size below 8). *info is written only on
 /// DS_STATUS_OK.
 ///
+/// DS_STATUS_BUSY when called from a callback of a call on the same
+/// handle (nothing changed).
+///
 /// # Safety
 /// problem must be NULL or a live handle; opts NULL or a DsOptions initialised
 /// with ds_options_init; info a writable DsInfo of at least info->struct_size

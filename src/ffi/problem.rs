@@ -263,6 +263,9 @@ pub unsafe extern "C" fn ds_problem_free(problem: *mut DsProblem) {
 /// Returns DS_STATUS_OK, or the errors of ds_problem_new for K, and
 /// DS_STATUS_BAD_ARGUMENT if the pattern differs.
 ///
+/// DS_STATUS_BUSY when called from a callback of a call on the same
+/// handle (nothing changed).
+///
 /// # Safety
 /// `problem` must be NULL or a live handle; `k` NULL or a valid DsMatrix.
 #[unsafe(no_mangle)]
@@ -283,6 +286,9 @@ pub unsafe extern "C" fn ds_problem_refactor(
 /// K; m may change. Rebuilds the condensed dual. On error the handle is unchanged.
 ///
 /// Returns DS_STATUS_OK, or the errors of ds_problem_new for N and T.
+///
+/// DS_STATUS_BUSY when called from a callback of a call on the same
+/// handle (nothing changed).
 ///
 /// # Safety
 /// `problem` must be NULL or a live handle; `n`, `t` NULL or valid DsMatrix structs.
@@ -308,6 +314,9 @@ pub unsafe extern "C" fn ds_problem_set_contacts(
 /// Returns DS_STATUS_OK or DS_STATUS_NULL_POINTER (any argument NULL); outputs are
 /// written only on success, in the order n_dofs, n_contacts, d (two of them may be
 /// the same address: the later value stays).
+///
+/// DS_STATUS_BUSY when called from a callback of a call on the same
+/// handle (nothing changed).
 ///
 /// # Safety
 /// `problem` must be NULL or a live handle; the outputs NULL or writable.
@@ -373,6 +382,9 @@ pub unsafe extern "C" fn ds_problem_sizes(
 /// outside [1, 10], k_T <= 0, a c_N or k_T below about 5.6e-309 whose
 /// reciprocal overflows). On error the handle keeps its previous law.
 ///
+/// DS_STATUS_BUSY when called from a callback of a call on the same
+/// handle (nothing changed).
+///
 /// # Safety
 /// `problem` must be NULL or a live handle; each array NULL or valid for m
 /// reads.
@@ -403,6 +415,9 @@ pub unsafe extern "C" fn ds_problem_set_compliance(
 ///
 /// Returns DS_STATUS_OK or DS_STATUS_NULL_POINTER.
 ///
+/// DS_STATUS_BUSY when called from a callback of a call on the same
+/// handle (nothing changed).
+///
 /// # Safety
 /// `problem` must be NULL or a live handle.
 #[unsafe(no_mangle)]
@@ -423,6 +438,9 @@ pub unsafe extern "C" fn ds_history_reset(problem: *mut DsProblem) -> DsStatus {
 /// callback must not do.
 ///
 /// Returns DS_STATUS_OK or DS_STATUS_NULL_POINTER (problem).
+///
+/// DS_STATUS_BUSY when called from a callback of a call on the same
+/// handle (nothing changed).
 ///
 /// # Safety
 /// `problem` must be NULL or a live handle; `monitor` NULL or a function that is
@@ -449,6 +467,9 @@ pub unsafe extern "C" fn ds_problem_set_monitor(
 ///
 /// Returns DS_STATUS_OK, DS_STATUS_NULL_POINTER (problem) or DS_STATUS_BAD_ARGUMENT
 /// (level not 0, 1 or 2; nothing changed).
+///
+/// DS_STATUS_BUSY when called from a callback of a call on the same
+/// handle (nothing changed).
 ///
 /// # Safety
 /// `problem` must be NULL or a live handle; `log` NULL or a function that is safe to
@@ -493,6 +514,9 @@ pub unsafe extern "C" fn ds_problem_set_log(
 /// Returns DS_STATUS_OK, DS_STATUS_NULL_POINTER, DS_STATUS_BAD_ARGUMENT (friction,
 /// dir not UTF-8), DS_STATUS_NOT_FINITE, DS_STATUS_NEGATIVE_FRICTION or
 /// DS_STATUS_IO_ERROR (the folder or a file cannot be written).
+///
+/// DS_STATUS_BUSY when called from a callback of a call on the same
+/// handle (nothing changed).
 ///
 /// # Safety
 /// `problem` must be NULL or a live handle, `dir` NULL or a NUL-terminated string,

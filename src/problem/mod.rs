@@ -644,11 +644,14 @@ impl ContactProblem {
     /// where k_T,i changes the next step starts from the force scaled by
     /// k_T,new / k_T,old (from zero where either is +inf). Mixing rigid and
     /// compliant contacts is allowed. Every method solves the compliant law
-    /// (its dual operator is A + D, `compliance.rs`).
+    /// (its dual operator is A + D, `compliance.rs`). The history's predictor
+    /// forgets its loads (they were those of the old A + D); u_k and the
+    /// multipliers stay as the warm start.
     ///
     /// Errors (the handle keeps its previous law): `BadSize` (a length is not
     /// m), `NotFinite` (NaN, -inf, an infinite m_N), `BadArgument` (c_N <= 0,
-    /// m_N outside [1, 10], k_T <= 0).
+    /// m_N outside [1, 10], k_T <= 0, a c_N or k_T whose reciprocal
+    /// overflows).
     pub fn set_compliance(
         &mut self,
         cn: Option<&[f64]>,
@@ -781,6 +784,20 @@ impl ContactProblem {
             predicted,
         )?;
         Ok(sol)
+    }
+
+    /// The name of [`ContactProblem::solve_history_increment`] before 0.10.
+    #[deprecated(since = "0.10.0", note = "renamed solve_history_increment")]
+    pub fn solve_from_force(
+        &mut self,
+        f: &[f64],
+        g: &[f64],
+        friction: Friction<'_>,
+        lt_prev: Option<&[f64]>,
+        opts: &Options,
+        monitor: Option<Monitor<'_>>,
+    ) -> Result<Solution> {
+        self.solve_history_increment(f, g, friction, lt_prev, opts, monitor)
     }
 
     /// One step of a quasistatic history (docs/design.md section 1): with the held u_k,

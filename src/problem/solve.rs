@@ -454,6 +454,8 @@ impl ContactProblem {
                 target *= 0.1;
             }
             if nonlinear.is_empty() || end == End::Infeasible {
+                // (An infeasible round's v is its tangent's: the dual's rho.)
+                law_rho.clear();
                 break;
             }
             // The error of the nonlinear law, whatever way the round ended (a
