@@ -1056,3 +1056,90 @@ fn the_contact_blocks_by_the_librarys_own_factor_of_k() {
     assert_converged("set_contacts, blocks by the factor", &sol);
     assert_agree("set_contacts, blocks by the factor", &want, &sol, 1e-8);
 }
+
+/// An interface law on the host's solves: with it set after creation, again
+/// after `set_contacts` (another m makes every contact rigid) and across a
+/// history step, the answers are the own path's with the same law, on the
+/// own path in both dual forms (a form switch keeps the law).
+#[test]
+fn compliance_on_the_hosts_solves_matches_the_own_path() {
+    let scene = scene_3d();
+    let m = scene.m();
+    let mu = vec![0.3; m];
+    let friction = Friction::Coulomb(&mu);
+    let opts = with(Method::Auto);
+    // Every other contact compliant in both directions, one on a power law.
+    let cn: Vec<f64> = (0..m)
+        .map(|i| if i % 2 == 0 { 300.0 } else { f64::INFINITY })
+        .collect();
+    let kt: Vec<f64> = (0..m)
+        .map(|i| if i % 2 == 0 { 150.0 } else { f64::INFINITY })
+        .collect();
+    let mut mn = vec![1.0; m];
+    mn[0] = 1.5;
+    let (mut host, _) = on_host(&scene, true, false, &opts);
+    host.set_compliance(Some(&cn), Some(&mn), Some(&kt))
+        .unwrap();
+    let mut own = scene.problem();
+    own.set_compliance(Some(&cn), Some(&mn), Some(&kt)).unwrap();
+    let dense = Options {
+        dual_form: DualForm::Dense,
+        ..opts
+    };
+    for (name, o) in [("matrix-free", &opts), ("dense", &dense)] {
+        let want = own.solve(&scene.f, &scene.g, friction, o).unwrap();
+        let got = host.solve(&scene.f, &scene.g, friction, &opts).unwrap();
+        let w = format!("compliant, own {name}");
+        assert_converged(&w, &want);
+        assert_converged(&w, &got);
+        assert_eq!(got.report.compliant_contacts, m.div_ceil(2));
+        assert_agree(&w, &want, &got, 1e-8);
+    }
+    // Two history steps: the elastic slip carries over alike; after a reset
+    // the first step again.
+    let half_load: Vec<f64> = scene.f.iter().map(|v| v / 2.0).collect();
+    let mut first = None;
+    for step in 1..=2 {
+        let f: Vec<f64> = scene.f.iter().map(|v| v * step as f64 / 2.0).collect();
+        let want = own.step(&f, &scene.g, friction, &opts).unwrap();
+        let got = host.step(&f, &scene.g, friction, &opts).unwrap();
+        assert_agree(&format!("compliant step {step}"), &want, &got, 1e-8);
+        first.get_or_insert(got);
+    }
+    host.reset_history();
+    let again = host.step(&half_load, &scene.g, friction, &opts).unwrap();
+    assert_agree(
+        "the first step after a reset",
+        first.as_ref().unwrap(),
+        &again,
+        1e-10,
+    );
+    // New contacts (the first half): rigid again, then a law for them.
+    let half = m / 2;
+    let first_rows = |a: &dualsplit::Csc, rows: usize| {
+        let mut t = a.transpose();
+        t.ncols = rows;
+        t.col_ptr.truncate(rows + 1);
+        let nnz = t.col_ptr[rows];
+        t.row_idx.truncate(nnz);
+        t.values.truncate(nnz);
+        t.transpose()
+    };
+    let (n2, t2) = (first_rows(&scene.n, half), first_rows(&scene.t, 2 * half));
+    host.set_contacts(&Owned::of(&n2).view(), &Owned::of(&t2).view())
+        .unwrap();
+    let mut own2 =
+        dualsplit::ContactProblem::from_csc_with(3, scene.k.clone(), n2, t2, &opts).unwrap();
+    let (g, mu2) = (&scene.g[..half], vec![0.3; half]);
+    let friction = Friction::Coulomb(&mu2);
+    let got = host.solve(&scene.f, g, friction, &opts).unwrap();
+    assert_eq!(got.report.compliant_contacts, 0, "set_contacts: rigid");
+    host.set_compliance(Some(&cn[..half]), None, Some(&kt[..half]))
+        .unwrap();
+    own2.set_compliance(Some(&cn[..half]), None, Some(&kt[..half]))
+        .unwrap();
+    let want = own2.solve(&scene.f, g, friction, &opts).unwrap();
+    let got = host.solve(&scene.f, g, friction, &opts).unwrap();
+    assert_converged("compliant after set_contacts", &got);
+    assert_agree("compliant after set_contacts", &want, &got, 1e-8);
+}
