@@ -269,6 +269,36 @@ pub fn metis_with_last(k: &Csc, last: &[usize]) -> Option<(Vec<usize>, Vec<usize
     expand(&groups, order.into_iter().map(|v| free[v]), last)
 }
 
+/// Whether the pattern of `k` (square, rows sorted in each column) is
+/// symmetric, in one pass with n cursors: the entries (r, j) below the
+/// diagonal, met column by column, must meet each column r's entries above
+/// its diagonal in their order, and use them all. None when an allocation
+/// fails.
+fn pattern_is_symmetric(k: &Csc) -> Option<bool> {
+    let n = k.ncols;
+    // next[r]: the next entry of column r above its diagonal not yet met.
+    let mut next = Vec::new();
+    next.try_reserve_exact(n).ok()?;
+    next.extend_from_slice(&k.col_ptr[..n]);
+    for j in 0..n {
+        for &r in &k.row_idx[k.col_ptr[j]..k.col_ptr[j + 1]] {
+            if r <= j {
+                continue;
+            }
+            let q = next[r];
+            if q >= k.col_ptr[r + 1] || k.row_idx[q] != j {
+                return Some(false);
+            }
+            next[r] = q + 1;
+        }
+    }
+    // Every entry above a diagonal met.
+    Some((0..n).all(|r| {
+        let q = next[r];
+        q == k.col_ptr[r + 1] || k.row_idx[q] >= r
+    }))
+}
+
 /// The pattern of K^T (column pointers, row indices; rows sorted). None when
 /// an allocation fails.
 fn transpose_pattern(k: &Csc) -> Option<(Vec<usize>, Vec<usize>)> {
@@ -302,10 +332,10 @@ fn transpose_pattern(k: &Csc) -> Option<(Vec<usize>, Vec<usize>)> {
 /// orderings find a symmetric pattern and use it as it is.
 pub(crate) fn symmetric_pattern(k: &Csc) -> Option<std::borrow::Cow<'_, Csc>> {
     use std::borrow::Cow;
-    let (t_ptr, t_rows) = transpose_pattern(k)?;
-    if t_ptr == k.col_ptr && t_rows == k.row_idx {
+    if pattern_is_symmetric(k)? {
         return Some(Cow::Borrowed(k));
     }
+    let (t_ptr, t_rows) = transpose_pattern(k)?;
     let n = k.ncols;
     let mut col_ptr = Vec::new();
     col_ptr.try_reserve_exact(n + 1).ok()?;
@@ -658,6 +688,24 @@ mod tests {
                     }
                 }
             }
+        }
+    }
+
+    #[test]
+    fn the_pattern_check_finds_every_one_sided_entry() {
+        let k = two_dofs(9, 4, true);
+        assert_eq!(pattern_is_symmetric(&k), Some(true));
+        assert_eq!(pattern_is_symmetric(&one_sided(&k)), Some(false));
+        // One entry above the diagonal only, one below only, in the last column.
+        let n = k.ncols;
+        for (r, c) in [(0, n - 1), (n - 1, 0), (3, 40)] {
+            let mut t: Vec<(usize, usize, f64)> = (0..n).map(|i| (i, i, 1.0)).collect();
+            t.push((r, c, 1e-18));
+            let lop = Csc::from_triplets(n, n, &t);
+            assert_eq!(pattern_is_symmetric(&lop), Some(false), "({r}, {c})");
+            t.push((c, r, 0.0));
+            let sym = Csc::from_triplets(n, n, &t);
+            assert_eq!(pattern_is_symmetric(&sym), Some(true), "({r}, {c})");
         }
     }
 

@@ -1041,3 +1041,29 @@ fn symmetric_csc_in_order_or_not_agrees() {
     );
     assert_eq!(sym_err(&far).kind, ErrorKind::BadIndex);
 }
+
+/// The symmetry check without a copy of K: an entry whose mirror is missing
+/// is found whichever side it is on and wherever it lies (its mirror counts
+/// as 0), and the worst pair is named.
+#[test]
+fn symmetry_check_finds_an_entry_on_one_side_anywhere() {
+    let n = 6;
+    for (r, c) in [(0, 5), (5, 0), (2, 3), (3, 2), (1, 4)] {
+        let mut t: Vec<(usize, usize, f64)> = (0..n).map(|i| (i, i, 4.0)).collect();
+        t.extend([(0, 1, -1.0), (1, 0, -1.0), (4, 5, -1.0), (5, 4, -1.0)]);
+        t.push((r, c, 0.5));
+        let a = Csc::from_triplets(n, n, &t);
+        let e = super::validate::check_symmetric(&a, "K", 1).unwrap_err();
+        assert_eq!(e.kind, ErrorKind::NotSymmetric);
+        let (lo, hi) = (r.min(c) + 1, r.max(c) + 1);
+        assert!(
+            e.message.contains(&format!("K({lo},{hi})")),
+            "({r}, {c}): {}",
+            e.message
+        );
+        // Its mirror within the tolerance: symmetric.
+        t.push((c, r, 0.5 * (1.0 + 1e-12)));
+        let a = Csc::from_triplets(n, n, &t);
+        assert!(super::validate::check_symmetric(&a, "K", 1).is_ok());
+    }
+}
