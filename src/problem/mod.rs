@@ -237,11 +237,11 @@ impl ContactProblem {
     ///
     /// The dual is matrix-free: each product with A is one call of the
     /// host's solve; the contacts' d x d diagonal blocks of A are formed here
+    /// as `opts.host_blocks` asks ([`crate::HostBlocks`]; `Auto` by default):
     /// from the host's entries of K^-1 where it gives them
-    /// ([`KSolve::inverse_entries`], one call), else by d m solves, 32
-    /// right-hand sides per call, or, as [`KSolve::blocks`] asks, by the
-    /// library's own factor of K, freed before this returns
-    /// ([`crate::HostBlocks`]). The methods that read entries of A (and
+    /// ([`KSolve::inverse_entries`], one call), by d m solves, 32 right-hand
+    /// sides per call, or by the library's own factor of K, freed before this
+    /// returns. The methods that read entries of A (and
     /// `DualForm::Dense`) are refused with `BadArgument`; `refactor` too
     /// (refactor on the host's side and create a new problem), and
     /// `write_folder` without K.
