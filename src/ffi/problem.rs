@@ -225,7 +225,8 @@ pub unsafe extern "C" fn ds_problem_new_opts(
 
 /// Frees a handle created by ds_problem_new or ds_problem_new_opts. NULL is a no-op. The handle must not be
 /// used afterwards. A handle inside another call on it (freed by a callback of
-/// that call) is not freed: ds_last_error_message() says so.
+/// that call) is not freed: ds_last_error_message() says so inside the callback
+/// (the call that ran it clears the message when it succeeds).
 ///
 /// # Safety
 /// `problem` must be NULL or a handle from ds_problem_new not freed before.
