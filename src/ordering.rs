@@ -269,73 +269,20 @@ pub fn metis_with_last(k: &Csc, last: &[usize]) -> Option<(Vec<usize>, Vec<usize
     expand(&groups, order.into_iter().map(|v| free[v]), last)
 }
 
-/// Whether the pattern of `k` (square, rows sorted in each column) is
-/// symmetric, in one pass with n cursors: the entries (r, j) below the
-/// diagonal, met column by column, must meet each column r's entries above
-/// its diagonal in their order, and use them all. None when an allocation
-/// fails.
-fn pattern_is_symmetric(k: &Csc) -> Option<bool> {
-    let n = k.ncols;
-    // next[r]: the next entry of column r above its diagonal not yet met.
-    let mut next = Vec::new();
-    next.try_reserve_exact(n).ok()?;
-    next.extend_from_slice(&k.col_ptr[..n]);
-    for j in 0..n {
-        for &r in &k.row_idx[k.col_ptr[j]..k.col_ptr[j + 1]] {
-            if r <= j {
-                continue;
-            }
-            let q = next[r];
-            if q >= k.col_ptr[r + 1] || k.row_idx[q] != j {
-                return Some(false);
-            }
-            next[r] = q + 1;
-        }
-    }
-    // Every entry above a diagonal met.
-    Some((0..n).all(|r| {
-        let q = next[r];
-        q == k.col_ptr[r + 1] || k.row_idx[q] >= r
-    }))
-}
-
-/// The pattern of K^T (column pointers, row indices; rows sorted). None when
-/// an allocation fails.
-fn transpose_pattern(k: &Csc) -> Option<(Vec<usize>, Vec<usize>)> {
-    let mut count = Vec::new();
-    count.try_reserve_exact(k.nrows + 1).ok()?;
-    count.resize(k.nrows + 1, 0usize);
-    for &r in &k.row_idx {
-        count[r + 1] += 1;
-    }
-    for r in 0..k.nrows {
-        count[r + 1] += count[r];
-    }
-    let mut next = Vec::new();
-    next.try_reserve_exact(k.nrows + 1).ok()?;
-    next.extend_from_slice(&count);
-    let mut rows = Vec::new();
-    rows.try_reserve_exact(k.nnz()).ok()?;
-    rows.resize(k.nnz(), 0usize);
-    for j in 0..k.ncols {
-        for &r in &k.row_idx[k.col_ptr[j]..k.col_ptr[j + 1]] {
-            rows[next[r]] = j;
-            next[r] += 1;
-        }
-    }
-    Some((count, rows))
-}
-
 /// `k` itself when its pattern is symmetric, else the pattern of K + K^T
 /// (values zero: only the pattern is read here). None when an allocation
-/// fails. [`crate::factor`] calls it once per analysis, so that both
-/// orderings find a symmetric pattern and use it as it is.
+/// fails. The check takes one pass and no copy ([`Csc::mirror_pairs`]);
+/// [`crate::factor`] calls it once per analysis, so that both orderings find
+/// a symmetric pattern and use it as it is.
 pub(crate) fn symmetric_pattern(k: &Csc) -> Option<std::borrow::Cow<'_, Csc>> {
     use std::borrow::Cow;
-    if pattern_is_symmetric(k)? {
+    if k.mirror_pairs(|_, _, upper, lower| upper.is_some() && lower.is_some())
+        .ok()?
+    {
         return Some(Cow::Borrowed(k));
     }
-    let (t_ptr, t_rows) = transpose_pattern(k)?;
+    // One-sided entries (rare): their mirrors from the transpose.
+    let kt = k.try_transpose().ok()?;
     let n = k.ncols;
     let mut col_ptr = Vec::new();
     col_ptr.try_reserve_exact(n + 1).ok()?;
@@ -344,7 +291,7 @@ pub(crate) fn symmetric_pattern(k: &Csc) -> Option<std::borrow::Cow<'_, Csc>> {
     row_idx.try_reserve(k.nnz() + k.nnz() / 8).ok()?;
     for j in 0..n {
         let a = &k.row_idx[k.col_ptr[j]..k.col_ptr[j + 1]];
-        let b = &t_rows[t_ptr[j]..t_ptr[j + 1]];
+        let b = &kt.row_idx[kt.col_ptr[j]..kt.col_ptr[j + 1]];
         let (mut p, mut q) = (0, 0);
         while p < a.len() || q < b.len() {
             let r = match (a.get(p), b.get(q)) {
@@ -372,7 +319,7 @@ pub(crate) fn symmetric_pattern(k: &Csc) -> Option<std::borrow::Cow<'_, Csc>> {
         }
         col_ptr.push(row_idx.len());
     }
-    drop((t_ptr, t_rows));
+    drop(kt);
     let mut values = Vec::new();
     values.try_reserve_exact(row_idx.len()).ok()?;
     values.resize(row_idx.len(), 0.0);
@@ -691,21 +638,26 @@ mod tests {
         }
     }
 
+    /// Whether `k`'s pattern is symmetric, as `symmetric_pattern` decides.
+    fn symmetric(k: &Csc) -> Option<bool> {
+        symmetric_pattern(k).map(|p| matches!(p, std::borrow::Cow::Borrowed(_)))
+    }
+
     #[test]
     fn the_pattern_check_finds_every_one_sided_entry() {
         let k = two_dofs(9, 4, true);
-        assert_eq!(pattern_is_symmetric(&k), Some(true));
-        assert_eq!(pattern_is_symmetric(&one_sided(&k)), Some(false));
+        assert_eq!(symmetric(&k), Some(true));
+        assert_eq!(symmetric(&one_sided(&k)), Some(false));
         // One entry above the diagonal only, one below only, in the last column.
         let n = k.ncols;
         for (r, c) in [(0, n - 1), (n - 1, 0), (3, 40)] {
             let mut t: Vec<(usize, usize, f64)> = (0..n).map(|i| (i, i, 1.0)).collect();
             t.push((r, c, 1e-18));
             let lop = Csc::from_triplets(n, n, &t);
-            assert_eq!(pattern_is_symmetric(&lop), Some(false), "({r}, {c})");
+            assert_eq!(symmetric(&lop), Some(false), "({r}, {c})");
             t.push((c, r, 0.0));
             let sym = Csc::from_triplets(n, n, &t);
-            assert_eq!(pattern_is_symmetric(&sym), Some(true), "({r}, {c})");
+            assert_eq!(symmetric(&sym), Some(true), "({r}, {c})");
         }
     }
 

@@ -427,6 +427,59 @@ impl Csc {
         self.try_transpose().expect("memory for the transpose")
     }
 
+    /// Visits every pair of mirror places (r, c), r < c, of a square matrix
+    /// with sorted rows, in one pass with n cursors and no copy:
+    /// `pair(r, c, upper, lower)` with the positions of A(r, c) and A(c, r)
+    /// in `row_idx` / `values` (None where not stored). The entries (c, j)
+    /// below the diagonal, met column by column, meet each column c's
+    /// entries above its diagonal in their order; one passed over has no
+    /// mirror. Stops at the first pair for which `pair` returns false and
+    /// returns false then, true after every pair.
+    ///
+    /// Errors: `OutOfMemory` (the n cursors).
+    pub(crate) fn mirror_pairs(
+        &self,
+        mut pair: impl FnMut(usize, usize, Option<usize>, Option<usize>) -> bool,
+    ) -> Result<bool> {
+        let n = self.ncols;
+        // next[c]: the next entry of column c above its diagonal not yet met.
+        let mut next = try_copy(&self.col_ptr[..n])?;
+        for j in 0..n {
+            for p in self.col_ptr[j]..self.col_ptr[j + 1] {
+                let c = self.row_idx[p];
+                if c <= j {
+                    continue;
+                }
+                // Column c's entries above its diagonal in rows before j: alone.
+                let end = self.col_ptr[c + 1];
+                let mut q = next[c];
+                while q < end && self.row_idx[q] < j {
+                    if !pair(self.row_idx[q], c, Some(q), None) {
+                        return Ok(false);
+                    }
+                    q += 1;
+                }
+                let upper = (q < end && self.row_idx[q] == j).then_some(q);
+                if !pair(j, c, upper, Some(p)) {
+                    return Ok(false);
+                }
+                next[c] = q + usize::from(upper.is_some());
+            }
+        }
+        for (c, &start) in next.iter().enumerate() {
+            for q in start..self.col_ptr[c + 1] {
+                let r = self.row_idx[q];
+                if r >= c {
+                    break;
+                }
+                if !pair(r, c, Some(q), None) {
+                    return Ok(false);
+                }
+            }
+        }
+        Ok(true)
+    }
+
     /// The transpose, in the same internal form.
     ///
     /// Errors: `OutOfMemory`.

@@ -338,60 +338,18 @@ pub(super) fn check_sums_finite(a: &Csc, what: &str, base: usize) -> Result<()> 
 pub(super) fn check_symmetric(a: &Csc, what: &str, base: usize) -> Result<()> {
     let max_abs = a.values.iter().fold(0.0f64, |m, v| m.max(v.abs()));
     let tol = SYMMETRY_TOL * max_abs;
-    let n = a.ncols;
-    // Worst pair (r, c) with r < c: values A(r, c) and A(c, r) and |difference|.
+    // Worst pair (r, c) with r < c: values A(r, c) and A(c, r) and |difference|,
+    // a missing entry counting as 0.
     let mut worst: Option<(usize, usize, f64, f64, f64)> = None;
-    let mut note = |r: usize, c: usize, upper: f64, lower: f64| {
+    let value = |q: Option<usize>| q.map_or(0.0, |q| a.values[q]);
+    a.mirror_pairs(|r, c, upper, lower| {
+        let (upper, lower) = (value(upper), value(lower));
         let diff = (upper - lower).abs();
         if diff > tol && worst.is_none_or(|w| diff > w.4) {
             worst = Some((r, c, upper, lower, diff));
         }
-    };
-    // One pass with n cursors, no copy of A: the entries (r, j) below the
-    // diagonal, met column by column (j increasing), meet each column r's
-    // entries above its diagonal in their order. next[r]: the next entry of
-    // column r above its diagonal not yet met; one passed over has no
-    // mirror below (a missing entry counts as 0).
-    let mut next: Vec<usize> = Vec::new();
-    next.try_reserve_exact(n).map_err(|_| {
-        crate::Error::new(
-            ErrorKind::OutOfMemory,
-            format!("{what}: the symmetry check"),
-        )
+        true
     })?;
-    next.extend_from_slice(&a.col_ptr[..n]);
-    for j in 0..n {
-        for p in a.col_ptr[j]..a.col_ptr[j + 1] {
-            let r = a.row_idx[p];
-            if r <= j {
-                continue;
-            }
-            let lower = a.values[p];
-            // Column r's entries above its diagonal in rows before j: alone.
-            let end = a.col_ptr[r + 1];
-            let mut q = next[r];
-            while q < end && a.row_idx[q] < j {
-                note(a.row_idx[q], r, a.values[q], 0.0);
-                q += 1;
-            }
-            if q < end && a.row_idx[q] == j {
-                note(j, r, a.values[q], lower);
-                q += 1;
-            } else {
-                note(j, r, 0.0, lower);
-            }
-            next[r] = q;
-        }
-    }
-    for (r, &start) in next.iter().enumerate() {
-        for q in start..a.col_ptr[r + 1] {
-            let row = a.row_idx[q];
-            if row >= r {
-                break;
-            }
-            note(row, r, a.values[q], 0.0);
-        }
-    }
     match worst {
         None => Ok(()),
         Some((r, c, upper, lower, diff)) => {
