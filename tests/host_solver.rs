@@ -150,6 +150,17 @@ fn on_solver(
     )
 }
 
+/// The first `rows` rows of `a`.
+fn first_rows(a: &dualsplit::Csc, rows: usize) -> dualsplit::Csc {
+    let mut t = a.transpose();
+    t.ncols = rows;
+    t.col_ptr.truncate(rows + 1);
+    let nnz = t.col_ptr[rows];
+    t.row_idx.truncate(nnz);
+    t.values.truncate(nnz);
+    t.transpose()
+}
+
 fn scene_2d() -> Scene {
     let mesh = Mesh::grid2d(24, 6, 2.0, 1.0);
     let mut prescribed = Vec::new();
@@ -1032,16 +1043,7 @@ fn the_contact_blocks_by_the_librarys_own_factor_of_k() {
     // set_contacts: the blocks of the new contacts by the factor again.
     let scene = scene_2d();
     let half = scene.m() / 2;
-    let first_rows = |a: &dualsplit::Csc| {
-        let mut t = a.transpose();
-        t.ncols = half;
-        t.col_ptr.truncate(half + 1);
-        let nnz = t.col_ptr[half];
-        t.row_idx.truncate(nnz);
-        t.values.truncate(nnz);
-        t.transpose()
-    };
-    let (n2, t2) = (first_rows(&scene.n), first_rows(&scene.t));
+    let (n2, t2) = (first_rows(&scene.n, half), first_rows(&scene.t, half));
     let (pb, calls) = on_blocks(&scene, HostBlocks::Factor, true, &opts);
     let mut pb = pb.expect("a valid host problem");
     pb.set_contacts(&Owned::of(&n2).view(), &Owned::of(&t2).view())
@@ -1116,15 +1118,6 @@ fn compliance_on_the_hosts_solves_matches_the_own_path() {
     );
     // New contacts (the first half): rigid again, then a law for them.
     let half = m / 2;
-    let first_rows = |a: &dualsplit::Csc, rows: usize| {
-        let mut t = a.transpose();
-        t.ncols = rows;
-        t.col_ptr.truncate(rows + 1);
-        let nnz = t.col_ptr[rows];
-        t.row_idx.truncate(nnz);
-        t.values.truncate(nnz);
-        t.transpose()
-    };
     let (n2, t2) = (first_rows(&scene.n, half), first_rows(&scene.t, 2 * half));
     host.set_contacts(&Owned::of(&n2).view(), &Owned::of(&t2).view())
         .unwrap();

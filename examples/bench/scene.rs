@@ -124,12 +124,7 @@ impl Scene {
         let mut top = vec![0.0; dim];
         top[0] = shift;
         top[dim - 1] = -delta;
-        let ke = if dim == 2 {
-            q4_stiffness(YOUNG, POISSON)
-        } else {
-            h8_stiffness(YOUNG, POISSON)
-        };
-        let (k, f) = assemble(&spec, &ke, &top);
+        let (k, f) = assemble(&spec, &element_stiffness(dim), &top);
         // Contacts: the bottom layer, node q of the layer has index q.
         let m = spec.layer();
         let vert = dim - 1;
@@ -177,20 +172,9 @@ impl Scene {
     #[allow(dead_code)] // examples/history.rs's; the benchmark has no use for it
     pub fn press_and_shear(&self) -> (Vec<f64>, Vec<f64>) {
         let dim = self.d;
-        let ke = if dim == 2 {
-            q4_stiffness(YOUNG, POISSON)
-        } else {
-            h8_stiffness(YOUNG, POISSON)
-        };
-        let height = if dim == 2 {
-            self.spec.ny as f64
-        } else {
-            self.spec.nz as f64
-        };
-        let (delta, _) = top_motion(height);
         let mut top = vec![0.0; dim];
-        top[dim - 1] = -delta;
-        let (_, press) = assemble(&self.spec, &ke, &top);
+        top[dim - 1] = -self.press_depth();
+        let press = self.load_of_top(&top);
         let shear = self.f.iter().zip(&press).map(|(a, b)| a - b).collect();
         (press, shear)
     }
@@ -202,31 +186,45 @@ impl Scene {
     #[allow(dead_code)] // examples/history.rs's
     pub fn oblique_shear(&self, ratio: f64, theta_deg: f64) -> Vec<f64> {
         let dim = self.d;
-        let ke = if dim == 2 {
-            q4_stiffness(YOUNG, POISSON)
-        } else {
-            h8_stiffness(YOUNG, POISSON)
-        };
-        let height = if dim == 2 {
-            self.spec.ny as f64
-        } else {
-            self.spec.nz as f64
-        };
-        let (delta, _) = top_motion(height);
-        let s = ratio * MU * delta;
+        let s = ratio * MU * self.press_depth();
         let th = theta_deg.to_radians();
         let mut top = vec![0.0; dim];
         top[0] = s * th.cos();
         if dim == 3 {
             top[1] = s * th.sin();
         }
-        assemble(&self.spec, &ke, &top).1
+        self.load_of_top(&top)
+    }
+
+    /// The press delta of the scene's full top motion.
+    fn press_depth(&self) -> f64 {
+        let height = if self.d == 2 {
+            self.spec.ny as f64
+        } else {
+            self.spec.nz as f64
+        };
+        top_motion(height).0
+    }
+
+    /// The load f = -K_fp u_p of the top moved by `top` (one value per
+    /// component).
+    fn load_of_top(&self, top: &[f64]) -> Vec<f64> {
+        assemble(&self.spec, &element_stiffness(self.d), top).1
     }
 
     /// The load vector of the same scene with the top motion scaled by `s` (f is
     /// linear in the prescribed displacement).
     pub fn scaled_load(&self, s: f64) -> Vec<f64> {
         self.f.iter().map(|v| s * v).collect()
+    }
+}
+
+/// The element stiffness of the scenes' meshes: Q4 in 2D, H8 in 3D.
+fn element_stiffness(dim: usize) -> Vec<f64> {
+    if dim == 2 {
+        q4_stiffness(YOUNG, POISSON)
+    } else {
+        h8_stiffness(YOUNG, POISSON)
     }
 }
 
@@ -395,11 +393,7 @@ pub fn check_assembly() {
             nz: 2,
         },
     ] {
-        let ke = if spec.dim == 2 {
-            q4_stiffness(YOUNG, POISSON)
-        } else {
-            h8_stiffness(YOUNG, POISSON)
-        };
+        let ke = element_stiffness(spec.dim);
         let top: Vec<f64> = (0..spec.dim).map(|c| 0.1 + c as f64).collect();
         let (k1, f1) = assemble(&spec, &ke, &top);
         let (k2, f2) = assemble_triplets(&spec, &ke, &top);
