@@ -349,7 +349,8 @@ pub(super) fn check_symmetric(a: &Csc, what: &str, base: usize) -> Result<()> {
             worst = Some((r, c, upper, lower, diff));
         }
         true
-    })?;
+    })
+    .map_err(|e| crate::Error::new(e.kind, format!("{what}: the symmetry check: {}", e.message)))?;
     match worst {
         None => Ok(()),
         Some((r, c, upper, lower, diff)) => {
