@@ -8,7 +8,9 @@
 //! baseline, Newton steps (outer), products or sweeps (inner), open / stick /
 //! slip, err and the equilibrium residual; per history: creation, the mean and worst warm step, and the
 //! creation plus the first 10 steps and plus all steps, in units of the
-//! baseline. `--csv FILE` writes the per-step rows; `--svg FILE` draws them:
+//! baseline, and the cold increment at full load (the creation plus a
+//! solve of the whole load from zero multipliers, with its phases).
+//! `--csv FILE` writes the per-step rows; `--svg FILE` draws them:
 //! the time of each step in units of the baseline along the history, one
 //! line per scene and law.
 //!
@@ -215,6 +217,30 @@ fn main() {
                     .unwrap();
                 }
             }
+            // The cold increment at full load: the creation, then a solve
+            // from zero multipliers of the whole load (press and shear at
+            // +1), as a host's first increment that takes the full load.
+            let full = stats::history_load(&press, &shear, (1.0, 1.0));
+            let t0 = Instant::now();
+            let cold = pb.solve(&full, &sc.g, friction, &opts).expect("solves");
+            let t_cold = t0.elapsed().as_secs_f64();
+            let r = &cold.report;
+            assert_eq!(r.status, dualsplit::SolveStatus::Converged, "{r:?}");
+            println!(
+                "cold increment at full load: creation {:.2} (analysis {:.2}, factor {:.2}, condensation {:.2}) + solve {:.2} (rhs {:.3}, iterations {:.3}, recovery {:.3}) = {:.2} factorisations; {} outer, {} inner, err {:.1e}",
+                t_create / t_factor,
+                r.analyse_seconds / t_factor,
+                r.factor_seconds / t_factor,
+                r.condense_seconds / t_factor,
+                t_cold / t_factor,
+                r.rhs_seconds / t_factor,
+                r.iterate_seconds / t_factor,
+                r.recover_seconds / t_factor,
+                (t_create + t_cold) / t_factor,
+                r.outer_iterations,
+                r.inner_iterations,
+                r.err
+            );
             lines.push((
                 format!("{name} {law}, {threads} thread(s)"),
                 times.iter().map(|t| t / t_factor).collect(),
@@ -225,9 +251,10 @@ fn main() {
             let ten: f64 = t_create + times.iter().take(10).sum::<f64>();
             let all: f64 = t_create + times.iter().sum::<f64>();
             summary.push(format!(
-                "| {name} | {} | {law} | {threads} | {t_factor:.2} | {:.2} | {:.2} | {:.3} | {:.3} | {:.2} | {:.2} |",
+                "| {name} | {} | {law} | {threads} | {t_factor:.2} | {:.2} | {:.2} | {:.2} | {:.3} | {:.3} | {:.2} | {:.2} |",
                 pb.dual_unknowns(),
                 t_create / t_factor,
+                (t_create + t_cold) / t_factor,
                 times[0] / t_factor,
                 mean / t_factor,
                 worst / t_factor,
@@ -237,9 +264,9 @@ fn main() {
         }
     }
     println!(
-        "\n| scene | c | law | threads | factor s | creation / factor | cold step / factor | warm step / factor, mean | worst | creation + 10 steps / factor | creation + {steps} steps / factor |"
+        "\n| scene | c | law | threads | factor s | creation / factor | cold increment at full load / factor | first step / factor | warm step / factor, mean | worst | creation + 10 steps / factor | creation + {steps} steps / factor |"
     );
-    println!("|---|---|---|---|---|---|---|---|---|---|---|");
+    println!("|---|---|---|---|---|---|---|---|---|---|---|---|");
     for s in summary {
         println!("{s}");
     }

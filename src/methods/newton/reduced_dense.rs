@@ -63,13 +63,20 @@ impl Reused {
 /// the second to solve on the first one's factor (see [`Reused`]).
 pub(super) const REUSE_MAX_CHANGED: usize = 8;
 
-/// How `solve_reduced` may solve: whether M is symmetric, the unknowns'
-/// key, and the factor kept from the last step (replaced by this step's).
+/// How `solve_reduced` may solve: M's symmetric part where M is not
+/// symmetric (its lower entries (i, j), i >= j), the unknowns' key, and the
+/// factor kept from the last step (replaced by this step's).
 pub(super) struct Reduce<'a> {
-    pub(super) symmetric: bool,
+    pub(super) sym_part: Option<&'a (dyn Fn(usize, usize) -> f64 + Sync)>,
     pub(super) key: Vec<usize>,
     pub(super) reused: &'a mut Option<Reused>,
 }
+
+/// Most products with M a GMRES solve of a non-symmetric M spends on the
+/// single-precision factor of its symmetric part (a new one, or the last
+/// step's) before the LU in double: an iteration costs about 3 k^2 flops,
+/// the LU 2 k^3 / 3.
+pub(super) const GMRES_MAX_IT: usize = 60;
 
 /// Solves the reduced system M z = rhs: by Cholesky when M is `symmetric` (half the
 /// flops of LU), else or when that fails by a partially pivoted LU, unless M is numerically
@@ -84,10 +91,11 @@ pub(super) fn solve_reduced(
     ledger: &Arc<Ledger>,
 ) -> Option<Mat<f64>> {
     let Reduce {
-        symmetric,
+        sym_part,
         key,
         reused,
     } = how;
+    let symmetric = sym_part.is_none();
     let max_abs = |a: faer::MatRef<'_, f64>| {
         let mut v = 0.0f64;
         for j in 0..a.ncols() {
@@ -105,13 +113,16 @@ pub(super) fn solve_reduced(
     let k2 = mat.nrows() * mat.ncols();
     let rv: Vec<f64> = r.col(0).iter().copied().collect();
     // The last step's factor, where this step has the same unknowns: CG
-    // preconditioned by it (see REUSE_MAX_IT).
-    if symmetric
-        && let Some(old) = reused.as_ref()
+    // preconditioned by it (see REUSE_MAX_IT), GMRES where M is not symmetric.
+    if let Some(old) = reused.as_ref()
         && let Some(pos) = old.positions(&key)
         && let Some(z) = threads.run(big, |par| {
             let pos = (!pos.is_empty()).then_some(&pos[..]);
-            dense::pcg(m, &old.llt, pos, &rv, MIXED_RTOL, REUSE_MAX_IT, par)
+            if symmetric {
+                dense::pcg(m, &old.llt, pos, &rv, MIXED_RTOL, REUSE_MAX_IT, par)
+            } else {
+                dense::gmres(m, &old.llt, pos, &rv, MIXED_RTOL, REUSE_MAX_IT, par)
+            }
         })
     {
         let z = Mat::from_fn(z.len(), 1, |i, _| z[i]);
@@ -121,11 +132,19 @@ pub(super) fn solve_reduced(
     }
     // A new factor replaces the old one (never both held: the workspace).
     *reused = None;
-    if symmetric && mat.nrows() >= MIXED_MIN {
+    if mat.nrows() >= MIXED_MIN {
         let k = mat.nrows();
         let claim = ledger.claim(k * k * std::mem::size_of::<f32>());
-        if let Some(llt) = threads.run(big, |par| dense::LltF32::of(m, par))
-            && let Some(z) = threads.run(big, |par| dense::refine(m, &llt, &rv, MIXED_RTOL, par))
+        let factor = |par| match sym_part {
+            None => dense::LltF32::of(m, par),
+            Some(s) => dense::LltF32::of_entries(k, s, par),
+        };
+        let solve = |llt: &dense::LltF32, par| match sym_part {
+            None => dense::refine(m, llt, &rv, MIXED_RTOL, par),
+            Some(_) => dense::gmres(m, llt, None, &rv, MIXED_RTOL, GMRES_MAX_IT, par),
+        };
+        if let Some(llt) = threads.run(big, factor)
+            && let Some(z) = threads.run(big, |par| solve(&llt, par))
         {
             let z = Mat::from_fn(z.len(), 1, |i, _| z[i]);
             if acceptable(&z) {

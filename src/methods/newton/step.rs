@@ -195,6 +195,12 @@ pub(super) fn newton_step(
         return false;
     };
     let mut rhs = Mat::<f64>::zeros(k, 1);
+    // Each row's test vector as two (index, coefficient) entries, the second
+    // (0, 0.0) where there is one: the gathers below run without branches.
+    let tests: Vec<[(usize, f64); 2]> = red
+        .iter()
+        .map(|u| [u.test[0], if u.n_test > 1 { u.test[1] } else { (0, 0.0) }])
+        .collect();
     for (l, u) in red.iter().enumerate() {
         let col = mat
             .col_mut(l)
@@ -203,9 +209,8 @@ pub(super) fn newton_step(
             .as_slice_mut();
         for &(jd, cd) in &u.dir[..u.n_dir] {
             let a = dual.col(jd);
-            for (x, ur) in col.iter_mut().zip(&red) {
-                let t = &ur.test[..ur.n_test];
-                *x += cd * t.iter().map(|&(jt, ct)| ct * a[jt]).sum::<f64>();
+            for (x, &[(i0, c0), (i1, c1)]) in col.iter_mut().zip(&tests) {
+                *x += cd * (c0 * a[i0] + c1 * a[i1]);
             }
         }
         col[l] += u.diag;
@@ -217,12 +222,36 @@ pub(super) fn newton_step(
     }
     // Test and direction vectors equal (every unknown but a Coulomb normal that
     // drags its slip force): M is symmetric, positive definite unless A is singular.
-    let symmetric = red
-        .iter()
-        .all(|u| u.n_test == u.n_dir && u.test[..u.n_test] == u.dir[..u.n_dir]);
+    let coupled: Vec<bool> = red.iter().map(|u| u.n_dir > u.n_test).collect();
+    let symmetric = !coupled.iter().any(|&b| b);
+    // Else M's symmetric part S = W^T A W + diag (each direction cut to its
+    // test vector), positive definite as M is where every unknown is
+    // symmetric: its lower entries for the preconditioner of M's solve. A
+    // column without a coupling is S's column; a coupled column's row that
+    // is not coupled is S's by symmetry; where both are, from A.
+    let (a_all, c) = (&dual.a[..], dual.c);
+    let sym_entry = |i: usize, j: usize| -> f64 {
+        if !coupled[j] {
+            mat[(i, j)]
+        } else if !coupled[i] {
+            mat[(j, i)]
+        } else {
+            let (ui, uj) = (&red[i], &red[j]);
+            let mut s = if i == j { uj.diag } else { 0.0 };
+            for &(jd, cd) in &uj.test[..uj.n_test] {
+                let a = &a_all[jd * c..(jd + 1) * c];
+                s += cd
+                    * ui.test[..ui.n_test]
+                        .iter()
+                        .map(|&(jt, ct)| ct * a[jt])
+                        .sum::<f64>();
+            }
+            s
+        }
+    };
     let key: Vec<usize> = red.iter().map(|u| 4 * u.test[0].0 + u.n_test).collect();
     let how = Reduce {
-        symmetric,
+        sym_part: (!symmetric).then_some(&sym_entry as &(dyn Fn(usize, usize) -> f64 + Sync)),
         key,
         reused,
     };

@@ -220,7 +220,7 @@ fn the_reduced_solve_takes_cholesky_lu_or_least_squares_as_the_matrix_allows() {
     let seq = Threads::sequential();
     fn fresh(none: &mut Option<Reused>) -> Reduce<'_> {
         Reduce {
-            symmetric: true,
+            sym_part: None,
             key: Vec::new(),
             reused: none,
         }
@@ -266,7 +266,7 @@ fn a_reduced_solve_with_the_same_unknowns_reuses_the_last_factor() {
     let mut reused = None;
     fn how<'a>(key: &[usize], reused: &'a mut Option<Reused>) -> Reduce<'a> {
         Reduce {
-            symmetric: true,
+            sym_part: None,
             key: key.to_vec(),
             reused,
         }
@@ -298,6 +298,80 @@ fn a_reduced_solve_with_the_same_unknowns_reuses_the_last_factor() {
     assert_ne!(l00(&reused), before);
     assert_eq!(reused.as_ref().unwrap().key, other);
     assert_eq!(ledger.live(), k * k * 4, "one factor held at a time");
+}
+
+/// A reduced system that is not symmetric (Coulomb's normals dragging their
+/// slip forces: columns of M beyond its symmetric part S) is solved by GMRES
+/// on the single-precision factor of S, to the residual a double solve
+/// meets; that factor is kept, and the next step's M (other couplings, the
+/// same unknowns) is solved on it without a new factorisation.
+#[test]
+fn a_reduced_system_that_is_not_symmetric_is_solved_on_its_symmetric_part() {
+    let k = MIXED_MIN + 44;
+    let seq = Threads::sequential();
+    let ledger = Ledger::new();
+    let s = Mat::from_fn(k, k, |i, j| {
+        if i == j {
+            4.0 + (i % 7) as f64
+        } else {
+            1.0 / (1.0 + (i as f64 - j as f64).abs()).powi(2)
+        }
+    });
+    // Six coupled columns: M = S + 0.3 (a column that is not S's).
+    let coupled = |j: usize| j % 50 == 3;
+    let with = |shift: f64| {
+        Mat::from_fn(k, k, |i, j| {
+            s[(i, j)]
+                + if coupled(j) {
+                    0.3 * ((i + j) as f64 * 0.11 + shift).sin()
+                } else {
+                    0.0
+                }
+        })
+    };
+    let (m0, m1) = (with(0.0), with(0.5));
+    let sym = |i: usize, j: usize| s[(i, j)];
+    let rhs = Mat::from_fn(k, 1, |i, _| (i as f64 * 0.7).cos());
+    let key: Vec<usize> = (0..k).collect();
+    let mut reused = None;
+    let check = |m: &Mat<f64>, z: &Mat<f64>| {
+        let r = m * z - &rhs;
+        let res = (0..k).fold(0.0f64, |a, i| a.max(r[(i, 0)].abs()));
+        assert!(res <= 1e-13, "{res}");
+    };
+    let how = |reused: &mut Option<Reused>| -> Option<Mat<f64>> {
+        let r = Reduce {
+            sym_part: Some(&sym),
+            key: key.clone(),
+            reused,
+        };
+        solve_reduced(&m0, &rhs, r, &seq, &ledger)
+    };
+    let z = how(&mut reused).unwrap();
+    check(&m0, &z);
+    let kept = reused.as_ref().expect("S's factor kept");
+    assert_eq!(kept.llt.order(), k);
+    let before = kept.llt.first_entry();
+    assert_eq!(before, (s[(0, 0)] as f32).sqrt(), "the factor is S's");
+    let z = solve_reduced(
+        &m1,
+        &rhs,
+        Reduce {
+            sym_part: Some(&sym),
+            key: key.clone(),
+            reused: &mut reused,
+        },
+        &seq,
+        &ledger,
+    )
+    .unwrap();
+    check(&m1, &z);
+    assert_eq!(
+        reused.as_ref().unwrap().llt.first_entry(),
+        before,
+        "M1 solved on S's factor"
+    );
+    assert_eq!(ledger.live(), k * k * 4, "one factor held");
 }
 
 /// A thin slab of springs, nx x ny x nz nodes with 3 DOFs each: every two
