@@ -24,6 +24,10 @@ pub(super) const MIXED_RTOL: f64 = 1e-15;
 /// a factorisation k^3 / 3 at the faster rate of blocked kernels.
 pub(super) const REUSE_MAX_IT: usize = 20;
 
+/// The same for GMRES on a non-symmetric M: its preconditioner is the kept
+/// factor of an earlier symmetric part, two steps of changes away from M.
+pub(super) const REUSE_GMRES_MAX_IT: usize = 30;
+
 /// The single-precision factor of the last dense reduced system, with the
 /// unknowns it was formed on (`key`: each unknown's first test index and
 /// kind), held for the next Newton step: where that step has the same
@@ -55,13 +59,18 @@ impl Reused {
         let pos: Vec<Option<usize>> = key.iter().map(|kj| old.get(kj).copied()).collect();
         let shared = pos.iter().flatten().count();
         let changed = (key.len() - shared) + (self.key.len() - shared);
-        (changed <= REUSE_MAX_CHANGED).then_some(pos)
+        (changed <= REUSE_MAX_CHANGED.max(key.len() / REUSE_CHANGED_DIV)).then_some(pos)
     }
 }
 
 /// Most reduced unknowns that may come or go between two Newton steps for
-/// the second to solve on the first one's factor (see [`Reused`]).
+/// the second to solve on the first one's factor (see [`Reused`]): at
+/// least REUSE_MAX_CHANGED, and up to k / REUSE_CHANGED_DIV. Each costs a
+/// pair of triangular solves with the kept factor (2 k^2 flops, in blocks;
+/// `dense::kept`), a new factorisation k^3 / 3: at k / 16 the bordering
+/// costs under half of it.
 pub(super) const REUSE_MAX_CHANGED: usize = 8;
+pub(super) const REUSE_CHANGED_DIV: usize = 16;
 
 /// How `solve_reduced` may solve: M's symmetric part where M is not
 /// symmetric (its lower entries (i, j), i >= j), the unknowns' key, and the
@@ -118,10 +127,18 @@ pub(super) fn solve_reduced(
         && let Some(pos) = old.positions(&key)
         && let Some(z) = threads.run(big, |par| {
             let pos = (!pos.is_empty()).then_some(&pos[..]);
-            if symmetric {
-                dense::pcg(m, &old.llt, pos, &rv, MIXED_RTOL, REUSE_MAX_IT, par)
-            } else {
-                dense::gmres(m, &old.llt, pos, &rv, MIXED_RTOL, REUSE_MAX_IT, par)
+            match sym_part {
+                None => dense::pcg(m, &old.llt, pos, &rv, MIXED_RTOL, REUSE_MAX_IT, par),
+                Some(s) => dense::gmres(
+                    m,
+                    s,
+                    &old.llt,
+                    pos,
+                    &rv,
+                    MIXED_RTOL,
+                    REUSE_GMRES_MAX_IT,
+                    par,
+                ),
             }
         })
     {
@@ -141,7 +158,7 @@ pub(super) fn solve_reduced(
         };
         let solve = |llt: &dense::LltF32, par| match sym_part {
             None => dense::refine(m, llt, &rv, MIXED_RTOL, par),
-            Some(_) => dense::gmres(m, llt, None, &rv, MIXED_RTOL, GMRES_MAX_IT, par),
+            Some(s) => dense::gmres(m, s, llt, None, &rv, MIXED_RTOL, GMRES_MAX_IT, par),
         };
         if let Some(llt) = threads.run(big, factor)
             && let Some(z) = threads.run(big, |par| solve(&llt, par))

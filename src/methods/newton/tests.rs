@@ -251,16 +251,23 @@ fn a_reduced_solve_with_the_same_unknowns_reuses_the_last_factor() {
     let k = MIXED_MIN + 44;
     let seq = Threads::sequential();
     let ledger = Ledger::new();
-    // M0: diagonally dominant SPD; M1 = M0 + 3 w w^T.
-    let m0 = Mat::from_fn(k, k, |i, j| {
-        if i == j {
-            4.0 + (i % 7) as f64
+    // M0: diagonally dominant SPD; M1 = M0 + 3 w w^T; the entries as
+    // functions of the unknowns' keys, so that a system on other unknowns
+    // shares the entries of the unknowns it shares.
+    let e0 = |a: usize, b: usize| {
+        if a == b {
+            4.0 + (a % 7) as f64
         } else {
-            1.0 / (1.0 + (i as f64 - j as f64).abs()).powi(2)
+            1.0 / (1.0 + (a as f64 - b as f64).abs()).powi(2)
         }
-    });
-    let w: Vec<f64> = (0..k).map(|i| (i as f64 * 0.3 + 0.5).sin()).collect();
-    let m1 = Mat::from_fn(k, k, |i, j| m0[(i, j)] + 3.0 * w[i] * w[j]);
+    };
+    let w = |a: usize| (a as f64 * 0.3 + 0.5).sin();
+    let e1 = |a: usize, b: usize| e0(a, b) + 3.0 * w(a) * w(b);
+    let on = |keys: &[usize], e: &dyn Fn(usize, usize) -> f64| {
+        Mat::from_fn(keys.len(), keys.len(), |i, j| e(keys[i], keys[j]))
+    };
+    let m0 = on(&(0..k).collect::<Vec<_>>(), &e0);
+    let m1 = on(&(0..k).collect::<Vec<_>>(), &e1);
     let rhs = Mat::from_fn(k, 1, |i, _| (i as f64 * 0.7).cos());
     let key: Vec<usize> = (0..k).collect();
     let mut reused = None;
@@ -286,11 +293,14 @@ fn a_reduced_solve_with_the_same_unknowns_reuses_the_last_factor() {
     let z = solve_reduced(&m1, &rhs, how(&key, &mut reused), &seq, &ledger).unwrap();
     check(&m1, &z);
     assert_eq!(l00(&reused), before, "M1 solved on M0's factor");
-    // One unknown gone, one new: still on M0's factor, embedded.
+    // One unknown gone, one new: still on M0's factor, bordered (the shared
+    // block is M1's, far from M0's along w: Sigma is not positive definite
+    // and the new unknown goes on its diagonal).
     let near: Vec<usize> = (1..=k).collect();
-    let z = solve_reduced(&m1, &rhs, how(&near, &mut reused), &seq, &ledger).unwrap();
-    check(&m1, &z);
-    assert_eq!(l00(&reused), before, "embedded");
+    let m_near = on(&near, &e1);
+    let z = solve_reduced(&m_near, &rhs, how(&near, &mut reused), &seq, &ledger).unwrap();
+    check(&m_near, &z);
+    assert_eq!(l00(&reused), before, "bordered");
     // Other unknowns: M1 factored and kept.
     let other: Vec<usize> = (k..2 * k).collect();
     let z = solve_reduced(&m1, &rhs, how(&other, &mut reused), &seq, &ledger).unwrap();
