@@ -29,7 +29,7 @@ use faer::{Mat, Par};
 /// per application).
 pub(super) struct Bordered<'a> {
     l: &'a LltF32,
-    /// M's unknown j sits at S0's position pos[j] (None: a new one); None:
+    /// M's unknown j sits at S0's position `pos[j]` (None: a new one); None:
     /// the same unknowns in the same order.
     pos: Option<&'a [Option<usize>]>,
     /// R as S0's positions; Y (k0 x |R|) and C's Cholesky factor.

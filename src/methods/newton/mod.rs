@@ -16,11 +16,13 @@
 //! force follows the normal one. The reduced system on the free unknowns is solved
 //! densely (a free row's equation is (A d)_j = -w_j, w = A lambda - b): by
 //! Cholesky where it is symmetric, in single precision with refinement in
-//! double from order MIXED_MIN on, else by LU (`solve_reduced`). The single-
-//! precision factor is kept for the next step: where that step has the same
-//! reduced unknowns, or a few more or fewer (the active set settling, slip
-//! directions turning; `Reused`), CG preconditioned by it solves the next
-//! system without a new factorisation.
+//! double from order MIXED_MIN on; where it is not (Coulomb), by GMRES on the
+//! single-precision factor of its symmetric part from that order on, else
+//! by LU (`solve_reduced`). The single-precision factor is kept for the next
+//! step: where that step has the same reduced unknowns, or a few more or
+//! fewer (the active set settling, slip directions turning; `Reused`), CG or
+//! GMRES preconditioned by it (bordered for the unknowns that came and went,
+//! `dense::kept`) solves the next system without a new factorisation.
 //!
 //! A numerically singular reduced system (A singular: redundant or dependent
 //! contact rows) is solved in the least-squares sense with the minimum norm

@@ -1,8 +1,10 @@
 //! The reduced system of a Newton step on a dense dual: Cholesky (in single
-//! precision with refinement in double from MIXED_MIN unknowns on), LU where it
-//! is not symmetric, the truncated SVD where it is numerically singular; the
-//! single-precision factor kept to precondition CG on the next step's system
-//! where the reduced unknowns barely changed (`Reused`).
+//! precision with refinement in double from MIXED_MIN unknowns on); where it
+//! is not symmetric, GMRES on the single-precision factor of its symmetric
+//! part from MIXED_MIN on, LU below or where GMRES fails; the truncated SVD
+//! where it is numerically singular. The single-precision factor is kept to
+//! precondition CG or GMRES on the next step's system where the reduced
+//! unknowns barely changed (`Reused`).
 
 use super::*;
 
@@ -87,8 +89,11 @@ pub(super) struct Reduce<'a> {
 /// the LU 2 k^3 / 3.
 pub(super) const GMRES_MAX_IT: usize = 60;
 
-/// Solves the reduced system M z = rhs: by Cholesky when M is `symmetric` (half the
-/// flops of LU), else or when that fails by a partially pivoted LU, unless M is numerically
+/// Solves the reduced system M z = rhs: on the kept factor where it serves
+/// (CG, or GMRES where M is not symmetric), else on a new single-precision
+/// factor of M or of its symmetric part (from MIXED_MIN on), else by
+/// Cholesky in double when M is symmetric (half the flops of LU), else or
+/// when that fails by a partially pivoted LU, unless M is numerically
 /// singular (the solution is not finite or much larger than M and rhs warrant),
 /// then by the minimum-norm least-squares solution with singular values below
 /// RCOND sigma_max dropped. None when no finite solution is found.
