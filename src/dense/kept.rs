@@ -22,6 +22,7 @@
 //! alone.
 
 use super::{LltF32, cholesky_in_place};
+use crate::memory::try_mat;
 use faer::dyn_stack::MemBuffer;
 use faer::{Mat, Par};
 
@@ -105,12 +106,12 @@ impl<'a> Bordered<'a> {
             par,
         };
         if rho > 0 {
-            let mut e = Mat::<f64>::zeros(k0, rho);
+            let mut e = try_mat::<f64>(k0, rho, "").ok()?;
             for (a, &q) in me.removed.iter().enumerate() {
                 e[(q, a)] = 1.0;
             }
             me.y = l.solve_cols(e.as_ref(), par)?;
-            let mut c = Mat::<f64>::zeros(rho, rho);
+            let mut c = try_mat::<f64>(rho, rho, "").ok()?;
             for a in 0..rho {
                 for b in 0..rho {
                     c[(a, b)] = 0.5 * (me.y[(me.removed[a], b)] + me.y[(me.removed[b], a)]);
@@ -122,7 +123,7 @@ impl<'a> Bordered<'a> {
         if nu > 0 {
             let pos = pos.expect("new unknowns come with positions");
             let entry = |i: usize, j: usize| if i >= j { sym(i, j) } else { sym(j, i) };
-            let mut s_fn = Mat::<f64>::zeros(k0, nu);
+            let mut s_fn = try_mat::<f64>(k0, nu, "").ok()?;
             for (a, &jn) in me.new.iter().enumerate() {
                 for (j, q) in pos.iter().enumerate() {
                     if let Some(q) = *q {
@@ -136,7 +137,7 @@ impl<'a> Bordered<'a> {
                 let col = z.col_mut(a).try_as_col_major_mut().expect("contiguous");
                 me.take_out_removed(col.as_slice_mut());
             }
-            let mut sigma = Mat::<f64>::zeros(nu, nu);
+            let mut sigma = try_mat::<f64>(nu, nu, "").ok()?;
             for a in 0..nu {
                 for b in 0..=a {
                     let dot = |p: usize, q: usize| -> f64 {
@@ -159,7 +160,7 @@ impl<'a> Bordered<'a> {
                 // Sigma is not positive definite where S_FF has moved far
                 // from S0_FF: the new unknowns then go on S's diagonal alone
                 // (S_FN, Z = 0 and Sigma = diag S_NN; positive definite).
-                let mut diag = Mat::<f64>::zeros(nu, nu);
+                let mut diag = try_mat::<f64>(nu, nu, "").ok()?;
                 for (a, &jn) in me.new.iter().enumerate() {
                     let v = entry(jn, jn);
                     if v.is_nan() || v <= 0.0 {
@@ -167,8 +168,8 @@ impl<'a> Bordered<'a> {
                     }
                     diag[(a, a)] = v.sqrt();
                 }
-                me.s_fn = Mat::zeros(k0, nu);
-                me.z = Mat::zeros(k0, nu);
+                me.s_fn = try_mat::<f64>(k0, nu, "").ok()?;
+                me.z = try_mat::<f64>(k0, nu, "").ok()?;
                 me.sigma_l = diag;
             }
         }

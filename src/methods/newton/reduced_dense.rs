@@ -128,9 +128,22 @@ pub(super) fn solve_reduced(
     let rv: Vec<f64> = r.col(0).iter().copied().collect();
     // The last step's factor, where this step has the same unknowns: CG
     // preconditioned by it (see REUSE_MAX_IT), GMRES where M is not symmetric.
-    if let Some(old) = reused.as_ref()
-        && let Some(pos) = old.positions(&key)
-        && let Some(z) = threads.run(big, |par| {
+    // The bordering's blocks (Y, S_FN and Z: k0 by the unknowns that went
+    // and came) and GMRES's basis (2 GMRES_RESTART + 1 vectors of length k)
+    // on the ledger while they are held.
+    let basis = if symmetric {
+        0
+    } else {
+        (2 * dense::GMRES_RESTART + 1) * mat.nrows()
+    };
+    let kept = reused
+        .as_ref()
+        .and_then(|old| old.positions(&key).map(|pos| (old, pos)));
+    if let Some((old, pos)) = kept {
+        let shared = pos.iter().flatten().count();
+        let changed = (pos.len() - shared) + (old.key.len() - shared);
+        let _blocks = ledger.claim_f64(3 * old.llt.order() * changed + basis);
+        if let Some(z) = threads.run(big, |par| {
             let pos = (!pos.is_empty()).then_some(&pos[..]);
             match sym_part {
                 None => dense::pcg(m, &old.llt, pos, &rv, MIXED_RTOL, REUSE_MAX_IT, par),
@@ -145,11 +158,11 @@ pub(super) fn solve_reduced(
                     par,
                 ),
             }
-        })
-    {
-        let z = Mat::from_fn(z.len(), 1, |i, _| z[i]);
-        if acceptable(&z) {
-            return Some(z);
+        }) {
+            let z = Mat::from_fn(z.len(), 1, |i, _| z[i]);
+            if acceptable(&z) {
+                return Some(z);
+            }
         }
     }
     // A new factor replaces the old one (never both held: the workspace).
@@ -161,6 +174,7 @@ pub(super) fn solve_reduced(
             None => dense::LltF32::of(m, par),
             Some(s) => dense::LltF32::of_entries(k, s, par),
         };
+        let _basis = ledger.claim_f64(basis);
         let solve = |llt: &dense::LltF32, par| match sym_part {
             None => dense::refine(m, llt, &rv, MIXED_RTOL, par),
             Some(s) => dense::gmres(m, s, llt, None, &rv, MIXED_RTOL, GMRES_MAX_IT, par),
