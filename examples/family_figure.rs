@@ -58,7 +58,7 @@ fn parse(text: &str) -> Vec<Row> {
         let num = |i: usize| cells[i].parse::<f64>().unwrap_or(f64::NAN);
         let scene = cells[1].trim_start_matches("3d-");
         rows.push(Row {
-            label: format!("{scene} {path} {}", &cells[3][..1]),
+            label: format!("{scene} {path} {}", cells[3].get(..1).unwrap_or("?")),
             cold: num(7),
             mean: num(9),
             worst: num(10),

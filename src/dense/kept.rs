@@ -4,7 +4,9 @@
 //! unknowns both matrices share, bordered by the unknowns that are new.
 //!
 //! With F the shared unknowns, R those S0 has and M no longer has, N the new
-//! ones, and S M's symmetric part (M itself where M is symmetric):
+//! ones, and S the symmetric matrix M's solve is preconditioned for (M
+//! itself where M is symmetric; for a Newton step's reduced system that is
+//! not, W^T A W + D, each direction cut to its test vector):
 //!
 //! ```text
 //! X   = (S0_FF)^-1 = (S0^-1)_FF - Y_F C^-1 Y_F^T,   Y = S0^-1 E_R, C = Y_R,
@@ -16,8 +18,8 @@
 //! on F are still S0's, so that the Krylov iterations only pay for the
 //! entries that changed (slip directions turning), not for the unknowns that
 //! came or went. Setting it up costs |R| + |N| pairs of triangular solves
-//! with the kept factor (k0^2 flops each) instead of a new factorisation
-//! (k^3 / 3). Where S_FF has moved so far from S0_FF that Sigma is not
+//! with the kept factor (k0^2 flops each) and Sigma's |N|^2 k0 instead of a
+//! new factorisation (k^3 / 3). Where S_FF has moved so far from S0_FF that Sigma is not
 //! positive definite, the new unknowns are preconditioned by S's diagonal
 //! alone.
 
@@ -38,8 +40,11 @@ pub(super) struct Bordered<'a> {
     y: Mat<f64>,
     c_l: Mat<f64>,
     /// N as M's indices; S_FN at S0's positions (k0 x |N|, zero on R), Z
-    /// likewise, and Sigma's Cholesky factor.
+    /// likewise, and Sigma's Cholesky factor; `bordered` false (S_FN and Z
+    /// empty) where Sigma was not positive definite and its factor is that
+    /// of S's diagonal on N.
     new: Vec<usize>,
+    bordered: bool,
     s_fn: Mat<f64>,
     z: Mat<f64>,
     sigma_l: Mat<f64>,
@@ -94,6 +99,7 @@ impl<'a> Bordered<'a> {
             y: Mat::zeros(0, 0),
             c_l: Mat::zeros(0, 0),
             new,
+            bordered: false,
             s_fn: Mat::zeros(0, 0),
             z: Mat::zeros(0, 0),
             sigma_l: Mat::zeros(0, 0),
@@ -156,6 +162,7 @@ impl<'a> Bordered<'a> {
                 me.s_fn = s_fn;
                 me.z = z;
                 me.sigma_l = sigma;
+                me.bordered = true;
             } else {
                 // Sigma is not positive definite where S_FF has moved far
                 // from S0_FF: the new unknowns then go on S's diagonal alone
@@ -168,8 +175,6 @@ impl<'a> Bordered<'a> {
                     }
                     diag[(a, a)] = v.sqrt();
                 }
-                me.s_fn = try_mat::<f64>(k0, nu, "").ok()?;
-                me.z = try_mat::<f64>(k0, nu, "").ok()?;
                 me.sigma_l = diag;
             }
         }
@@ -213,13 +218,18 @@ impl<'a> Bordered<'a> {
         if !self.new.is_empty() {
             // Sigma^-1 (res_N - S_NF u), then u -= Z of it.
             for (a, &jn) in self.new.iter().enumerate() {
-                let su: f64 = self.s_fn.col(a).iter().zip(&u).map(|(s, x)| s * x).sum();
-                self.tn[a] = res[jn] - su;
+                self.tn[a] = res[jn];
+                if self.bordered {
+                    let su: f64 = self.s_fn.col(a).iter().zip(&u).map(|(s, x)| s * x).sum();
+                    self.tn[a] -= su;
+                }
             }
             chol_solve(&self.sigma_l, &mut self.tn);
             for (a, &ta) in self.tn.iter().enumerate() {
-                for (ui, &za) in u.iter_mut().zip(self.z.col(a).iter()) {
-                    *ui -= ta * za;
+                if self.bordered {
+                    for (ui, &za) in u.iter_mut().zip(self.z.col(a).iter()) {
+                        *ui -= ta * za;
+                    }
                 }
                 out[self.new[a]] = ta;
             }
@@ -272,8 +282,13 @@ mod tests {
             }
         };
         let old: Vec<usize> = (0..k).collect();
-        // Keys 0 and 7 gone, 40 and 41 new (in the middle and at the end).
-        let new: Vec<usize> = (1..k).filter(|&a| a != 7).chain([k, k + 1]).collect();
+        // Keys 0 and 7 gone, 40 new in the middle of the order, 41 at its end.
+        let new: Vec<usize> = (1..20)
+            .filter(|&a| a != 7)
+            .chain([k])
+            .chain(20..k)
+            .chain([k + 1])
+            .collect();
         let m0 = Mat::from_fn(k, k, |i, j| e(old[i], old[j]));
         let l0 = LltF32::of(m0.as_ref(), Par::Seq).unwrap();
         let n = new.len();
@@ -295,5 +310,55 @@ mod tests {
             .zip(&x)
             .fold(0.0f64, |a, (p, q)| a.max((p - q).abs()));
         assert!(err <= 1e-5, "{err}");
+    }
+
+    /// Where the shared block has moved far from the kept one (here by
+    /// 50 w w^T), Sigma is not positive definite: the new unknowns go on
+    /// the diagonal, and the preconditioner is still symmetric positive
+    /// definite (x^T P x > 0 and P symmetric on probes).
+    #[test]
+    fn a_sigma_that_is_not_positive_definite_leaves_the_new_unknowns_on_the_diagonal() {
+        let k = 40;
+        let e = |a: usize, b: usize| {
+            if a == b {
+                4.0 + (a % 7) as f64
+            } else {
+                1.0 / (1.0 + (a as f64 - b as f64).abs()).powi(2)
+            }
+        };
+        let w = |a: usize| ((a as f64) * 0.3 + 0.5).sin();
+        let moved = |a: usize, b: usize| e(a, b) + 50.0 * w(a) * w(b);
+        let old: Vec<usize> = (0..k).collect();
+        let new: Vec<usize> = (1..k).chain([k]).collect();
+        let m0 = Mat::from_fn(k, k, |i, j| e(old[i], old[j]));
+        let l0 = LltF32::of(m0.as_ref(), Par::Seq).unwrap();
+        let n = new.len();
+        let m = Mat::from_fn(n, n, |i, j| moved(new[i], new[j]));
+        let pos: Vec<Option<usize>> = new
+            .iter()
+            .map(|a| old.iter().position(|b| b == a))
+            .collect();
+        let sym = |i: usize, j: usize| m[(i, j)];
+        let mut p = Bordered::new(&l0, Some(&pos), n, &sym, Par::Seq).expect("diagonal");
+        assert!(!p.bordered, "Sigma should not be positive definite here");
+        let probe = |t: usize| -> Vec<f64> {
+            (0..n)
+                .map(|i| ((i * (t + 2)) as f64 * 0.17).sin())
+                .collect()
+        };
+        let (x, y) = (probe(0), probe(1));
+        let (mut px, mut py) = (vec![0.0; n], vec![0.0; n]);
+        p.apply(&x, &mut px);
+        p.apply(&y, &mut py);
+        let dot = |a: &[f64], b: &[f64]| a.iter().zip(b).map(|(p, q)| p * q).sum::<f64>();
+        assert!(dot(&x, &px) > 0.0);
+        let (a, b) = (dot(&y, &px), dot(&x, &py));
+        assert!((a - b).abs() <= 1e-5 * a.abs().max(b.abs()), "{a} {b}");
+        // The new unknown's output is its input over S's diagonal.
+        let mut unit = vec![0.0; n];
+        unit[n - 1] = 1.0;
+        let mut pu = vec![0.0; n];
+        p.apply(&unit, &mut pu);
+        assert!((pu[n - 1] - 1.0 / m[(n - 1, n - 1)]).abs() <= 1e-12);
     }
 }

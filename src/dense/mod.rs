@@ -65,7 +65,8 @@ const REFINE_ROUNDS: usize = 6;
 
 /// The Cholesky factor L L^T of a symmetric positive definite M rounded to
 /// single precision (half the flops' time and memory of double): the
-/// preconditioner of [`refine`] and [`pcg`].
+/// preconditioner of [`refine`], [`pcg`] and [`gmres`] (there of a symmetric
+/// matrix near the non-symmetric one solved).
 pub(crate) struct LltF32 {
     l: Mat<f32>,
 }
@@ -322,8 +323,9 @@ const GMRES_DROP: f64 = 1e-10;
 
 /// x = M^-1 r by flexible GMRES on the square M (double precision, all of
 /// it read: Coulomb's reduced system is not symmetric), right-preconditioned
-/// by `l`, the single-precision factor of a symmetric matrix near M (M's
-/// symmetric part, or an earlier Newton step's), bordered by `pos` as in
+/// by `l`, the single-precision factor of a symmetric matrix near M (for a
+/// Newton step's reduced system W^T A W + D, each direction cut to its test
+/// vector; or an earlier step's), bordered by `pos` as in
 /// [`pcg`] with the lower entries `sym(i, j)` (i >= j) of M's symmetric part
 /// on the new unknowns (`kept::Bordered`). Each cycle of at most GMRES_RESTART products starts from the
 /// true residual in double precision (iterative refinement with GMRES as its
@@ -358,14 +360,15 @@ pub(crate) fn gmres(
     let mut v = try_mat::<f64>(n, restart + 1, "").ok()?;
     let mut z = try_mat::<f64>(n, restart, "").ok()?;
     let mut h = vec![0.0f64; (restart + 1) * restart];
-    let (mut cs, mut sn, mut g) = (
+    let (mut cs, mut sn, mut g, mut y) = (
         vec![0.0f64; restart],
         vec![0.0f64; restart],
         vec![0.0f64; restart + 1],
+        vec![0.0f64; restart],
     );
     let mut x = vec![0.0; n];
     let mut res = r.to_vec();
-    let (mut w, mut vj) = (vec![0.0; n], vec![0.0; n]);
+    let mut w = vec![0.0; n];
     let mut last = f64::INFINITY;
     let mut its = 0;
     loop {
@@ -394,12 +397,10 @@ pub(crate) fn gmres(
         let mut cols = 0;
         while cols < restart && its < max_it {
             let j = cols;
-            for (a, &b) in vj.iter_mut().zip(v.col(j).iter()) {
-                *a = b;
-            }
             {
+                let vj = v.col(j).try_as_col_major().expect("contiguous");
                 let zj = z.col_mut(j).try_as_col_major_mut().expect("contiguous");
-                pre.apply(&vj, zj.as_slice_mut());
+                pre.apply(vj.as_slice(), zj.as_slice_mut());
             }
             {
                 let mut wm = faer::MatMut::from_column_major_slice_mut(&mut w, n, 1);
@@ -455,7 +456,7 @@ pub(crate) fn gmres(
             }
         }
         // y = H^-1 g (upper triangular), x += Z y.
-        let mut y = vec![0.0f64; cols];
+        let y = &mut y[..cols];
         for i in (0..cols).rev() {
             let mut s = g[i];
             for (k, yk) in y.iter().enumerate().skip(i + 1) {

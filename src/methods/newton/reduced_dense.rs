@@ -13,10 +13,12 @@ use super::*;
 /// sign of a (numerically) singular M.
 pub(super) const RCOND: f64 = 1e-12;
 
-/// Reduced systems of at least this order, when symmetric, are first solved by
-/// Cholesky in single precision with refinement (`dense::refine`) to the
-/// normwise backward error MIXED_RTOL, that of a Cholesky solve in double;
-/// below it the factorisation is cheap anyway.
+/// Reduced systems of at least this order are first solved on a Cholesky
+/// factor in single precision (of M where M is symmetric, by refinement,
+/// `dense::refine`; of M's symmetric part where it is not, by GMRES,
+/// `dense::gmres`) to the normwise backward error MIXED_RTOL, that of a
+/// Cholesky solve in double; below it the factorisation in double is cheap
+/// anyway.
 pub(super) const MIXED_MIN: usize = 256;
 pub(super) const MIXED_RTOL: f64 = 1e-15;
 
@@ -33,10 +35,11 @@ pub(super) const REUSE_GMRES_MAX_IT: usize = 30;
 /// The single-precision factor of the last dense reduced system, with the
 /// unknowns it was formed on (`key`: each unknown's first test index and
 /// kind), held for the next Newton step: where that step has the same
-/// unknowns, or a few more or fewer (REUSE_MAX_CHANGED), its matrix differs
-/// in a few directions (those unknowns, the slipping contacts' turned
-/// directions and the curvature terms), and CG preconditioned by this
-/// factor solves it in a few iterations (`dense::pcg`).
+/// unknowns, or a few more or fewer (see `positions`), its matrix differs
+/// in a few directions (the slipping contacts' turned directions and the
+/// curvature terms), and CG (`dense::pcg`) or GMRES (`dense::gmres`)
+/// preconditioned by this factor, bordered for the unknowns that came and
+/// went (`dense::kept`), solves it in a few iterations.
 pub(super) struct Reused {
     pub(super) key: Vec<usize>,
     pub(super) llt: dense::LltF32,
@@ -46,8 +49,8 @@ pub(super) struct Reused {
 impl Reused {
     /// Each of `key`'s unknowns' position in the kept factor (None for a new
     /// one); empty when the unknowns are the same, in the same order. None
-    /// when more than REUSE_MAX_CHANGED unknowns came or went: CG on the
-    /// kept factor would need about as many iterations as a factorisation.
+    /// when more than max(REUSE_MAX_CHANGED, k / REUSE_CHANGED_DIV) unknowns
+    /// came or went: bordering them would cost about half a factorisation.
     pub(super) fn positions(&self, key: &[usize]) -> Option<Vec<Option<usize>>> {
         if self.key == key {
             return Some(Vec::new());
@@ -126,8 +129,9 @@ pub(super) fn solve_reduced(
     let (m, r) = (mat.as_ref(), rhs.as_ref());
     let k2 = mat.nrows() * mat.ncols();
     let rv: Vec<f64> = r.col(0).iter().copied().collect();
-    // The last step's factor, where this step has the same unknowns: CG
-    // preconditioned by it (see REUSE_MAX_IT), GMRES where M is not symmetric.
+    // The last step's factor, where this step has the same unknowns or a few
+    // more or fewer: CG preconditioned by it (see REUSE_MAX_IT), GMRES where
+    // M is not symmetric (REUSE_GMRES_MAX_IT).
     // The bordering's blocks (Y, S_FN and Z: k0 by the unknowns that went
     // and came) and GMRES's basis (2 GMRES_RESTART + 1 vectors of length k)
     // on the ledger while they are held.

@@ -363,11 +363,16 @@ fn a_reduced_system_that_is_not_symmetric_is_solved_on_its_symmetric_part() {
     assert_eq!(kept.llt.order(), k);
     let before = kept.llt.first_entry();
     assert_eq!(before, (s[(0, 0)] as f32).sqrt(), "the factor is S's");
+    // The next step's symmetric part differs from S (one diagonal entry): a
+    // new factor of it would have another first entry.
+    let s1 = Mat::from_fn(k, k, |i, j| s[(i, j)] + if i + j == 0 { 1.0 } else { 0.0 });
+    let m1 = Mat::from_fn(k, k, |i, j| m1[(i, j)] + s1[(i, j)] - s[(i, j)]);
+    let sym1 = |i: usize, j: usize| s1[(i, j)];
     let z = solve_reduced(
         &m1,
         &rhs,
         Reduce {
-            sym_part: Some(&sym),
+            sym_part: Some(&sym1),
             key: key.clone(),
             reused: &mut reused,
         },
