@@ -366,6 +366,7 @@ module dualsplit
    public :: ds_problem_new_host
    public :: ds_problem_new, ds_problem_new_opts, ds_problem_free, ds_problem_refactor, ds_problem_set_contacts
    public :: ds_problem_sizes, ds_solve, ds_step, ds_history_reset, ds_problem_set_compliance
+   public :: ds_solve_iteration
    public :: ds_analyse, ds_problem_info, ds_info_init, ds_problem_last_cost, ds_cost_init
    public :: ds_problem_set_monitor, ds_problem_set_log, ds_problem_dump, ds_string_from_c
    public :: ds_matrix_csr, ds_matrix_csc, ds_matrix_coo, ds_matrix_dense
@@ -575,6 +576,25 @@ module dualsplit
          type(c_ptr), value :: report
          integer(c_int) :: status
       end function c_ds_step
+
+      ! enum DsStatus ds_solve_iteration(struct DsProblem *problem,
+      !     const struct DsOptions *opts, int32_t friction, const double *r,
+      !     const double *g, const double *bound, const double *slip,
+      !     const double *lambda_t_start, double *du, double *lambda_n,
+      !     double *lambda_t, struct DsReport *report);
+      function c_ds_solve_iteration(problem, opts, friction, r, g, bound, slip, &
+                                    lambda_t_start, du, lambda_n, lambda_t, report) &
+         result(status) bind(C, name="ds_solve_iteration")
+         import :: c_int, c_int32_t, c_double, c_ptr
+         type(c_ptr), value :: problem
+         type(c_ptr), value :: opts
+         integer(c_int32_t), value :: friction
+         real(c_double), intent(in) :: r(*), g(*), bound(*)
+         type(c_ptr), value :: slip, lambda_t_start
+         real(c_double), intent(inout) :: du(*), lambda_n(*), lambda_t(*)
+         type(c_ptr), value :: report
+         integer(c_int) :: status
+      end function c_ds_solve_iteration
 
       ! enum DsStatus ds_problem_set_compliance(struct DsProblem *problem,
       !     const double *c_n, const double *m_n, const double *k_t);
@@ -912,6 +932,38 @@ contains
       status = int(c_ds_step(problem, popts, friction, f_total, g0, bound, &
                              u, lambda_n, lambda_t, prep), c_int32_t)
    end function ds_step
+
+   !> One iteration of the host's own Newton loop (see ds_solve_iteration in
+   !> dualsplit.h for the loop step by step): r is the host's residual
+   !> f_ext - f_int(u_j) without contact forces (n values), g the gaps at u_j
+   !> (m values), slip the slip already taken in the increment T (u_j - u_n)
+   !> ((d-1) m values, optional: absent for zero), lambda_t_start the tangential
+   !> forces at the start of the increment (optional; read only at contacts with
+   !> a finite k_t). Returns the correction du and the TOTAL contact forces;
+   !> starts from the last converged iteration's multipliers. opts and report
+   !> optional; outputs written as ds_solve.
+   function ds_solve_iteration(problem, opts, friction, r, g, bound, du, lambda_n, &
+                               lambda_t, report, slip, lambda_t_start) result(status)
+      type(c_ptr), intent(in) :: problem
+      type(DsOptions), intent(in), optional, target :: opts
+      integer(c_int32_t), intent(in) :: friction
+      real(c_double), intent(in) :: r(*), g(*), bound(*)
+      real(c_double), intent(inout) :: du(*), lambda_n(*), lambda_t(*)
+      type(DsReport), intent(inout), optional, target :: report
+      real(c_double), intent(in), optional, target :: slip(*), lambda_t_start(*)
+      integer(c_int32_t) :: status
+      type(c_ptr) :: popts, prep, pslip, plt
+      popts = c_null_ptr
+      prep = c_null_ptr
+      pslip = c_null_ptr
+      plt = c_null_ptr
+      if (present(opts)) popts = c_loc(opts)
+      if (present(report)) prep = c_loc(report)
+      if (present(slip)) pslip = c_loc(slip(1))
+      if (present(lambda_t_start)) plt = c_loc(lambda_t_start(1))
+      status = int(c_ds_solve_iteration(problem, popts, friction, r, g, bound, pslip, plt, &
+                                        du, lambda_n, lambda_t, prep), c_int32_t)
+   end function ds_solve_iteration
 
    !> Sets the interface law of every contact (see ds_problem_set_compliance in
    !> dualsplit.h): c_n (normal compliance, > 0, IEEE infinity rigid), m_n (its

@@ -1255,7 +1255,8 @@ void ds_problem_free(struct DsProblem *problem);
 /*
  Refactors K with new values and the same sparsity pattern and storage as the K
  given to ds_problem_new (e.g. after a geometric or material update); rebuilds the
- condensed dual. The history of ds_step is kept. On error the handle is unchanged.
+ condensed dual. The history of ds_step and the multipliers the next
+ ds_solve_iteration starts from are kept. On error the handle is unchanged.
 
  Returns DS_STATUS_OK, or the errors of ds_problem_new for K, and
  DS_STATUS_BAD_ARGUMENT if the pattern differs.
@@ -1346,7 +1347,8 @@ enum DsStatus ds_problem_set_compliance(struct DsProblem *problem,
                                         const double *k_t);
 
 /*
- Forgets the history of ds_step: u_0 = 0 and no warm start.
+ Forgets the history of ds_step (u_0 = 0 and no warm start) and the
+ multipliers the next ds_solve_iteration would start from.
 
  Returns DS_STATUS_OK or DS_STATUS_NULL_POINTER.
 
@@ -1505,6 +1507,75 @@ enum DsStatus ds_step(struct DsProblem *problem,
                       double *lambda_n,
                       double *lambda_t,
                       struct DsReport *report);
+
+/*
+ One iteration of the host's own Newton loop (docs/design.md section 9): a
+ nonlinear host (plasticity, large deformation) that refactors its tangent
+ K at every iteration (ds_problem_refactor) asks here for the contact
+ solve of its linearised problem. Coulomb's and Tresca's stick and slip act
+ on the slip of the WHOLE load increment: the slip the earlier iterations
+ took plus this one's, s_j + T du.
+
+ The host's loop, per load increment from the converged u_n:
+
+ 1. u_0 = u_n (j = 0).
+ 2. Assemble the tangent K_t(u_j), the residual r_j = f_ext - f_int(u_j)
+    WITHOUT contact forces, the gaps g_j at u_j and the slip already taken
+    s_j = T (u_j - u_n) (NULL at j = 0, or where nothing slipped).
+ 3. ds_problem_refactor(problem, K_t) (same pattern).
+ 4. ds_solve_iteration(problem, opts, friction, r_j, g_j, bound, s_j,
+    lambda_t_start, du, lambda_n, lambda_t, report).
+ 5. u_j+1 = u_j + du; stop when |du| and the residual
+    |r_j+1 - N^T lambda_N - T^T lambda_T| are small, else j += 1 and go to 2.
+
+ This call solves, for du,
+
+     K du = r - N^T lambda_N - T^T lambda_T,   N du <= g, lambda_N >= 0,
+     lambda_N,i (g_i - (N du)_i) = 0,   |lambda_T,i| <= p_i,
+     |lambda_T,i| < p_i  =>  s_i + (T du)_i = 0                    (stick)
+     |lambda_T,i| = p_i  =>  s_i + (T du)_i = alpha_i lambda_T,i   (slip)
+
+ with p = the Tresca bound or mu lambda_N, and lambda the TOTAL contact
+ forces at u_j + du. It starts from the multipliers of the last converged
+ ds_solve_iteration on the handle (zero before the first, after
+ ds_history_reset or a ds_problem_set_contacts that changed m), which
+ ds_problem_refactor keeps: at a converging host loop they are already
+ this iteration's answer. The history of ds_step is neither used nor
+ changed.
+
+ - problem, opts, friction, bound: as ds_solve.
+ - r: the host's residual f_ext - f_int(u_j), n values (force units).
+ - g: the gaps at u_j, m values (length units; g_i < 0 a penetration).
+ - slip: s_j = T (u_j - u_n), (d-1) m values, one per row of T (length
+   units), or NULL for zero.
+ - lambda_t_start: the tangential forces at the start of the increment,
+   (d-1) m values, or NULL for zero. Read only at contacts with an elastic
+   slip (ds_problem_set_compliance, finite k_t), whose law is
+   lambda_T = proj(lambda_t_start + k_t (s_j + T du)).
+ - du: out, the displacement correction, n values.
+ - lambda_n, lambda_t: out, the total contact forces as in ds_solve.
+ - report: out, may be NULL.
+
+ Statuses and what is written: as ds_solve (the multipliers are kept for
+ the next iteration only on DS_STATUS_OK); a slip or lambda_t_start with a
+ NaN or an infinity is DS_STATUS_NOT_FINITE. The handle stays usable in
+ every case.
+
+ # Safety
+ As ds_solve; `slip` and `lambda_t_start` NULL or valid for (d-1) m values.
+ */
+enum DsStatus ds_solve_iteration(struct DsProblem *problem,
+                                 const struct DsOptions *opts,
+                                 int32_t friction,
+                                 const double *r,
+                                 const double *g,
+                                 const double *bound,
+                                 const double *slip,
+                                 const double *lambda_t_start,
+                                 double *du,
+                                 double *lambda_n,
+                                 double *lambda_t,
+                                 struct DsReport *report);
 
 /*
  A static, NUL-terminated description of a status value (e.g. "K is not

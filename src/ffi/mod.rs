@@ -53,7 +53,7 @@ pub use problem::{
     ds_problem_set_log, ds_problem_set_monitor, ds_problem_sizes,
 };
 pub use report::DsReport;
-pub use solve::{ds_solve, ds_step};
+pub use solve::{ds_solve, ds_solve_iteration, ds_step};
 pub use status::{DsStatus, ds_status_string};
 pub use types::{
     DsDualForm, DsFormat, DsFriction, DsHostBlocks, DsIndexType, DsMethod, DsOrdering, DsStorage,

@@ -259,7 +259,8 @@ pub unsafe extern "C" fn ds_problem_free(problem: *mut DsProblem) {
 
 /// Refactors K with new values and the same sparsity pattern and storage as the K
 /// given to ds_problem_new (e.g. after a geometric or material update); rebuilds the
-/// condensed dual. The history of ds_step is kept. On error the handle is unchanged.
+/// condensed dual. The history of ds_step and the multipliers the next
+/// ds_solve_iteration starts from are kept. On error the handle is unchanged.
 ///
 /// Returns DS_STATUS_OK, or the errors of ds_problem_new for K, and
 /// DS_STATUS_BAD_ARGUMENT if the pattern differs.
@@ -412,7 +413,8 @@ pub unsafe extern "C" fn ds_problem_set_compliance(
     })
 }
 
-/// Forgets the history of ds_step: u_0 = 0 and no warm start.
+/// Forgets the history of ds_step (u_0 = 0 and no warm start) and the
+/// multipliers the next ds_solve_iteration would start from.
 ///
 /// Returns DS_STATUS_OK or DS_STATUS_NULL_POINTER.
 ///

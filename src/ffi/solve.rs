@@ -1,7 +1,7 @@
 //! ds_solve and ds_step: the checks of every pointer before the core runs, the
 //! solve, and the outputs written per status after it returned.
 
-use super::boundary::{OutArray, entry, slice_in};
+use super::boundary::{OutArray, entry, optional_in, slice_in};
 use super::cost::DsCost;
 use super::error::{CError as Error, CResult as Result};
 use super::monitor::LOG_ITERATIONS;
@@ -14,13 +14,20 @@ use crate::friction::Friction;
 use crate::problem::Solution;
 use crate::report::SolveStatus;
 
-/// Which of the two solve entry points runs.
+/// Which of the solve entry points runs.
 #[derive(Copy, Clone, PartialEq, Eq)]
 enum Mode {
     /// ds_solve: one increment as given, history untouched.
     Solve,
     /// ds_step: one step of the history.
     Step,
+    /// ds_solve_iteration: one iteration of the host's Newton loop, with the
+    /// slip already taken and the increment's starting tangential forces
+    /// (each NULL for zero).
+    Iteration {
+        slip: *const f64,
+        lt_start: *const f64,
+    },
 }
 
 /// The common body of ds_solve and ds_step: all pointers are checked before the
@@ -45,6 +52,7 @@ unsafe fn solve_impl(
     let (f_name, g_name) = match mode {
         Mode::Solve => ("f", "g"),
         Mode::Step => ("f_total", "g0"),
+        Mode::Iteration { .. } => ("r", "g"),
     };
     // SAFETY: the handle pointer is NULL or live (contract); NULL is rejected.
     let mut lent = unsafe { super::problem::lend(problem, "problem")? };
@@ -69,7 +77,21 @@ unsafe fn solve_impl(
             slice_in(bound, m, bound_name)?,
         )
     };
-    let u = OutArray::new(u, n, "u")?;
+    // SAFETY: each is NULL (zero) or holds (d-1) m values (contract).
+    let (slip, lt_start) = match mode {
+        Mode::Iteration { slip, lt_start } => unsafe {
+            (
+                optional_in(slip, mt, "slip")?,
+                optional_in(lt_start, mt, "lambda_t_start")?,
+            )
+        },
+        _ => (None, None),
+    };
+    let u_name = match mode {
+        Mode::Iteration { .. } => "du",
+        _ => "u",
+    };
+    let u = OutArray::new(u, n, u_name)?;
     let lambda_n = OutArray::new(lambda_n, m, "lambda_n")?;
     let lambda_t = OutArray::new(lambda_t, mt, "lambda_t")?;
     let report = if report.is_null() {
@@ -95,6 +117,17 @@ unsafe fn solve_impl(
             .inner
             .solve_monitored(f, g, law, &options, monitor)?,
         Mode::Step => problem.inner.step_monitored(f, g, law, &options, monitor)?,
+        Mode::Iteration { .. } => {
+            let it = crate::problem::HostIteration {
+                r: f,
+                g,
+                slip,
+                lt_start,
+            };
+            problem
+                .inner
+                .solve_iteration_monitored(&it, law, &options, monitor)?
+        }
     };
     problem.watch.on_done(&solution.report);
     problem.last_cost = Some(DsCost::from(&solution.report));
@@ -265,6 +298,89 @@ pub unsafe extern "C" fn ds_step(
                 lambda_n,
                 lambda_t,
                 report,
+            )
+        }
+    })
+}
+
+/// One iteration of the host's own Newton loop (docs/design.md section 9): a
+/// nonlinear host (plasticity, large deformation) that refactors its tangent
+/// K at every iteration (ds_problem_refactor) asks here for the contact
+/// solve of its linearised problem. Coulomb's and Tresca's stick and slip act
+/// on the slip of the WHOLE load increment: the slip the earlier iterations
+/// took plus this one's, s_j + T du.
+///
+/// The host's loop, per load increment from the converged u_n:
+///
+/// 1. u_0 = u_n (j = 0).
+/// 2. Assemble the tangent K_t(u_j), the residual r_j = f_ext - f_int(u_j)
+///    WITHOUT contact forces, the gaps g_j at u_j and the slip already taken
+///    s_j = T (u_j - u_n) (NULL at j = 0, or where nothing slipped).
+/// 3. ds_problem_refactor(problem, K_t) (same pattern).
+/// 4. ds_solve_iteration(problem, opts, friction, r_j, g_j, bound, s_j,
+///    lambda_t_start, du, lambda_n, lambda_t, report).
+/// 5. u_j+1 = u_j + du; stop when |du| and the residual
+///    |r_j+1 - N^T lambda_N - T^T lambda_T| are small, else j += 1 and go to 2.
+///
+/// This call solves, for du,
+///
+///     K du = r - N^T lambda_N - T^T lambda_T,   N du <= g, lambda_N >= 0,
+///     lambda_N,i (g_i - (N du)_i) = 0,   |lambda_T,i| <= p_i,
+///     |lambda_T,i| < p_i  =>  s_i + (T du)_i = 0                    (stick)
+///     |lambda_T,i| = p_i  =>  s_i + (T du)_i = alpha_i lambda_T,i   (slip)
+///
+/// with p = the Tresca bound or mu lambda_N, and lambda the TOTAL contact
+/// forces at u_j + du. It starts from the multipliers of the last converged
+/// ds_solve_iteration on the handle (zero before the first, after
+/// ds_history_reset or a ds_problem_set_contacts that changed m), which
+/// ds_problem_refactor keeps: at a converging host loop they are already
+/// this iteration's answer. The history of ds_step is neither used nor
+/// changed.
+///
+/// - problem, opts, friction, bound: as ds_solve.
+/// - r: the host's residual f_ext - f_int(u_j), n values (force units).
+/// - g: the gaps at u_j, m values (length units; g_i < 0 a penetration).
+/// - slip: s_j = T (u_j - u_n), (d-1) m values, one per row of T (length
+///   units), or NULL for zero.
+/// - lambda_t_start: the tangential forces at the start of the increment,
+///   (d-1) m values, or NULL for zero. Read only at contacts with an elastic
+///   slip (ds_problem_set_compliance, finite k_t), whose law is
+///   lambda_T = proj(lambda_t_start + k_t (s_j + T du)).
+/// - du: out, the displacement correction, n values.
+/// - lambda_n, lambda_t: out, the total contact forces as in ds_solve.
+/// - report: out, may be NULL.
+///
+/// Statuses and what is written: as ds_solve (the multipliers are kept for
+/// the next iteration only on DS_STATUS_OK); a slip or lambda_t_start with a
+/// NaN or an infinity is DS_STATUS_NOT_FINITE. The handle stays usable in
+/// every case.
+///
+/// # Safety
+/// As ds_solve; `slip` and `lambda_t_start` NULL or valid for (d-1) m values.
+#[unsafe(no_mangle)]
+pub unsafe extern "C" fn ds_solve_iteration(
+    problem: *mut DsProblem,
+    opts: *const DsOptions,
+    friction: i32,
+    r: *const f64,
+    g: *const f64,
+    bound: *const f64,
+    slip: *const f64,
+    lambda_t_start: *const f64,
+    du: *mut f64,
+    lambda_n: *mut f64,
+    lambda_t: *mut f64,
+    report: *mut DsReport,
+) -> DsStatus {
+    entry("ds_solve_iteration", || {
+        let mode = Mode::Iteration {
+            slip,
+            lt_start: lambda_t_start,
+        };
+        // SAFETY: forwarded contract of ds_solve_iteration.
+        unsafe {
+            solve_impl(
+                mode, problem, opts, friction, r, g, bound, du, lambda_n, lambda_t, report,
             )
         }
     })

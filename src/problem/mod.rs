@@ -23,8 +23,11 @@ use crate::sparse::{Csc, MatrixView};
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 
+mod iteration;
 mod solve;
 mod stiffness;
+
+pub use iteration::HostIteration;
 
 use stiffness::Stiffness;
 
@@ -66,6 +69,9 @@ pub struct ContactProblem {
     /// of each as the route needs (`load_span`): a step whose load lies in
     /// their span takes its right-hand side from them instead of a solve.
     loads: LoadSpan,
+    /// The multipliers of the last converged host iteration (c; empty before
+    /// the first), where the next one starts (`iteration.rs`).
+    iteration_start: Vec<f64>,
 }
 
 fn check_vec(name: &str, x: &[f64], len: usize) -> Result<()> {
@@ -324,6 +330,7 @@ impl ContactProblem {
             history: History::new(ndof, c),
             compliance: Compliance::rigid(m),
             loads: LoadSpan::default(),
+            iteration_start: Vec::new(),
         })
     }
 
@@ -414,6 +421,7 @@ impl ContactProblem {
             history: History::new(ndof, c),
             compliance: Compliance::rigid(m),
             loads: LoadSpan::default(),
+            iteration_start: Vec::new(),
         })
     }
 
@@ -613,6 +621,9 @@ impl ContactProblem {
             Stiffness::Own { .. } => self.new_dual((&n, &t), how, &shift, layer)?,
         };
         self.history.new_contacts(dual.c);
+        if self.iteration_start.len() != dual.c {
+            self.iteration_start.clear();
+        }
         self.compliance = compliance;
         self.sizes = next;
         self.inputs.resize(self.sizes.inputs);
@@ -889,9 +900,11 @@ impl ContactProblem {
         Ok(sol)
     }
 
-    /// Forgets the history: u_0 = 0 and no warm start.
+    /// Forgets the history: u_0 = 0 and no warm start, for steps and host
+    /// iterations alike.
     pub fn reset_history(&mut self) {
         self.history.reset();
+        self.iteration_start.clear();
     }
 
     /// Contact dimension d (2 or 3).

@@ -295,8 +295,10 @@ impl ContactProblem {
         self.solve_load(load, opts.tol, &mut y_f, &mut u0)?;
         let mut b = vec![0.0; c];
         self.dual.rows.mul_vec(&u0, &mut b);
-        for i in 0..m {
-            b[i] -= g[i];
+        // g: the gaps of the normal rows (m), or of every row (c: a host
+        // iteration's slip offset on the tangential ones, `iteration.rs`).
+        for (bi, gi) in b.iter_mut().zip(g) {
+            *bi -= gi;
         }
         let mut extrapolated = false;
         let load = history.map(|h| {

@@ -1,0 +1,114 @@
+//! One iteration of a host's own Newton loop (docs/design.md section 9): the
+//! linearised contact problem of a nonlinear host, whose friction acts on the
+//! slip of the whole load increment, the slip the host's earlier iterations
+//! already took included.
+//!
+//! The host at iteration j of an increment that started at u_n holds u_j, its
+//! tangent K (refactored on the handle), its residual r = f_ext - f_int(u_j)
+//! without contact forces, the gaps g_j at u_j and the slip already taken
+//! s_j = T (u_j - u_n). The iteration's problem in du is that of docs/design.md
+//! section 1 with f = r, g = g_j and the slip s_j + T du in place of T du:
+//!
+//! ```text
+//! K du = r - N^T lambda_N - T^T lambda_T,   N du <= g_j,  Signorini,
+//! stick: s_j + T du = 0,   slip: s_j + T du = alpha lambda_T,  |lambda_T,i| <= p_i
+//! ```
+//!
+//! lambda are the TOTAL contact forces at u_j + du. In the dual the slip
+//! offset is a tangential gap: b = B K^-1 r - [g_j; -s_j] (the Lagrangian's
+//! friction term lambda_T^T (T du + s_j)), so every method and both dual forms
+//! solve it unchanged, and the error measure reads v = [N du - g_j; T du + s_j].
+//! The iteration starts from the multipliers of the last converged iteration
+//! on the handle: at a converging host loop they are this iteration's answer.
+
+use super::*;
+
+/// The data of one host iteration: what a nonlinear host has at its iterate
+/// u_j (module docs).
+#[derive(Clone, Copy, Debug)]
+pub struct HostIteration<'a> {
+    /// r = f_ext - f_int(u_j), the host's residual without contact forces
+    /// (n values, force units).
+    pub r: &'a [f64],
+    /// g_j = g_0 - N u_j as the host measures it at u_j (m values, length
+    /// units; negative: penetration at u_j).
+    pub g: &'a [f64],
+    /// s_j = T (u_j - u_n), the slip already taken in the increment ((d - 1) m
+    /// values, one per row of T, length units); None for zero (the first
+    /// iteration of an increment).
+    pub slip: Option<&'a [f64]>,
+    /// The tangential forces at the start of the increment ((d - 1) m values),
+    /// where an interface compliance (`set_compliance`, k_T finite) makes
+    /// lambda_T = proj(lambda_T,start + k_T (s_j + T du)); None for zero.
+    /// Read only at contacts with a finite k_T.
+    pub lt_start: Option<&'a [f64]>,
+}
+
+impl ContactProblem {
+    /// Solves one iteration of the host's Newton loop (module docs): returns
+    /// du in `Solution::u` and the total contact forces, starting from the
+    /// multipliers of the last converged iteration on this handle (zero
+    /// before the first, after [`ContactProblem::reset_history`] or a change
+    /// of m). They are kept only when this one converges. The history of
+    /// [`ContactProblem::step`] is neither used nor changed.
+    ///
+    /// Errors: as [`ContactProblem::solve`], and `BadSize` / `NotFinite` for
+    /// `slip` and `lt_start`. Non-convergence is `report.status`.
+    pub fn solve_iteration(
+        &mut self,
+        it: &HostIteration<'_>,
+        friction: Friction<'_>,
+        opts: &Options,
+    ) -> Result<Solution> {
+        self.solve_iteration_monitored(it, friction, opts, None)
+    }
+
+    /// As [`ContactProblem::solve_iteration`], with a monitor as in
+    /// [`ContactProblem::solve_monitored`].
+    pub fn solve_iteration_monitored(
+        &mut self,
+        it: &HostIteration<'_>,
+        friction: Friction<'_>,
+        opts: &Options,
+        monitor: Option<Monitor<'_>>,
+    ) -> Result<Solution> {
+        self.check_data(("r", it.r), ("g", it.g), friction)?;
+        let mt = (self.d - 1) * self.n_contacts();
+        if let Some(s) = it.slip {
+            check_vec("slip", s, mt)?;
+        }
+        if let Some(lt) = it.lt_start {
+            check_vec("lt_start", lt, mt)?;
+        }
+        opts.check("")?;
+        let predicted = self.prepare_dual(opts)?;
+        let (m, c) = (self.n_contacts(), self.dual.c);
+        // The gaps of every dual row: [g_j; -s_j].
+        let mut gaps = vec![0.0; c];
+        gaps[..m].copy_from_slice(it.g);
+        if let Some(s) = it.slip {
+            for (x, y) in gaps[m..].iter_mut().zip(s) {
+                *x = -y;
+            }
+        }
+        let mut lam = self.iteration_start.clone();
+        if lam.len() != c {
+            lam = vec![0.0; c];
+        }
+        let lt = it.lt_start.unwrap_or(&[]);
+        let solve::Solved { sol, .. } = self.solve_from(
+            (it.r, it.r),
+            &gaps,
+            friction,
+            opts,
+            &mut lam,
+            (None, lt),
+            monitor,
+            predicted,
+        )?;
+        if sol.report.status == SolveStatus::Converged {
+            self.iteration_start = lam;
+        }
+        Ok(sol)
+    }
+}

@@ -1,0 +1,606 @@
+//! One iteration of a host's own Newton loop (`ContactProblem::solve_iteration`,
+//! C `ds_solve_iteration`): friction on the slip of the whole increment, s_j +
+//! T du, with the slip s_j the earlier iterations took.
+//!
+//! - closed forms on one node (docs/design.md section 9): a node that slipped in
+//!   iteration 1 and sticks in iteration 2 (T du = -s_j), or slips back; a slip
+//!   offset along a turning direction in 3D (the return mapping's direction);
+//!   the elastic slip of a compliant contact from the increment's start force;
+//!   each with every method and both dual forms, and checked by the KKT
+//!   conditions of the offset problem;
+//! - a host loop on a real scene: the first iteration on a wrong tangent (1.2 K),
+//!   the second on K after `refactor`, lands on the increment's own solution
+//!   (`solve` on the same K, N, T), which a third iteration leaves in place (du
+//!   = 0, the same forces), with every method and both dual forms, 2D and 3D,
+//!   Tresca and Coulomb;
+//! - a warm start gives the cold answer;
+//! - bad input: the slip of the wrong length or with a NaN, a K of another
+//!   pattern: errors, and the handle's next iteration as before.
+
+mod common;
+
+use common::{Mesh, Owned, Scene, assert_close, assert_converged, mul, norm_inf, norm2};
+use dualsplit::{
+    ContactProblem, Csc, DualForm, ErrorKind, Friction, HostIteration, Method, Options,
+};
+
+/// Every method with each dual form it runs in.
+fn configurations() -> Vec<Options> {
+    let mut out = Vec::new();
+    for method in Method::ALL {
+        for form in [DualForm::Dense, DualForm::MatrixFree] {
+            let matrix_free_ok = matches!(method, Method::Newton | Method::Mprgp | Method::Auto);
+            if form == DualForm::MatrixFree && !matrix_free_ok {
+                continue;
+            }
+            out.push(Options {
+                method,
+                dual_form: form,
+                threads: 1,
+                ..Options::default()
+            });
+        }
+    }
+    out
+}
+
+fn label(o: &Options) -> String {
+    format!("{} / {}", o.method.name(), o.dual_form.name())
+}
+
+/// The KKT conditions of an iteration's problem (module docs), each violation
+/// relative to the largest force or length: equilibrium K du = r - N^T
+/// lambda_N - T^T lambda_T, N du <= g with complementarity, |lambda_T,i| <=
+/// p_i, and the total slip w = s + T du zero inside the disc and a
+/// non-negative multiple of lambda_T on its rim.
+#[allow(clippy::too_many_arguments)]
+fn kkt_iteration(
+    d: usize,
+    (k, n, t): (&Csc, &Csc, &Csc),
+    (r, g, s): (&[f64], &[f64], &[f64]),
+    p: &[f64],
+    (du, ln, lt): (&[f64], &[f64], &[f64]),
+) -> f64 {
+    let dt = d - 1;
+    let ku = mul(k, du);
+    let ntl = common::mul_t(n, ln);
+    let ttl = common::mul_t(t, lt);
+    let res: Vec<f64> = (0..du.len())
+        .map(|i| ku[i] - r[i] + ntl[i] + ttl[i])
+        .collect();
+    let eq = norm2(&res) / norm2(r).max(norm2(&ku)).max(f64::MIN_POSITIVE);
+    let nu = mul(n, du);
+    let mut w = mul(t, du);
+    for (wi, si) in w.iter_mut().zip(s) {
+        *wi += si;
+    }
+    let ls = norm_inf(ln).max(norm_inf(lt)).max(norm_inf(r));
+    let us = norm_inf(du).max(norm_inf(g)).max(norm_inf(s));
+    let mut worst = eq;
+    for i in 0..n.nrows {
+        let slack = g[i] - nu[i];
+        worst = worst.max((-slack).max(0.0) / us);
+        worst = worst.max((-ln[i]).max(0.0) / ls);
+        worst = worst.max((ln[i].max(0.0) / ls).min(slack.abs() / us));
+        let l = &lt[dt * i..dt * (i + 1)];
+        let wi = &w[dt * i..dt * (i + 1)];
+        let (ln_i, wn) = (norm2(l), norm2(wi));
+        worst = worst.max((ln_i - p[i]).max(0.0) / ls);
+        worst = worst.max(((p[i] - ln_i).max(0.0) / ls).min(wn / us));
+        if p[i] > 0.0 && ln_i > 0.0 {
+            let dot: f64 = wi.iter().zip(l).map(|(a, b)| a * b).sum();
+            let alpha = dot.max(0.0) / (ln_i * ln_i);
+            let off: Vec<f64> = wi.iter().zip(l).map(|(a, b)| a - alpha * b).collect();
+            worst = worst.max(norm2(&off) / us);
+        }
+    }
+    worst
+}
+
+/// One node: K = diag(kt, ..., 4) (tangential stiffness kt on each of the d - 1
+/// horizontal DOFs, 4 on the vertical one), N = -e_vert (N du <= g reads du_vert
+/// >= -g), T = the horizontal unit rows.
+fn one_node(d: usize, kt: f64) -> (Csc, Csc, Csc) {
+    let mut k: Vec<_> = (0..d - 1).map(|j| (j, j, kt)).collect();
+    k.push((d - 1, d - 1, 4.0));
+    let t: Vec<_> = (0..d - 1).map(|j| (j, j, 1.0)).collect();
+    (
+        Csc::from_triplets(d, d, &k),
+        Csc::from_triplets(1, d, &[(0, d - 1, -1.0)]),
+        Csc::from_triplets(d - 1, d, &t),
+    )
+}
+
+struct Case<'a> {
+    name: &'a str,
+    d: usize,
+    kt: f64,
+    r: Vec<f64>,
+    g: f64,
+    slip: Vec<f64>,
+    mu: f64,
+    /// The closed form: du, lambda_N, lambda_T.
+    want: (Vec<f64>, f64, Vec<f64>),
+    /// (open, stick, slip).
+    states: (usize, usize, usize),
+}
+
+/// Runs a one-node case with every method and form, each on a handle whose
+/// previous iteration (the case with no slip offset) left other multipliers as
+/// the start.
+fn check_case(c: &Case<'_>) {
+    let (k, n, t) = one_node(c.d, c.kt);
+    let (want_u, want_n, want_t) = &c.want;
+    let p = vec![c.mu * want_n];
+    // The closed form satisfies the conditions itself.
+    let exact = (&want_u[..], &[*want_n][..], &want_t[..]);
+    let v = kkt_iteration(c.d, (&k, &n, &t), (&c.r, &[c.g], &c.slip), &p, exact);
+    assert!(
+        v <= 1e-14,
+        "{}: the closed form violates KKT by {v:.2e}",
+        c.name
+    );
+    let mu = [c.mu];
+    for o in configurations() {
+        let what = format!("{} [{}]", c.name, label(&o));
+        let mut pb = ContactProblem::from_csc_with(c.d, k.clone(), n.clone(), t.clone(), &o)
+            .expect("a valid problem");
+        // An earlier iteration without offset (another answer: another start).
+        let first = HostIteration {
+            r: &c.r,
+            g: &[c.g],
+            slip: None,
+            lt_start: None,
+        };
+        let s0 = pb
+            .solve_iteration(&first, Friction::Coulomb(&mu), &o)
+            .expect("the first iteration");
+        assert_converged(&format!("{what}: first"), &s0);
+        let it = HostIteration {
+            slip: Some(&c.slip),
+            ..first
+        };
+        let sol = pb
+            .solve_iteration(&it, Friction::Coulomb(&mu), &o)
+            .expect("the iteration");
+        assert_converged(&what, &sol);
+        assert_close(
+            &format!("{what}: du"),
+            &sol.u,
+            want_u,
+            1e-9,
+            norm_inf(want_u),
+        );
+        let scale = want_n.abs().max(norm_inf(want_t));
+        assert_close(
+            &format!("{what}: lambda_N"),
+            &sol.lambda_n,
+            &[*want_n],
+            1e-9,
+            scale,
+        );
+        assert_close(
+            &format!("{what}: lambda_T"),
+            &sol.lambda_t,
+            want_t,
+            1e-9,
+            scale,
+        );
+        let rep = &sol.report;
+        assert_eq!(
+            (rep.n_open, rep.n_stick, rep.n_slip),
+            c.states,
+            "{what}: states"
+        );
+        let got = (&sol.u[..], &sol.lambda_n[..], &sol.lambda_t[..]);
+        let v = kkt_iteration(c.d, (&k, &n, &t), (&c.r, &[c.g], &c.slip), &p, got);
+        assert!(v <= 1e-9, "{what}: KKT violated by {v:.2e}");
+    }
+}
+
+/// Iteration 1 of the node (r = (10, -8), g = 0, mu = 0.5, kt = 2) slips:
+/// lambda_N = 8, lambda_T = p = 4, du_x = (10 - 4) / 2 = 3. Iteration 2 with
+/// the slip taken s = 3 and r = (-5, -8): sticking holds the total slip at
+/// zero, du_x = -s = -3, so lambda_T = r_x - kt du_x = -5 + 6 = 1, inside the
+/// disc |lambda_T| < 4.
+#[test]
+fn slipped_in_iteration_one_sticks_in_iteration_two() {
+    check_case(&Case {
+        name: "slip then stick",
+        d: 2,
+        kt: 2.0,
+        r: vec![-5.0, -8.0],
+        g: 0.0,
+        slip: vec![3.0],
+        mu: 0.5,
+        want: (vec![-3.0, 0.0], 8.0, vec![1.0]),
+        states: (0, 1, 0),
+    });
+}
+
+/// As above with r = (-12, -8): the stick force r_x + kt s = -6 leaves the
+/// disc, so the node slips back: lambda_T = -4, du_x = (-12 + 4) / 2 = -4, a
+/// total slip s + du_x = -1 = 0.25 lambda_T (alpha >= 0).
+#[test]
+fn slipped_in_iteration_one_slips_back_in_iteration_two() {
+    check_case(&Case {
+        name: "slip then slip back",
+        d: 2,
+        kt: 2.0,
+        r: vec![-12.0, -8.0],
+        g: 0.0,
+        slip: vec![3.0],
+        mu: 0.5,
+        want: (vec![-4.0, 0.0], 8.0, vec![-4.0]),
+        states: (0, 0, 1),
+    });
+}
+
+/// 3D, the slip taken s = (1, 0) and this iteration's load r_t = (0, 6) along
+/// another direction (kt = 2, lambda_N = 8, mu = 0.5, p = 4). The total slip
+/// s + (r_t - lambda_T) / kt must be parallel to lambda_T, so lambda_T lies
+/// along the trial force r_t + kt s = (2, 6): lambda_T = 4 (2, 6) / sqrt(40),
+/// du_t = (r_t - lambda_T) / kt.
+#[test]
+fn a_slip_offset_turns_the_slip_direction() {
+    let q = 4.0 / 40f64.sqrt();
+    let lt = vec![2.0 * q, 6.0 * q];
+    let du = vec![(0.0 - lt[0]) / 2.0, (6.0 - lt[1]) / 2.0, 0.0];
+    check_case(&Case {
+        name: "turning slip",
+        d: 3,
+        kt: 2.0,
+        r: vec![0.0, 6.0, -8.0],
+        g: 0.0,
+        slip: vec![1.0, 0.0],
+        mu: 0.5,
+        want: (du, 8.0, lt),
+        states: (0, 0, 1),
+    });
+}
+
+/// A compliant contact (k_T = 1) with the increment's start force lt_start = 1
+/// and the slip taken s = 0.5: lambda_T = lt_start + k_T (s + du_x) with
+/// 2 du_x = r_x - lambda_T, r_x = 1: lambda_T (1 + 1/2) = 1 + 0.5 + 0.5, so
+/// lambda_T = 4/3 (inside p = 4) and du_x = -1/6. (Tresca p = 4, lambda_N = 8.)
+#[test]
+fn the_elastic_slip_starts_from_the_increments_force() {
+    let (k, n, t) = one_node(2, 2.0);
+    let r = [1.0, -8.0];
+    for o in configurations() {
+        let what = label(&o);
+        let mut pb = ContactProblem::from_csc_with(2, k.clone(), n.clone(), t.clone(), &o)
+            .expect("a valid problem");
+        pb.set_compliance(None, None, Some(&[1.0])).expect("k_T");
+        let it = HostIteration {
+            r: &r,
+            g: &[0.0],
+            slip: Some(&[0.5]),
+            lt_start: Some(&[1.0]),
+        };
+        let sol = pb
+            .solve_iteration(&it, Friction::Tresca(&[4.0]), &o)
+            .expect("the iteration");
+        assert_converged(&what, &sol);
+        assert_close(
+            &format!("{what}: du"),
+            &sol.u,
+            &[-1.0 / 6.0, 0.0],
+            1e-9,
+            1.0,
+        );
+        assert_close(&format!("{what}: lambda"), &sol.lambda_n, &[8.0], 1e-9, 8.0);
+        assert_close(
+            &format!("{what}: lambda_T"),
+            &sol.lambda_t,
+            &[4.0 / 3.0],
+            1e-9,
+            8.0,
+        );
+    }
+}
+
+fn scenes() -> Vec<(&'static str, Scene)> {
+    vec![
+        (
+            "2D strip",
+            Scene::pressed_block(Mesh::grid2d(16, 4, 2.0, 1.0), &[0.006, -0.02], 0.05, &[1.0]),
+        ),
+        (
+            "3D block, oblique",
+            Scene::pressed_block(
+                Mesh::grid3d(5, 5, 2, 2.0, 2.0, 1.0),
+                &[0.005, 0.002, -0.03],
+                0.02,
+                &[1.0, 1.0],
+            ),
+        ),
+    ]
+}
+
+/// `k` scaled by `s`.
+fn scaled(k: &Csc, s: f64) -> Owned {
+    let mut o = Owned::of(k);
+    o.x.iter_mut().for_each(|v| *v *= s);
+    o
+}
+
+/// A host loop on a linear body whose first tangent is wrong (1.2 K, a
+/// modified Newton's stale tangent): the second iteration, on K itself after
+/// `refactor`, with r = f - K u_1, g = g0 - N u_1 and s = T u_1, is the exact
+/// linearisation, so it lands on the increment's own solution (`solve` on K);
+/// a third iteration finds du = 0 and the same forces. Every method, both
+/// dual forms, 2D and 3D, Tresca and Coulomb.
+#[test]
+fn a_host_loop_with_a_stale_tangent_lands_on_the_increments_solution() {
+    for (name, sc) in scenes() {
+        let m = sc.m();
+        let mu = vec![0.4; m];
+        let p = vec![0.02; m];
+        for law in [Friction::Coulomb(&mu), Friction::Tresca(&p)] {
+            let law_name = if matches!(law, Friction::Coulomb(_)) {
+                "Coulomb"
+            } else {
+                "Tresca"
+            };
+            for o in configurations() {
+                let what = format!("{name}, {law_name} [{}]", label(&o));
+                host_loop(&what, &sc, law, &o);
+            }
+        }
+    }
+}
+
+fn host_loop(what: &str, sc: &Scene, law: Friction<'_>, o: &Options) {
+    let mut reference =
+        ContactProblem::from_csc_with(sc.d, sc.k.clone(), sc.n.clone(), sc.t.clone(), o)
+            .expect("a valid problem");
+    let want = reference
+        .solve(&sc.f, &sc.g, law, o)
+        .expect("the increment");
+    assert_converged(&format!("{what}: reference"), &want);
+    let stale = scaled(&sc.k, 1.2);
+    let k_stale = Csc::from_view(&stale.view(), "K").expect("K");
+    let mut pb = ContactProblem::from_csc_with(sc.d, k_stale, sc.n.clone(), sc.t.clone(), o)
+        .expect("a valid problem");
+    let ndof = sc.f.len();
+    let mut u = vec![0.0; ndof];
+    let mut last = None;
+    for j in 0..3 {
+        if j == 1 {
+            pb.refactor(&Owned::of(&sc.k).view())
+                .expect("refactor onto K");
+        }
+        let ku = mul(&sc.k, &u);
+        let r: Vec<f64> = sc.f.iter().zip(&ku).map(|(f, k)| f - k).collect();
+        let nu = mul(&sc.n, &u);
+        let g: Vec<f64> = sc.g.iter().zip(&nu).map(|(g, x)| g - x).collect();
+        let s = mul(&sc.t, &u);
+        let it = HostIteration {
+            r: &r,
+            g: &g,
+            slip: (j > 0).then_some(&s[..]),
+            lt_start: None,
+        };
+        let sol = pb.solve_iteration(&it, law, o).expect("an iteration");
+        assert_converged(&format!("{what}: iteration {j}"), &sol);
+        for (ui, di) in u.iter_mut().zip(&sol.u) {
+            *ui += di;
+        }
+        if j == 2 {
+            let du = norm_inf(&sol.u) / norm_inf(&u);
+            assert!(
+                du <= 1e-8,
+                "{what}: the third iteration moved |du| / |u| = {du:.2e}"
+            );
+        }
+        last = Some(sol);
+    }
+    let sol = last.expect("three iterations");
+    let u_scale = norm_inf(&want.u);
+    assert_close(&format!("{what}: u"), &u, &want.u, 1e-7, u_scale);
+    let l_scale = norm_inf(&want.lambda_n).max(norm_inf(&want.lambda_t));
+    assert_close(
+        &format!("{what}: lambda_N"),
+        &sol.lambda_n,
+        &want.lambda_n,
+        1e-7,
+        l_scale,
+    );
+    assert_close(
+        &format!("{what}: lambda_T"),
+        &sol.lambda_t,
+        &want.lambda_t,
+        1e-7,
+        l_scale,
+    );
+}
+
+/// A warm start gives the cold answer: the same iteration after another one
+/// on the same handle (its multipliers the start) and on a fresh handle.
+#[test]
+fn a_warm_start_gives_the_cold_answer() {
+    let (_, sc) = scenes().remove(1);
+    let mu = vec![0.3; sc.m()];
+    let law = Friction::Coulomb(&mu);
+    let o = Options {
+        method: Method::Newton,
+        threads: 1,
+        ..Options::default()
+    };
+    let it = HostIteration {
+        r: &sc.f,
+        g: &sc.g,
+        slip: None,
+        lt_start: None,
+    };
+    let cold = sc.problem().solve_iteration(&it, law, &o).expect("cold");
+    assert_converged("cold", &cold);
+    let mut pb = sc.problem();
+    let half: Vec<f64> = sc.f.iter().map(|v| 0.5 * v).collect();
+    let other = HostIteration { r: &half, ..it };
+    assert_converged(
+        "other",
+        &pb.solve_iteration(&other, law, &o).expect("other"),
+    );
+    let warm = pb.solve_iteration(&it, law, &o).expect("warm");
+    assert_converged("warm", &warm);
+    let scale = norm_inf(&cold.lambda_n);
+    assert_close("warm lambda_N", &warm.lambda_n, &cold.lambda_n, 1e-8, scale);
+    assert_close("warm lambda_T", &warm.lambda_t, &cold.lambda_t, 1e-8, scale);
+    assert_close("warm du", &warm.u, &cold.u, 1e-8, norm_inf(&cold.u));
+    // From its own answer the same iteration has nothing left to do.
+    let again = pb.solve_iteration(&it, law, &o).expect("again");
+    assert!(
+        again.report.outer_iterations <= 1,
+        "from its own answer: {} outer iterations",
+        again.report.outer_iterations
+    );
+}
+
+/// Bad input: errors, and the handle's next iteration is what it would have
+/// been without the bad calls.
+#[test]
+fn bad_slip_and_bad_k_leave_the_handle_as_it_was() {
+    let (_, sc) = scenes().remove(1);
+    let m = sc.m();
+    let mu = vec![0.3; m];
+    let law = Friction::Coulomb(&mu);
+    let o = Options {
+        threads: 1,
+        ..Options::default()
+    };
+    let s = vec![1e-3; 2 * m];
+    let it = HostIteration {
+        r: &sc.f,
+        g: &sc.g,
+        slip: Some(&s),
+        lt_start: None,
+    };
+    let mut clean = sc.problem();
+    let want = clean.solve_iteration(&it, law, &o).expect("clean");
+    let mut pb = sc.problem();
+    let short = vec![0.0; 2 * m - 1];
+    let e = pb
+        .solve_iteration(
+            &HostIteration {
+                slip: Some(&short),
+                ..it
+            },
+            law,
+            &o,
+        )
+        .unwrap_err();
+    assert_eq!(e.kind, ErrorKind::BadSize, "{e}");
+    assert!(e.to_string().contains("slip"), "{e}");
+    let mut nan = s.clone();
+    nan[3] = f64::NAN;
+    let e = pb
+        .solve_iteration(
+            &HostIteration {
+                slip: Some(&nan),
+                ..it
+            },
+            law,
+            &o,
+        )
+        .unwrap_err();
+    assert_eq!(e.kind, ErrorKind::NotFinite, "{e}");
+    let lt_bad = vec![f64::INFINITY; 2 * m];
+    let e = pb
+        .solve_iteration(
+            &HostIteration {
+                lt_start: Some(&lt_bad),
+                ..it
+            },
+            law,
+            &o,
+        )
+        .unwrap_err();
+    assert_eq!(e.kind, ErrorKind::NotFinite, "{e}");
+    // K of another pattern: only its diagonal.
+    let diag: Vec<_> = (0..sc.k.nrows).map(|i| (i, i, 1.0)).collect();
+    let other = Owned::of(&Csc::from_triplets(sc.k.nrows, sc.k.nrows, &diag));
+    let e = pb.refactor(&other.view()).unwrap_err();
+    assert_eq!(e.kind, ErrorKind::BadArgument, "{e}");
+    let got = pb
+        .solve_iteration(&it, law, &o)
+        .expect("after the bad calls");
+    assert_converged("after the bad calls", &got);
+    assert_eq!(got.u, want.u, "du after the bad calls");
+    assert_eq!(got.lambda_n, want.lambda_n);
+    assert_eq!(got.lambda_t, want.lambda_t);
+}
+
+/// Through C: the slip-then-stick node of
+/// `slipped_in_iteration_one_sticks_in_iteration_two` by `ds_solve_iteration`
+/// (slip NULL in iteration 1), then a NaN slip and a NULL residual: their
+/// statuses, the outputs untouched, and the next iteration as before.
+#[test]
+fn ds_solve_iteration_through_c() {
+    use dualsplit::internals::ffi::*;
+    let (k, n, t) = one_node(2, 2.0);
+    let (k, n, t) = (Owned::of(&k), Owned::of(&n), Owned::of(&t));
+    let (kd, nd, td) = (k.ds(), n.ds(), t.ds());
+    let mut h: *mut DsProblem = std::ptr::null_mut();
+    // SAFETY: valid matrices and out pointer.
+    assert_eq!(
+        unsafe { ds_problem_new(2, &kd, &nd, &td, &mut h) },
+        DsStatus::Ok
+    );
+    let mu = [0.5];
+    let coulomb = DsFriction::Coulomb as i32;
+    let (mut du, mut ln, mut lt) = ([0.0; 2], [0.0; 1], [0.0; 1]);
+    let null = std::ptr::null::<f64>();
+    // SAFETY: a live handle; every array sized for n = 2, m = 1, d = 2; NULLs
+    // where the call allows them (opts, slip, lambda_t_start, report).
+    let call = |r: *const f64, slip: *const f64, du: &mut [f64], ln: &mut [f64], lt: &mut [f64]| unsafe {
+        ds_solve_iteration(
+            h,
+            std::ptr::null(),
+            coulomb,
+            r,
+            [0.0].as_ptr(),
+            mu.as_ptr(),
+            slip,
+            null,
+            du.as_mut_ptr(),
+            ln.as_mut_ptr(),
+            lt.as_mut_ptr(),
+            std::ptr::null_mut(),
+        )
+    };
+    // Iteration 1 slips: du_x = 3, lambda = (8, 4).
+    assert_eq!(
+        call([10.0, -8.0].as_ptr(), null, &mut du, &mut ln, &mut lt),
+        DsStatus::Ok
+    );
+    assert_close("C iteration 1: du", &du, &[3.0, 0.0], 1e-9, 3.0);
+    assert_close("C iteration 1: lambda_T", &lt, &[4.0], 1e-9, 8.0);
+    // Bad calls: nothing written.
+    let (mut du2, mut ln2, mut lt2) = ([7.0; 2], [7.0; 1], [7.0; 1]);
+    let r2 = [-5.0, -8.0];
+    let st = call(
+        r2.as_ptr(),
+        [f64::NAN].as_ptr(),
+        &mut du2,
+        &mut ln2,
+        &mut lt2,
+    );
+    assert_eq!(st, DsStatus::NotFinite);
+    let st = call(null, [3.0].as_ptr(), &mut du2, &mut ln2, &mut lt2);
+    assert_eq!(st, DsStatus::NullPointer);
+    assert_eq!(
+        (du2, ln2, lt2),
+        ([7.0; 2], [7.0; 1], [7.0; 1]),
+        "outputs written on error"
+    );
+    // Iteration 2 sticks: du_x = -s = -3, lambda_T = 1.
+    let st = call(r2.as_ptr(), [3.0].as_ptr(), &mut du, &mut ln, &mut lt);
+    assert_eq!(st, DsStatus::Ok);
+    assert_close("C iteration 2: du", &du, &[-3.0, 0.0], 1e-9, 3.0);
+    assert_close("C iteration 2: lambda_N", &ln, &[8.0], 1e-9, 8.0);
+    assert_close("C iteration 2: lambda_T", &lt, &[1.0], 1e-9, 8.0);
+    // SAFETY: a handle from ds_problem_new, freed once.
+    unsafe { ds_problem_free(h) };
+}
