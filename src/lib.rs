@@ -47,7 +47,7 @@ pub use methods::{Monitor, Progress};
 pub use options::{
     DENSE_MAX, DualForm, HostBlocks, Method, Options, Ordering, STALL_FACTOR, STALL_WINDOW,
 };
-pub use problem::{ContactProblem, HostIteration, Solution};
+pub use problem::{ContactProblem, HostIteration, RefactorCost, Solution};
 pub use report::{Report, SolveStatus};
 pub use sparse::{Csc, Format, Indices, MatrixView, SYMMETRY_TOL, Storage};
 

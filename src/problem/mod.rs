@@ -72,6 +72,19 @@ pub struct ContactProblem {
     /// The multipliers of the last converged host iteration (c; empty before
     /// the first), where the next one starts (`iteration.rs`).
     iteration_start: Vec<f64>,
+    /// What the last `refactor` cost (zero before the first).
+    last_refactor: RefactorCost,
+}
+
+/// What one [`ContactProblem::refactor`] cost, in seconds of wall clock.
+#[derive(Copy, Clone, Debug, Default, PartialEq)]
+pub struct RefactorCost {
+    /// The numeric factorisation of the new K (its symbolic analysis reused).
+    pub factor_seconds: f64,
+    /// The condensed dual on the new factor: A from the trailing block (a
+    /// dense dual) or the contact blocks, the lumped G = B K B^T and the
+    /// layered Dirichlet preconditioner (a matrix-free one).
+    pub dual_seconds: f64,
 }
 
 fn check_vec(name: &str, x: &[f64], len: usize) -> Result<()> {
@@ -331,6 +344,7 @@ impl ContactProblem {
             compliance: Compliance::rigid(m),
             loads: LoadSpan::default(),
             iteration_start: Vec::new(),
+            last_refactor: RefactorCost::default(),
         })
     }
 
@@ -422,6 +436,7 @@ impl ContactProblem {
             compliance: Compliance::rigid(m),
             loads: LoadSpan::default(),
             iteration_start: Vec::new(),
+            last_refactor: RefactorCost::default(),
         })
     }
 
@@ -534,12 +549,18 @@ impl ContactProblem {
         )?;
         // The new factor and dual are formed beside the old ones, which stay in
         // place until both succeeded.
+        let start = Instant::now();
         let mut fresh = factor.unfactored_copy();
         fresh.refactor(&k)?;
         let fresh = Arc::new(fresh);
+        let factored = Instant::now();
         let how = Dual::condensation_for(&fresh, &self.n, &self.t, self.d, self.current_form());
         let shift = self.compliance.shift(self.d);
         self.dual = form_dual(&fresh, &k, (&self.n, &self.t), self.d, how, &shift, None)?;
+        self.last_refactor = RefactorCost {
+            factor_seconds: (factored - start).as_secs_f64(),
+            dual_seconds: factored.elapsed().as_secs_f64(),
+        };
         self.stiff = Stiffness::Own { k, factor: fresh };
         self.history.forget_loads();
         self.history.lu = None;
@@ -898,6 +919,12 @@ impl ContactProblem {
             }
         }
         Ok(sol)
+    }
+
+    /// What the last [`ContactProblem::refactor`] cost (zero before the
+    /// first).
+    pub fn last_refactor(&self) -> RefactorCost {
+        self.last_refactor
     }
 
     /// Forgets the history: u_0 = 0 and no warm start, for steps and host

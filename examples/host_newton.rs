@@ -1,0 +1,217 @@
+//! The host-Newton family: a nonlinear host's load increment on the
+//! benchmark's 3D scenes, each iteration a new tangent K_j given to
+//! `refactor` and a `solve_iteration`. The tangent is a material update of the
+//! scene's K: a zone (the middle third of the DOFs, a horizontal layer of
+//! the block) made stiffer or softer, K_j = D_j K D_j with D_j = 1 + eps_j on
+//! the zone (same pattern, symmetric positive definite), eps_j = 0.04,
+//! -0.01, 0.0025, ... tending to zero as a host's tangent settles; the
+//! residual is r_j = f - K u_j (the material the loop converges to), the gaps
+//! g - N u_j and the slip taken T u_j. Per iteration: refactor and solve in
+//! units of the best plain factorisation of K (analysis and numeric factor,
+//! AMD or METIS, the median of 3 runs, measured in the same run), the
+//! refactor's phases (numeric factor; the dual: condensation or contact
+//! blocks, lumped and layered preconditioners), Newton steps and products,
+//! and |du| / |u|.
+//!
+//! ```text
+//! cargo run --release --example host_newton -- [--scenes A,B,..] [--threads K]
+//!     [--iterations J] [--laws tresca,coulomb] [--form auto|dense|matrix-free]
+//! ```
+
+#[path = "bench/baseline.rs"]
+mod baseline;
+#[path = "bench/scene.rs"]
+#[allow(dead_code)]
+mod scene;
+#[path = "bench/stats.rs"]
+#[allow(dead_code)]
+mod stats;
+
+use dualsplit::{
+    ContactProblem, Csc, DualForm, Format, Friction, HostIteration, Indices, MatrixView, Options,
+    Storage,
+};
+use scene::{Scene, Spec};
+use std::time::Instant;
+
+/// Runs of each plain factorisation whose median is the baseline.
+const FACTOR_REPS: usize = 3;
+
+fn main() {
+    let mut scenes = vec!["3d-40x40x20".to_string(), "3d-64x64x6".to_string()];
+    let mut threads = 1;
+    let mut iterations = 4usize;
+    let mut laws = vec!["coulomb".to_string()];
+    let mut form = DualForm::Auto;
+    let args: Vec<String> = std::env::args().skip(1).collect();
+    let mut k = 0;
+    while k < args.len() {
+        let value = || args.get(k + 1).expect("a value after the flag").clone();
+        match args[k].as_str() {
+            "--scenes" => scenes = value().split(',').map(str::to_string).collect(),
+            "--threads" => threads = value().parse().expect("--threads K"),
+            "--iterations" => iterations = value().parse().expect("--iterations J"),
+            "--laws" => laws = value().split(',').map(str::to_string).collect(),
+            "--form" => form = DualForm::from_name(&value()).expect("a dual form"),
+            a => panic!("unknown argument {a}"),
+        }
+        k += 2;
+    }
+    for name in &scenes {
+        let spec = Spec::parse(name).unwrap_or_else(|| panic!("bad scene {name}"));
+        let sc = Scene::build(spec);
+        let t_factor = baseline::best_plain_factor(&sc.k, threads, FACTOR_REPS);
+        let opts = Options {
+            threads,
+            dual_form: form,
+            tol: 1e-10,
+            ..Options::default()
+        };
+        for law in &laws {
+            let friction = if law == "tresca" {
+                Friction::Tresca(&sc.p)
+            } else {
+                Friction::Coulomb(&sc.mu)
+            };
+            run(name, &sc, friction, law, &opts, t_factor, iterations);
+        }
+    }
+}
+
+/// K_j = D K D, D = 1 + eps on the zone (the middle third of the DOFs).
+fn tangent(k: &Csc, eps: f64) -> Csc {
+    let n = k.nrows;
+    let zone = |i: usize| (n / 3..2 * n / 3).contains(&i);
+    let s = |i: usize| if zone(i) { 1.0 + eps } else { 1.0 };
+    let mut out = k.clone();
+    for j in 0..n {
+        for p in k.col_ptr[j]..k.col_ptr[j + 1] {
+            out.values[p] = k.values[p] * s(k.row_idx[p]) * s(j);
+        }
+    }
+    out
+}
+
+/// K's index arrays as the C layer would hand them over (64-bit).
+fn indices(k: &Csc) -> (Vec<i64>, Vec<i64>) {
+    (
+        k.col_ptr.iter().map(|&v| v as i64).collect(),
+        k.row_idx.iter().map(|&v| v as i64).collect(),
+    )
+}
+
+fn view<'a>(k: &'a Csc, (p, i): &'a (Vec<i64>, Vec<i64>)) -> MatrixView<'a> {
+    MatrixView {
+        format: Format::Csc,
+        storage: Storage::Full,
+        base: 0,
+        nrows: k.nrows,
+        ncols: k.ncols,
+        p: Indices::I64(p),
+        i: Indices::I64(i),
+        x: &k.values,
+    }
+}
+
+fn norm(x: &[f64]) -> f64 {
+    x.iter().map(|v| v * v).sum::<f64>().sqrt()
+}
+
+fn mul(a: &Csc, x: &[f64]) -> Vec<f64> {
+    let mut y = vec![0.0; a.nrows];
+    a.mul_vec(x, &mut y);
+    y
+}
+
+fn run(
+    name: &str,
+    sc: &Scene,
+    friction: Friction<'_>,
+    law: &str,
+    opts: &Options,
+    t_factor: f64,
+    iterations: usize,
+) {
+    let eps: Vec<f64> = (0..iterations)
+        .map(|j| 0.04 * (-0.25f64).powi(j as i32))
+        .collect();
+    let t0 = Instant::now();
+    let k0 = tangent(&sc.k, eps[0]);
+    let mut pb = ContactProblem::from_csc_with(sc.d, k0, sc.n.clone(), sc.t.clone(), opts)
+        .expect("the scene is valid");
+    let t_create = t0.elapsed().as_secs_f64();
+    println!(
+        "\n{name} (n = {}, c = {}), {law}, {} thread(s), {} dual: best plain factor {t_factor:.3} s, creation {t_create:.3} s ({:.2} x)",
+        sc.k.nrows,
+        pb.dual_unknowns(),
+        opts.threads,
+        if pb.is_matrix_free() {
+            "matrix-free"
+        } else {
+            "dense"
+        },
+        t_create / t_factor
+    );
+    println!(
+        "| iteration | eps | refactor / factor | of which factor / dual | solve / factor | outer | inner | open / stick / slip | err | \\|du\\| / \\|u\\| |"
+    );
+    println!("|---|---|---|---|---|---|---|---|---|---|");
+    let ndof = sc.k.nrows;
+    let mut u = vec![0.0; ndof];
+    let mut total = t_create;
+    for (j, &e) in eps.iter().enumerate() {
+        let (mut t_refactor, mut phases) = (0.0, String::from("-"));
+        if j > 0 {
+            let kj = tangent(&sc.k, e);
+            let pi = indices(&kj);
+            let t0 = Instant::now();
+            pb.refactor(&view(&kj, &pi)).expect("refactor");
+            t_refactor = t0.elapsed().as_secs_f64();
+            let info = pb.last_refactor();
+            phases = format!(
+                "{:.3} / {:.3}",
+                info.factor_seconds / t_factor,
+                info.dual_seconds / t_factor
+            );
+        }
+        let ku = mul(&sc.k, &u);
+        let r: Vec<f64> = sc.f.iter().zip(&ku).map(|(f, k)| f - k).collect();
+        let nu = mul(&sc.n, &u);
+        let g: Vec<f64> = sc.g.iter().zip(&nu).map(|(g, x)| g - x).collect();
+        let s = mul(&sc.t, &u);
+        let it = HostIteration {
+            r: &r,
+            g: &g,
+            slip: (j > 0).then_some(&s[..]),
+            lt_start: None,
+        };
+        let t0 = Instant::now();
+        let sol = pb
+            .solve_iteration(&it, friction, opts)
+            .expect("the iteration");
+        let t_solve = t0.elapsed().as_secs_f64();
+        let rep = &sol.report;
+        assert_eq!(rep.status, dualsplit::SolveStatus::Converged, "{rep:?}");
+        for (ui, di) in u.iter_mut().zip(&sol.u) {
+            *ui += di;
+        }
+        total += t_refactor + t_solve;
+        println!(
+            "| {j} | {e:+.4} | {:.3} | {phases} | {:.3} | {} | {} | {} / {} / {} | {:.1e} | {:.1e} |",
+            t_refactor / t_factor,
+            t_solve / t_factor,
+            rep.outer_iterations,
+            rep.inner_iterations,
+            rep.n_open,
+            rep.n_stick,
+            rep.n_slip,
+            rep.err,
+            norm(&sol.u) / norm(&u)
+        );
+    }
+    println!(
+        "whole increment (creation, {iterations} iterations): {:.2} factorisations, {:.2} per iteration",
+        total / t_factor,
+        total / t_factor / iterations as f64
+    );
+}
