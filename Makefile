@@ -3,6 +3,8 @@
 #   make demo                      build everything (release) and run block2d
 #   make demo DEMO_ARGS="--method pgs --nx 20 --ny 10"
 #   make block2d                   only build target/c_examples/block2d
+#   make hyperelastic_host         build and run the nonlinear host example
+#                                  (its own Newton loop, ds_solve_iteration)
 #                                  (target/ is $CARGO_TARGET_DIR when that is set)
 #   make clean-c                   remove the C build outputs (not cargo's)
 #
@@ -20,9 +22,10 @@ TARGETDIR = $(or $(CARGO_TARGET_DIR),target)
 LIBDS   = $(TARGETDIR)/release/libdualsplit.a
 OUTDIR  = $(TARGETDIR)/c_examples
 BLOCK2D = $(OUTDIR)/block2d
+HYPER   = $(OUTDIR)/hyperelastic_host
 DEMO_ARGS ?=
 
-.PHONY: all demo block2d lib clean-c
+.PHONY: all demo block2d hyperelastic_host lib clean-c
 
 all: block2d
 
@@ -39,6 +42,12 @@ $(LIBDS): lib
 
 $(BLOCK2D): c_examples/block2d.c c_examples/block2d_scene.h include/dualsplit.h $(LIBDS) | $(OUTDIR)
 	$(CC) $(CPPFLAGS) $(CFLAGS) -o $@ c_examples/block2d.c $(LIBDS) $(LDFLAGS) $(LDLIBS)
+
+hyperelastic_host: $(HYPER)
+	$(abspath $(HYPER))
+
+$(HYPER): c_examples/hyperelastic_host.c c_examples/block2d_scene.h include/dualsplit.h $(LIBDS) | $(OUTDIR)
+	$(CC) $(CPPFLAGS) -Ic_examples $(CFLAGS) -o $@ c_examples/hyperelastic_host.c $(LIBDS) $(LDFLAGS) $(LDLIBS)
 
 $(OUTDIR):
 	mkdir -p $@
