@@ -102,6 +102,10 @@ fn parse_stdout(out: &str) -> Vec<Printed> {
     incs
 }
 
+/// One converged increment: the top edge (x, y), u (all DOFs), lambda_N,
+/// lambda_T.
+type Converged = ((f64, f64), Vec<f64>, Vec<f64>, Vec<f64>);
+
 /// The body as the example writes it, and its converged increments.
 struct Written {
     nx: usize,
@@ -112,8 +116,7 @@ struct Written {
     nu: f64,
     mu_f: f64,
     curved: f64,
-    /// (top edge (x, y), u (all DOFs), lambda_N, lambda_T).
-    increments: Vec<((f64, f64), Vec<f64>, Vec<f64>, Vec<f64>)>,
+    increments: Vec<Converged>,
 }
 
 fn parse_out(text: &str) -> Written {
