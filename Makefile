@@ -71,6 +71,7 @@ clean-c:
 #   make uninstall PREFIX=...
 #   make fortran-demo [DEMO_ARGS=...]     build and run c_examples/block2d.f90 (gfortran)
 #   make fortran-minimal                  build and run c_examples/minimal.f90 (gfortran)
+#   make fortran-host-iteration           build and run c_examples/host_iteration.f90
 #   make suitesparse-demo [DEMO_ARGS=...] build and run c_examples/suitesparse_block2d.c
 #                                         (CHOLMOD + CXSparse: libsuitesparse-dev)
 #   make fortran-host                     build and run c_examples/host_solver.f90 (the
@@ -123,7 +124,7 @@ MPICC              ?= mpicc
 MPIRUN             ?= OMPI_ALLOW_RUN_AS_ROOT=1 OMPI_ALLOW_RUN_AS_ROOT_CONFIRM=1 mpirun --oversubscribe
 NP                 ?= 2
 
-.PHONY: install install-lib uninstall fortran-demo fortran-minimal fortran-host suitesparse-demo cholmod-operator-demo petsc-operator-demo \
+.PHONY: install install-lib uninstall fortran-demo fortran-minimal fortran-host fortran-host-iteration suitesparse-demo cholmod-operator-demo petsc-operator-demo \
         mumps-demo mumps-mpi-demo
 
 # Builds libdualsplit.{so,a,rlib} in one rustc call; the link argument only affects
@@ -176,6 +177,9 @@ fortran-minimal: $(FOUTDIR)/minimal_f
 
 fortran-host: $(FOUTDIR)/host_solver_f
 	$(abspath $(FOUTDIR)/host_solver_f)
+
+fortran-host-iteration: $(FOUTDIR)/host_iteration_f
+	$(abspath $(FOUTDIR)/host_iteration_f)
 
 $(OUTDIR)/suitesparse_block2d: c_examples/suitesparse_block2d.c c_examples/block2d_scene.h include/dualsplit.h $(LIBDS) | $(OUTDIR)
 	$(CC) $(CPPFLAGS) $(SUITESPARSE_CFLAGS) $(CFLAGS) -o $@ c_examples/suitesparse_block2d.c \

@@ -12,11 +12,14 @@
 //! - `minimal_example_runs`: README's example in Fortran, strings, optional
 //!   arguments and the monitor and log callbacks (BIND(C) Fortran procedures)
 //!   included;
+//! - `host_iteration_f90_matches_the_closed_form`: c_examples/host_iteration.f90,
+//!   a host's two Newton iterations on one node through ds_solve_iteration (the
+//!   slip argument optional), a refactor between them, and a NaN slip refused;
 //! - `block2d_f90_matches_the_c_driver`: the Fortran block (1-based CSR of default
 //!   INTEGER, upper triangle or full) and c_examples/block2d.c solve the same history
 //!   to 1e-12: u, lambda_N and lambda_T of every step.
 //!
-//! Without gfortran the last three print "SKIPPED: ... needs gfortran" and pass,
+//! Without gfortran the last four print "SKIPPED: ... needs gfortran" and pass,
 //! unless CI=true (then they fail).
 
 mod ctools;
@@ -608,6 +611,40 @@ fn host_solver_example_runs() {
         .collect();
     assert_eq!(rows[0], "0", "{stdout}");
     assert!(rows[1].parse::<i64>().unwrap() > 0, "{stdout}");
+}
+
+#[test]
+fn host_iteration_f90_matches_the_closed_form() {
+    let src = manifest_dir().join("c_examples/host_iteration.f90");
+    let Some(exe) = build_fortran(
+        "fortran::host_iteration_f90_matches_the_closed_form",
+        &src,
+        "host_iteration_f",
+        &[],
+        Link::Library,
+    ) else {
+        return;
+    };
+    let stdout = stdout_of(&run_ok(&mut Command::new(&exe), "host_iteration_f"));
+    println!("{stdout}");
+    assert!(stdout.contains("host_iteration_f: ok"), "{stdout}");
+    let rows: Vec<Vec<f64>> = stdout
+        .lines()
+        .filter_map(|l| l.strip_prefix("ITERATION"))
+        .map(|l| l.split_whitespace().map(|t| t.parse().unwrap()).collect())
+        .collect();
+    // du_x, du_y, lambda_N, lambda_T, open, stick, slip (the file's closed form).
+    let want = [
+        [3.0, 0.0, 8.0, 4.0, 0.0, 0.0, 1.0],
+        [-3.0, 0.0, 8.0, 2.5, 0.0, 1.0, 0.0],
+    ];
+    assert_eq!(rows.len(), 2, "{stdout}");
+    for (got, want) in rows.iter().zip(&want) {
+        for (g, w) in got.iter().zip(want) {
+            assert!((g - w).abs() <= 1e-9, "{got:?} against {want:?}");
+        }
+    }
+    assert!(stdout.lines().any(|l| l == "NAN_SLIP 4"), "{stdout}");
 }
 
 #[test]
