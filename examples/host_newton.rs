@@ -16,7 +16,12 @@
 //! ```text
 //! cargo run --release --example host_newton -- [--scenes A,B,..] [--threads K]
 //!     [--iterations J] [--laws tresca,coulomb] [--form auto|dense|matrix-free]
+//! cargo run --release --example host_newton -- --baseline-of DIR [--threads K]
 //! ```
+//!
+//! `--baseline-of DIR` only times the best plain factorisation of the K of the
+//! problem folder DIR (as `c_examples/hyperelastic_host.c --dump DIR` writes
+//! its last tangent): the unit of that example's `--times` figures.
 
 #[path = "bench/baseline.rs"]
 mod baseline;
@@ -43,6 +48,7 @@ fn main() {
     let mut iterations = 4usize;
     let mut laws = vec!["coulomb".to_string()];
     let mut form = DualForm::Auto;
+    let mut baseline_of: Option<String> = None;
     let args: Vec<String> = std::env::args().skip(1).collect();
     let mut k = 0;
     while k < args.len() {
@@ -53,9 +59,19 @@ fn main() {
             "--iterations" => iterations = value().parse().expect("--iterations J"),
             "--laws" => laws = value().split(',').map(str::to_string).collect(),
             "--form" => form = DualForm::from_name(&value()).expect("a dual form"),
+            "--baseline-of" => baseline_of = Some(value()),
             a => panic!("unknown argument {a}"),
         }
         k += 2;
+    }
+    if let Some(dir) = baseline_of {
+        let folder = dualsplit::mtx::read_problem(std::path::Path::new(&dir)).expect("a folder");
+        let t = baseline::best_plain_factor(&folder.k, threads, FACTOR_REPS);
+        println!(
+            "{dir}: n = {}, best plain factor ({threads} thread(s), median of {FACTOR_REPS}): {t:.4} s",
+            folder.k.nrows
+        );
+        return;
     }
     for name in &scenes {
         let spec = Spec::parse(name).unwrap_or_else(|| panic!("bad scene {name}"));

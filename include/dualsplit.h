@@ -256,7 +256,9 @@ typedef enum DsMethod {
  */
 typedef enum DsDualForm {
   /*
-   Dense A while d m <= 8000 dual unknowns, matrix-free beyond; a method that
+   Dense A while d m <= 8000 dual unknowns and the factor with the contact
+   DOFs last costs at most 10 times the best plain one in flops (not on thin
+   slabs and long 2D strips), matrix-free otherwise; a method that
    reads entries of A (all but DS_METHOD_AUTO, DS_METHOD_NEWTON and
    DS_METHOD_MPRGP) assembles A when it needs it.
    The default.
@@ -688,7 +690,8 @@ typedef struct DsOptions {
    ds_problem_new_opts, which creates the handle in that form
    (DS_DUAL_FORM_MATRIX_FREE: K factored in the best plain ordering, nothing
    c x c formed; DS_DUAL_FORM_DENSE: contact DOFs last and A formed; AUTO: dense
-   up to 8000 dual unknowns where it fits max_memory). Added in version 0.2.
+   up to 8000 dual unknowns where it fits max_memory and its factor costs at
+   most 10 times the best plain one in flops). Added in version 0.2.
    */
   int32_t dual_form;
   /*
@@ -1528,12 +1531,12 @@ enum DsStatus ds_step(struct DsProblem *problem,
  5. u_j+1 = u_j + du; stop when |du| and the residual
     |r_j+1 - N^T lambda_N - T^T lambda_T| are small, else j += 1 and go to 2.
 
- This call solves, for du,
-
-     K du = r - N^T lambda_N - T^T lambda_T,   N du <= g, lambda_N >= 0,
-     lambda_N,i (g_i - (N du)_i) = 0,   |lambda_T,i| <= p_i,
-     |lambda_T,i| < p_i  =>  s_i + (T du)_i = 0                    (stick)
-     |lambda_T,i| = p_i  =>  s_i + (T du)_i = alpha_i lambda_T,i   (slip)
+ This call solves, for du:
+ - K du = r - N^T lambda_N - T^T lambda_T;
+ - N du <= g, lambda_N >= 0, lambda_N,i (g_i - (N du)_i) = 0;
+ - |lambda_T,i| <= p_i; stick: |lambda_T,i| < p_i => s_i + (T du)_i = 0;
+   slip: |lambda_T,i| = p_i => s_i + (T du)_i = alpha_i lambda_T,i,
+   alpha_i >= 0;
 
  with p = the Tresca bound or mu lambda_N, and lambda the TOTAL contact
  forces at u_j + du. It starts from the multipliers of the last converged

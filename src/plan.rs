@@ -17,6 +17,54 @@ use crate::sparse::Csc;
 use crate::threads::Threads;
 use std::sync::Arc;
 
+/// Under `DualForm::Auto`, the dense route is taken only where its factor
+/// (contact DOFs last) and condensation cost at most this many times the
+/// flops of the best plain factor, which the matrix-free route uses: R =
+/// (flops(L with C last) + c_C^3 / 3) / flops(plain L), c_C the number of
+/// contact DOFs. On thin slabs and long 2D strips the trailing dense block of
+/// the contact face dominates. Measured on the load-path family (Coulomb,
+/// proportional oblique slip, 10 steps, 1 thread): R = 3.3-7.7 (3d-20x20x8,
+/// 3d-24x24x6, 3d-16x16x4, 2d-400x50, 2d-800x100) still favoured the dense
+/// route (creation + 10 steps 4.9-9.0 factorisations against 10.7-13.8
+/// matrix-free), R = 15.7-37 (3d-24x24x4 to 3d-48x48x4, 2d-2000x50) the
+/// matrix-free one (11-24 against 21-105; the cold increment 3.7-6.9 against
+/// 9.6-54).
+const DENSE_MAX_FLOP_RATIO: f64 = 10.0;
+
+/// The share of the contacts-last factor's flops in its trailing dense block
+/// (c_C^3 / 3 over the factor's flops) above which the plain factor is
+/// analysed too, to weigh the routes by [`DENSE_MAX_FLOP_RATIO`]: 0.11-0.12 on
+/// the 3D blocks (R = 2.6-2.8), 0.17-0.36 where the dense route wins, 0.5-0.76
+/// where the matrix-free one does. Below it the dense route is kept without
+/// the second analysis (thin 3D slabs are weighed whatever their share,
+/// [`SLAB_SHARE`]).
+const TRAILING_SHARE_TO_WEIGH: f64 = 0.4;
+
+/// A 3D problem whose contact DOFs are more than this share of K's DOFs is a
+/// thin slab (0.25 at 4 layers of elements, 0.14 at 6, at most 0.08 on the
+/// benchmark's blocks): AUTO analyses its plain factor first, and where
+/// [`SLAB_ESTIMATE`] already exceeds the bound skips the contacts-last
+/// analysis (0.4-0.6 factorisations on those slabs).
+const SLAB_SHARE: f64 = 0.15;
+
+/// On a thin slab R is about this many times c_C^3 / 3 over the plain
+/// factor's flops (the trailing block, about as much again in the rest of the
+/// contacts-last factor, and the condensation; measured: the estimate within
+/// 20 % of R, 6.1 against 7.7 to 36.9 against 32.8): the estimate made before
+/// the contacts-last analysis.
+const SLAB_ESTIMATE: f64 = 3.0;
+
+/// Below this many flops in the trailing block c_C^3 / 3 (about a tenth of a
+/// second in dense arithmetic) the dense route is taken without weighing:
+/// whatever the plain factor costs, the dense one is cheap (3d-16x16x4: 2.2e8;
+/// the weighed scenes of [`DENSE_MAX_FLOP_RATIO`] from 2.2e9).
+const MIN_TRAILING_FLOPS: f64 = 1e9;
+
+/// The flops of a factor's numeric factorisation (at least 1).
+fn flops(factor: &Factor) -> f64 {
+    factor.nnz_and_flops().1.max(1.0)
+}
+
 /// The route of a new problem, decided after K's analysis.
 pub(crate) struct Plan {
     pub sizes: Sizes,
@@ -166,29 +214,75 @@ pub(crate) fn route(
         // Contact DOFs last, so that the factor's trailing block condenses K
         // onto them.
         let last = contact_dofs(&stack_rows(n, t));
-        let factor = Factor::analyse(
-            k,
-            &last,
-            opts.ordering,
-            d == 3,
-            threads.clone(),
-            Ledger::new(),
-        )?;
+        let analyse = |last: &[usize]| {
+            Factor::analyse(
+                k,
+                last,
+                opts.ordering,
+                d == 3,
+                threads.clone(),
+                Ledger::new(),
+            )
+        };
+        let cc = last.len() as f64;
+        let trailing = cc * cc * cc / 3.0;
+        // AUTO weighs the routes where the trailing block is not negligible.
+        let weighable = opts.dual_form == DualForm::Auto && trailing > MIN_TRAILING_FLOPS;
+        // A thin 3D slab: the plain factor analysed first, and the
+        // matrix-free route taken without the contacts-last analysis where
+        // the estimate of the flop ratio already exceeds the bound.
+        let mut plain = None;
+        if weighable && d == 3 && cc > SLAB_SHARE * k.nrows as f64 {
+            let p = analyse(&[])?;
+            if SLAB_ESTIMATE * trailing / flops(&p) > DENSE_MAX_FLOP_RATIO {
+                return Ok(matrix_free_plan(k, n, t, d, p, limit));
+            }
+            plain = Some(p);
+        }
+        let factor = analyse(&last)?;
         let sizes = sizes_of(k, n, t, d, &factor);
         let dense = Condensation::of(true, DualForm::Dense, sizes.c);
+        // AUTO weighs the dense route's factor against the plain one where
+        // the trailing block is a large share of it.
+        let flops_last = flops(&factor);
+        let weigh = weighable
+            && !factor.is_dense()
+            && (plain.is_some() || trailing > TRAILING_SHARE_TO_WEIGH * flops_last);
+        let plain = match (weigh, plain) {
+            (false, _) => None,
+            (true, Some(p)) => Some(p),
+            (true, None) => Some(analyse(&[])?),
+        }
+        .filter(|p| (flops_last + trailing) / flops(p) > DENSE_MAX_FLOP_RATIO);
         // Asked for, the dense route is kept whatever it needs (`analysed`
         // refuses it with OutOfMemory); AUTO falls back to the matrix-free one.
-        if opts.dual_form == DualForm::Dense || limit.is_none_or(|l| sizes.setup(dense) <= l) {
+        let fits = limit.is_none_or(|l| sizes.setup(dense) <= l);
+        if opts.dual_form == DualForm::Dense || (fits && plain.is_none()) {
             let form = DualForm::Dense;
             let layer = None;
             return Ok((factor, Plan { sizes, form, layer }, limit));
         }
+        if let Some(plain) = plain {
+            return Ok(matrix_free_plan(k, n, t, d, plain, limit));
+        }
     }
     // The matrix-free dual works with the best plain factor of K.
     let factor = Factor::analyse(k, &[], opts.ordering, d == 3, threads, Ledger::new())?;
+    Ok(matrix_free_plan(k, n, t, d, factor, limit))
+}
+
+/// The matrix-free route on the plain factor's analysis `factor`.
+fn matrix_free_plan(
+    k: &Csc,
+    n: &Csc,
+    t: &Csc,
+    d: usize,
+    factor: Factor,
+    limit: Option<usize>,
+) -> (Factor, Plan, Option<usize>) {
     let (sizes, layer) = sizes_and_layer(k, n, t, d, &factor);
     let form = DualForm::MatrixFree;
-    Ok((factor, Plan { sizes, form, layer }, limit))
+    (factor, Plan { sizes, form, layer }, limit)
 }
 
 /// [`route`], refused with `OutOfMemory` before any numeric

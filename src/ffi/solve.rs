@@ -322,12 +322,12 @@ pub unsafe extern "C" fn ds_step(
 /// 5. u_j+1 = u_j + du; stop when |du| and the residual
 ///    |r_j+1 - N^T lambda_N - T^T lambda_T| are small, else j += 1 and go to 2.
 ///
-/// This call solves, for du,
-///
-///     K du = r - N^T lambda_N - T^T lambda_T,   N du <= g, lambda_N >= 0,
-///     lambda_N,i (g_i - (N du)_i) = 0,   |lambda_T,i| <= p_i,
-///     |lambda_T,i| < p_i  =>  s_i + (T du)_i = 0                    (stick)
-///     |lambda_T,i| = p_i  =>  s_i + (T du)_i = alpha_i lambda_T,i   (slip)
+/// This call solves, for du:
+/// - K du = r - N^T lambda_N - T^T lambda_T;
+/// - N du <= g, lambda_N >= 0, lambda_N,i (g_i - (N du)_i) = 0;
+/// - |lambda_T,i| <= p_i; stick: |lambda_T,i| < p_i => s_i + (T du)_i = 0;
+///   slip: |lambda_T,i| = p_i => s_i + (T du)_i = alpha_i lambda_T,i,
+///   alpha_i >= 0;
 ///
 /// with p = the Tresca bound or mu lambda_N, and lambda the TOTAL contact
 /// forces at u_j + du. It starts from the multipliers of the last converged

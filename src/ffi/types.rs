@@ -91,7 +91,9 @@ pub enum DsMethod {
 #[repr(C)]
 #[derive(Copy, Clone, Debug, PartialEq, Eq)]
 pub enum DsDualForm {
-    /// Dense A while d m <= 8000 dual unknowns, matrix-free beyond; a method that
+    /// Dense A while d m <= 8000 dual unknowns and the factor with the contact
+    /// DOFs last costs at most 10 times the best plain one in flops (not on thin
+    /// slabs and long 2D strips), matrix-free otherwise; a method that
     /// reads entries of A (all but DS_METHOD_AUTO, DS_METHOD_NEWTON and
     /// DS_METHOD_MPRGP) assembles A when it needs it.
     /// The default.
