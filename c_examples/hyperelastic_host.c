@@ -1,7 +1,7 @@
 /*
  * hyperelastic_host.c -- a nonlinear host: a neo-Hookean block in plane strain
- * (or in 3D, --dim 3), pressed onto a curved rigid foundation and dragged over
- * it with Coulomb friction, under large deformation. The program runs its own Newton loop in
+ * (or in 3D, --dim 3), pressed onto a rigid foundation and dragged over it
+ * with Coulomb friction, under large deformation. The program runs its own Newton loop in
  * every load increment, refactors its tangent at every iteration and asks
  * dualsplit for the contact solve of each linearised problem
  * (ds_solve_iteration), the way a nonlinear finite element code would.
@@ -16,10 +16,14 @@
  *     axis the last; the top face is moved by a prescribed displacement
  *     (press, then drag along x, or in 3D theta degrees off x), its DOFs
  *     eliminated;
- *   - every bottom node is a contact with the foundation, whose gap below the
- *     node is g0 = c |x_h - centre|^2 (x_h its horizontal coordinates): N row
- *     -e_vert on the node's vertical DOF (N u <= g0 reads u_vert >= -g0), T
- *     rows e_x (and e_y) on its horizontal DOFs; Coulomb friction mu_f.
+ *   - every bottom node is a contact with the foundation, whose initial gap
+ *     below the node is g0 = c |x_h - centre|^2 (x_h its horizontal reference
+ *     coordinates), measured along the vertical from the node's reference
+ *     position: N row -e_vert on the node's vertical DOF (N u <= g0 reads
+ *     u_vert >= -g0), T rows e_x (and e_y) on its horizontal DOFs; Coulomb
+ *     friction mu_f. The gap profile is the node's own (it does not follow
+ *     the node as it slides): the contact is linear in u, and the nonlinearity
+ *     the host's Newton loop meets is the material's and the contact states'.
  *
  * The host's loop, per load increment from the converged u_n (see
  * ds_solve_iteration in dualsplit.h):
@@ -109,8 +113,8 @@ static void usage(FILE *out)
             "  --nz N                8 x 8 x 4 in 3D; the vertical axis is the last)\n"
             "  --E e, --nu nu        small-strain Young's modulus and Poisson ratio\n"
             "                        of the neo-Hookean material (default 100, 0.3)\n"
-            "  --W w, --H h, --D d   block width, depth (3D) and height (default 2, 1\n"
-            "                        in 2D; 2, 2, 1 in 3D)\n"
+            "  --W w, --H h, --D d   block width, height and depth (3D) (default 2, 1\n"
+            "                        and 1)\n"
             "  --mu mu               Coulomb coefficient (default 0.3)\n"
             "  --curved c            foundation gap g0 = c |x_h - centre|^2 (default 0.1)\n"
             "  --press v, --drag v   final press (down) and drag of the top face\n"
@@ -120,7 +124,8 @@ static void usage(FILE *out)
             "  --tol t               Newton's tolerance on |R| / |f_ref| (default 1e-10)\n"
             "  --times               print the seconds of each refactor and solve\n"
             "  --out FILE            write each converged increment to FILE\n"
-            "  --dump DIR            write the last iteration's problem to DIR (ds_problem_dump)\n");
+            "  --dump DIR            write the last tangent with the last residual and\n"
+            "                        gaps to DIR (ds_problem_dump; not the slip taken)\n");
 }
 
 static int parse_args(int argc, char **argv, Params *p)
@@ -155,7 +160,7 @@ static int parse_args(int argc, char **argv, Params *p)
             p->dim = (int)dim;
         } else if (strcmp(a, "--nx") == 0) ok = sized = parse_long(v, &p->nx) && p->nx >= 1 && p->nx <= 2000;
         else if (strcmp(a, "--ny") == 0) ok = sized = parse_long(v, &p->ny) && p->ny >= 1 && p->ny <= 2000;
-        else if (strcmp(a, "--nz") == 0) ok = sized = parse_long(v, &p->nz) && p->nz >= 1 && p->nz <= 2000;
+        else if (strcmp(a, "--nz") == 0) ok = parse_long(v, &p->nz) && p->nz >= 1 && p->nz <= 2000;
         else if (strcmp(a, "--E") == 0) ok = parse_double(v, &p->young) && p->young > 0.0;
         else if (strcmp(a, "--nu") == 0) ok = parse_double(v, &p->nu) && p->nu > -1.0 && p->nu < 0.5;
         else if (strcmp(a, "--W") == 0) ok = parse_double(v, &p->w) && p->w > 0.0;
@@ -185,7 +190,8 @@ static int parse_args(int argc, char **argv, Params *p)
         k++;
     }
     if (p->dim == 3 && !sized) {
-        p->nx = 8; p->ny = 8; p->nz = 4;
+        p->nx = 8;
+        p->ny = 8;
     }
     if (p->dim == 3 && p->nz == 0) p->nz = 4;
     if (p->dim == 2) p->nz = 0;
@@ -505,10 +511,11 @@ int main(int argc, char **argv)
         out = fopen(par.out, "w");
         if (out == NULL) {
             fprintf(stderr, "hyperelastic_host: cannot write %s\n", par.out);
-            return 3;
-        }
-        fprintf(out, "body %d %ld %ld %ld %.17g %.17g %.17g %.17g %.17g %.17g %.17g\n", d, par.nx,
-                par.ny, par.nz, par.w, par.dz, par.h, par.young, par.nu, par.mu_f, par.curved);
+            failed = 2;
+        } else
+            fprintf(out, "body %d %ld %ld %ld %.17g %.17g %.17g %.17g %.17g %.17g %.17g\n", d,
+                    par.nx, par.ny, par.nz, par.w, par.dz, par.h, par.young, par.nu, par.mu_f,
+                    par.curved);
     }
     printf("neo-Hookean block, %dD, %ld elements, %ld free DOFs, %ld contacts (c = %ld), "
            "Coulomb mu = %g\n",
@@ -610,8 +617,10 @@ int main(int argc, char **argv)
         }
     }
     if (out != NULL) fclose(out);
-    /* The last iteration's problem (its tangent, r and gaps), for replay and
-       for the benchmark's baseline factorisation of the same tangent. */
+    /* The last tangent on the handle (assembled at the last iterate but one)
+       with the last residual and gaps: for the benchmark's baseline
+       factorisation of that tangent. The slip taken is not in the folder, so
+       it does not replay the iteration. */
     if (par.dump != NULL && pb != NULL && !failed) {
         st = ds_problem_dump(pb, par.dump, DS_FRICTION_COULOMB, r, g, mu);
         if (st != DS_STATUS_OK) {

@@ -64,6 +64,7 @@ fn main() {
         }
         k += 2;
     }
+    assert!(iterations >= 1, "--iterations J needs J >= 1");
     if let Some(dir) = baseline_of {
         let folder = dualsplit::mtx::read_problem(std::path::Path::new(&dir)).expect("a folder");
         let t = baseline::best_plain_factor(&folder.k, threads, FACTOR_REPS);

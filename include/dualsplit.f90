@@ -941,7 +941,9 @@ contains
    !> forces at the start of the increment (optional; read only at contacts with
    !> a finite k_t). Returns the correction du and the TOTAL contact forces;
    !> starts from the last converged iteration's multipliers. opts and report
-   !> optional; outputs written as ds_solve.
+   !> optional; outputs written as ds_solve. The optional slip and
+   !> lambda_t_start come last here (in C they come before du): pass them by
+   !> keyword.
    function ds_solve_iteration(problem, opts, friction, r, g, bound, du, lambda_n, &
                                lambda_t, report, slip, lambda_t_start) result(status)
       type(c_ptr), intent(in) :: problem

@@ -14,7 +14,7 @@
  *
  * Every function returning DsStatus catches internal panics and, on any status but
  * DS_STATUS_OK, sets a thread-local message readable with ds_last_error_message().
- * What ds_solve / ds_step write, per status:
+ * What ds_solve / ds_step / ds_solve_iteration write, per status:
  *   DS_STATUS_OK                  u, lambda_n, lambda_t and the report;
  *   DS_STATUS_STALLED, _TIME_LIMIT the iterate with the lowest err and the report;
  *   DS_STATUS_STOPPED             the last iterate and the report;
@@ -256,9 +256,10 @@ typedef enum DsMethod {
  */
 typedef enum DsDualForm {
   /*
-   Dense A while d m <= 8000 dual unknowns and the factor with the contact
-   DOFs last costs at most 10 times the best plain one in flops (not on thin
-   slabs and long 2D strips), matrix-free otherwise; a method that
+   Dense A while d m <= 8000 dual unknowns, matrix-free beyond, and also
+   below where the contact face ordered last would be a dense block that
+   dominates the factor (thin slabs, long 2D strips; with DS_METHOD_AUTO,
+   DS_METHOD_NEWTON or DS_METHOD_MPRGP: docs/design.md section 6); a method that
    reads entries of A (all but DS_METHOD_AUTO, DS_METHOD_NEWTON and
    DS_METHOD_MPRGP) assembles A when it needs it.
    The default.
@@ -690,8 +691,9 @@ typedef struct DsOptions {
    ds_problem_new_opts, which creates the handle in that form
    (DS_DUAL_FORM_MATRIX_FREE: K factored in the best plain ordering, nothing
    c x c formed; DS_DUAL_FORM_DENSE: contact DOFs last and A formed; AUTO: dense
-   up to 8000 dual unknowns where it fits max_memory and its factor costs at
-   most 10 times the best plain one in flops). Added in version 0.2.
+   up to 8000 dual unknowns where it fits max_memory, except where the
+   contact face ordered last would dominate the factor: see DsDualForm).
+   Added in version 0.2.
    */
   int32_t dual_form;
   /*

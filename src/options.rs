@@ -60,9 +60,9 @@ impl Method {
 #[derive(Copy, Clone, Debug, PartialEq, Eq)]
 pub enum DualForm {
     /// Dense A while c = d m <= [`DENSE_MAX`] (and it fits `max_memory`, and
-    /// the factor with the contact DOFs last costs at most 10 times the best
-    /// plain one in flops: not on thin slabs and long 2D strips, docs/design.md
-    /// section 6), matrix-free beyond; a method that needs the entries of A (every method but
+    /// for a method that runs matrix-free the contact face ordered last does
+    /// not dominate the factor: not on thin slabs and long 2D strips,
+    /// docs/design.md section 6), matrix-free beyond; a method that needs the entries of A (every method but
     /// `Newton`, `Mprgp` and `Auto`) assembles it when needed.
     Auto,
     /// Assemble the dense c x c matrix A (c^2 doubles; `OutOfMemory` if it does not

@@ -224,51 +224,111 @@ pub(crate) fn route(
                 Ledger::new(),
             )
         };
-        let cc = last.len() as f64;
-        let trailing = cc * cc * cc / 3.0;
-        // AUTO weighs the routes where the trailing block is not negligible.
-        let weighable = opts.dual_form == DualForm::Auto && trailing > MIN_TRAILING_FLOPS;
+        let weigh = Weigh {
+            contact_dofs: last.len(),
+            dofs: k.nrows,
+            d,
+        };
+        // AUTO weighs the routes where the trailing block is not negligible
+        // and the method runs matrix-free (one that reads entries of A would
+        // form them by c solves on the plain factor at every refactor).
+        let weighable =
+            opts.dual_form == DualForm::Auto && !opts.method.needs_entries() && weigh.weighable();
         // A thin 3D slab: the plain factor analysed first, and the
         // matrix-free route taken without the contacts-last analysis where
-        // the estimate of the flop ratio already exceeds the bound.
+        // the estimate of the flop ratio already exceeds the bound (and that
+        // route fits the memory limit).
         let mut plain = None;
-        if weighable && d == 3 && cc > SLAB_SHARE * k.nrows as f64 {
+        if weighable && weigh.slab() {
             let p = analyse(&[])?;
-            if SLAB_ESTIMATE * trailing / flops(&p) > DENSE_MAX_FLOP_RATIO {
-                return Ok(matrix_free_plan(k, n, t, d, p, limit));
+            let free = matrix_free_plan(k, n, t, d, p, limit);
+            if weigh.estimate_exceeds(flops(&free.0)) && fits_limit(&free) {
+                return Ok(free);
             }
-            plain = Some(p);
+            plain = Some(free.0);
         }
         let factor = analyse(&last)?;
         let sizes = sizes_of(k, n, t, d, &factor);
         let dense = Condensation::of(true, DualForm::Dense, sizes.c);
+        let fits = limit.is_none_or(|l| sizes.setup(dense) <= l);
         // AUTO weighs the dense route's factor against the plain one where
         // the trailing block is a large share of it.
         let flops_last = flops(&factor);
-        let weigh = weighable
-            && !factor.is_dense()
-            && (plain.is_some() || trailing > TRAILING_SHARE_TO_WEIGH * flops_last);
-        let plain = match (weigh, plain) {
-            (false, _) => None,
-            (true, Some(p)) => Some(p),
-            (true, None) => Some(analyse(&[])?),
+        if weighable && !factor.is_dense() && (plain.is_some() || weigh.large_share(flops_last)) {
+            let p = match plain.take() {
+                Some(p) => p,
+                None => analyse(&[])?,
+            };
+            let free = matrix_free_plan(k, n, t, d, p, limit);
+            // The matrix-free route where it is cheaper and fits, or where
+            // the dense one does not fit.
+            if (weigh.ratio_exceeds(flops_last, flops(&free.0)) && fits_limit(&free)) || !fits {
+                return Ok(free);
+            }
         }
-        .filter(|p| (flops_last + trailing) / flops(p) > DENSE_MAX_FLOP_RATIO);
         // Asked for, the dense route is kept whatever it needs (`analysed`
         // refuses it with OutOfMemory); AUTO falls back to the matrix-free one.
-        let fits = limit.is_none_or(|l| sizes.setup(dense) <= l);
-        if opts.dual_form == DualForm::Dense || (fits && plain.is_none()) {
+        if opts.dual_form == DualForm::Dense || fits {
             let form = DualForm::Dense;
             let layer = None;
             return Ok((factor, Plan { sizes, form, layer }, limit));
-        }
-        if let Some(plain) = plain {
-            return Ok(matrix_free_plan(k, n, t, d, plain, limit));
         }
     }
     // The matrix-free dual works with the best plain factor of K.
     let factor = Factor::analyse(k, &[], opts.ordering, d == 3, threads, Ledger::new())?;
     Ok(matrix_free_plan(k, n, t, d, factor, limit))
+}
+
+/// Whether a route's predicted setup fits its memory limit.
+fn fits_limit((_, plan, limit): &(Factor, Plan, Option<usize>)) -> bool {
+    let how = Condensation::of(true, plan.form, plan.sizes.c);
+    limit.is_none_or(|l| plan.sizes.setup(how) <= l)
+}
+
+/// AUTO's weighing of the dense route against the matrix-free one for a
+/// problem with `contact_dofs` contact DOFs c_C among `dofs` DOFs in
+/// dimension `d` (the constants above).
+#[derive(Clone, Copy, Debug)]
+struct Weigh {
+    contact_dofs: usize,
+    dofs: usize,
+    d: usize,
+}
+
+impl Weigh {
+    /// c_C^3 / 3, the flops of the dense trailing block.
+    fn trailing(&self) -> f64 {
+        let c = self.contact_dofs as f64;
+        c * c * c / 3.0
+    }
+
+    /// Whether the trailing block is large enough to weigh the routes.
+    fn weighable(&self) -> bool {
+        self.trailing() > MIN_TRAILING_FLOPS
+    }
+
+    /// A thin 3D slab ([`SLAB_SHARE`]).
+    fn slab(&self) -> bool {
+        self.d == 3 && self.contact_dofs as f64 > SLAB_SHARE * self.dofs as f64
+    }
+
+    /// Whether the slab's estimate of the flop ratio, from the plain
+    /// factor's flops alone, exceeds [`DENSE_MAX_FLOP_RATIO`].
+    fn estimate_exceeds(&self, plain: f64) -> bool {
+        SLAB_ESTIMATE * self.trailing() / plain > DENSE_MAX_FLOP_RATIO
+    }
+
+    /// Whether the trailing block is a large share of the contacts-last
+    /// factor's flops ([`TRAILING_SHARE_TO_WEIGH`]).
+    fn large_share(&self, last: f64) -> bool {
+        self.trailing() > TRAILING_SHARE_TO_WEIGH * last
+    }
+
+    /// Whether (flops(L, C last) + c_C^3 / 3) / flops(plain L) exceeds
+    /// [`DENSE_MAX_FLOP_RATIO`].
+    fn ratio_exceeds(&self, last: f64, plain: f64) -> bool {
+        (last + self.trailing()) / plain > DENSE_MAX_FLOP_RATIO
+    }
 }
 
 /// The matrix-free route on the plain factor's analysis `factor`.
@@ -391,5 +451,69 @@ pub(crate) fn host_info(
         analyse_seconds: 0.0,
         compliant_contacts: 0,
         power_law_contacts: 0,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The weighing's predicates on the flop counts measured for the load-path
+    /// family (`Factor::analyse` in the route's orderings): the scenes where
+    /// the dense route won stay dense, the others go matrix-free.
+    #[test]
+    fn the_weighing_separates_the_measured_scenes() {
+        // 3d-40x40x20: a thick block, its trailing block a ninth of the factor.
+        let block = Weigh {
+            contact_dofs: 5043,
+            dofs: 100_860,
+            d: 3,
+        };
+        assert!(block.weighable() && !block.slab() && !block.large_share(3.955e11));
+        // 3d-16x16x4: a slab whose trailing block is negligible.
+        let small = Weigh {
+            contact_dofs: 867,
+            dofs: 3468,
+            d: 3,
+        };
+        assert!(!small.weighable());
+        // 3d-24x24x6: six layers, not a slab; a third of its factor trailing.
+        let six = Weigh {
+            contact_dofs: 1875,
+            dofs: 13_125,
+            d: 3,
+        };
+        assert!(six.weighable() && !six.slab() && !six.large_share(6.237e9));
+        // 3d-32x32x4: a slab whose estimate exceeds the bound (R = 32.8).
+        let slab = Weigh {
+            contact_dofs: 3267,
+            dofs: 13_068,
+            d: 3,
+        };
+        assert!(slab.weighable() && slab.slab() && slab.estimate_exceeds(9.45e8));
+        // 2d-2000x50 (R = 37.1) goes matrix-free, 2d-800x100 (R = 4.0) is not
+        // even weighed.
+        let long = Weigh {
+            contact_dofs: 4002,
+            dofs: 200_100,
+            d: 2,
+        };
+        assert!(long.weighable() && !long.slab() && long.large_share(2.828e10));
+        assert!(long.ratio_exceeds(2.828e10, 1.339e9));
+        let strip = Weigh {
+            contact_dofs: 1602,
+            dofs: 160_200,
+            d: 2,
+        };
+        assert!(strip.weighable() && !strip.large_share(8.123e9));
+        // The bound itself: R = 9 stays dense, R = 11 does not.
+        let c = Weigh {
+            contact_dofs: 3000,
+            dofs: 1_000_000,
+            d: 3,
+        };
+        let t = c.trailing();
+        assert!(!c.ratio_exceeds(2.0 * t, t / 3.0));
+        assert!(c.ratio_exceeds(2.0 * t, 3.0 * t / 11.0 * 0.99));
     }
 }

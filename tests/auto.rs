@@ -193,3 +193,53 @@ impl ZeroReport for DsReport {
         unsafe { std::mem::zeroed() }
     }
 }
+
+/// AUTO's route on a thin slab below c = 8,000 (docs/design.md section 6):
+/// the contacts-last factor would be a dense block of the contact face, so
+/// the analysis picks the matrix-free route; asked for dense, or with a
+/// method that reads entries of A, the dense route stays; a thick block
+/// stays dense. (Analysis only: nothing is factored.)
+#[test]
+fn auto_takes_the_matrix_free_route_on_a_thin_slab() {
+    let slab = Scene::pressed_block(
+        Mesh::grid3d(24, 24, 4, 4.0, 4.0, 0.7),
+        &[0.004, 0.002, -0.02],
+        0.02,
+        &[2.0, 2.0],
+    );
+    let info = |sc: &Scene, o: &Options| {
+        ContactProblem::analyse_csc(sc.d, &sc.k, &sc.n, &sc.t, o).expect("the analysis")
+    };
+    assert!(slab.n.nrows * 3 < 8000);
+    let auto = info(&slab, &opts(Method::Auto));
+    assert_eq!(auto.setup_form, DualForm::MatrixFree, "{auto:?}");
+    let pgs = info(&slab, &opts(Method::Pgs));
+    assert_eq!(
+        pgs.setup_form,
+        DualForm::Dense,
+        "a method that reads A: {pgs:?}"
+    );
+    let dense = info(
+        &slab,
+        &Options {
+            dual_form: DualForm::Dense,
+            ..opts(Method::Newton)
+        },
+    );
+    assert_eq!(dense.setup_form, DualForm::Dense, "{dense:?}");
+    // The dense route's factor is many times the plain one's here.
+    assert!(
+        dense.factor_flops > 10.0 * auto.factor_flops,
+        "{dense:?} {auto:?}"
+    );
+    let thick = Scene::pressed_block(
+        Mesh::grid3d(12, 12, 8, 2.0, 2.0, 1.4),
+        &[0.004, 0.002, -0.02],
+        0.02,
+        &[1.0, 1.0],
+    );
+    assert_eq!(
+        info(&thick, &opts(Method::Auto)).setup_form,
+        DualForm::Dense
+    );
+}

@@ -600,6 +600,35 @@ fn null_pointer_handle_functions() {
             assert_usable(h);
         }
     }
+    // ds_solve_iteration: each required pointer NULL in turn (slip and
+    // lambda_t_start may be NULL).
+    let names = ["problem", "r", "g", "bound", "du", "lambda_n", "lambda_t"];
+    for (which, culprit) in names.iter().enumerate() {
+        let mut out = Outputs::small();
+        let nul = |j: usize, p: *const f64| if j == which { null() } else { p };
+        let nul_mut = |j: usize, p: *mut f64| if j == which { null_mut() } else { p };
+        let problem = if which == 0 { null_mut() } else { h };
+        // SAFETY: arrays sized for the problem, one of them NULL.
+        let s = unsafe {
+            ds_solve_iteration(
+                problem,
+                null(),
+                DsFriction::Tresca as i32,
+                nul(1, F.as_ptr()),
+                nul(2, G.as_ptr()),
+                nul(3, P.as_ptr()),
+                null(),
+                null(),
+                nul_mut(4, out.u.as_mut_ptr()),
+                nul_mut(5, out.lambda_n.as_mut_ptr()),
+                nul_mut(6, out.lambda_t.as_mut_ptr()),
+                &mut out.report,
+            )
+        };
+        expect_error(s, DsStatus::NullPointer, &[culprit]);
+        out.assert_untouched(culprit);
+        assert_usable(h);
+    }
     free(h);
 }
 

@@ -640,6 +640,7 @@ fn host_iteration_f90_matches_the_closed_form() {
     ];
     assert_eq!(rows.len(), 2, "{stdout}");
     for (got, want) in rows.iter().zip(&want) {
+        assert_eq!(got.len(), want.len(), "{stdout}");
         for (g, w) in got.iter().zip(want) {
             assert!((g - w).abs() <= 1e-9, "{got:?} against {want:?}");
         }

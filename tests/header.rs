@@ -114,6 +114,7 @@ fn header_has_the_spec_names() {
         "ds_problem_sizes",
         "ds_solve",
         "ds_step",
+        "ds_solve_iteration",
     ] {
         assert!(
             h.contains(&format!("enum DsStatus {f}(")),
@@ -237,6 +238,7 @@ fn header_compiles_and_matches_the_rust_layout() {
          DsStatus (*a)(int32_t, const DsMatrix *, const DsMatrix *, const DsMatrix *, DsProblem **) = ds_problem_new;\n\
          DsStatus (*b)(DsProblem *, const DsOptions *, int32_t, const double *, const double *, const double *, double *, double *, double *, DsReport *) = ds_solve;\n\
          DsStatus (*c)(DsProblem *, const DsOptions *, int32_t, const double *, const double *, const double *, double *, double *, double *, DsReport *) = ds_step;\n\
+         DsStatus (*c2)(DsProblem *, const DsOptions *, int32_t, const double *, const double *, const double *, const double *, const double *, double *, double *, double *, DsReport *) = ds_solve_iteration;\n\
          DsStatus (*d)(const DsProblem *, int64_t *, int64_t *, int32_t *) = ds_problem_sizes;\n\
          const char *(*e)(int32_t) = ds_status_string;\n\
          const char *(*f)(void) = ds_last_error_message;\n\
@@ -254,7 +256,7 @@ fn header_compiles_and_matches_the_rust_layout() {
          int32_t (*q)(const DsProgress *, void *) = (DsMonitorFn)0;\n\
          void (*r)(int32_t, const char *, void *) = (DsLogFn)0;\n\
          DsOptions opts; DsStatus s = ds_options_default(&opts);\n\
-         (void)a; (void)b; (void)c; (void)d; (void)e; (void)f; (void)g; (void)h; (void)i;\n\
+         (void)a; (void)b; (void)c; (void)c2; (void)d; (void)e; (void)f; (void)g; (void)h; (void)i;\n\
          (void)j; (void)k; (void)l; (void)m; (void)n; (void)o; (void)p; (void)q; (void)r; (void)s; (void)t;\n}\n\
          int main(void) { signatures(); return 0; }\n",
     );

@@ -477,9 +477,18 @@ fn bad_slip_and_bad_k_leave_the_handle_as_it_was() {
         slip: Some(&s),
         lt_start: None,
     };
+    // Both handles first converge on another iteration, whose multipliers
+    // the next one starts from: a bad call must not lose them.
+    let half: Vec<f64> = sc.f.iter().map(|v| 0.5 * v).collect();
+    let before = HostIteration { r: &half, ..it };
     let mut clean = sc.problem();
+    assert_converged(
+        "clean before",
+        &clean.solve_iteration(&before, law, &o).unwrap(),
+    );
     let want = clean.solve_iteration(&it, law, &o).expect("clean");
     let mut pb = sc.problem();
+    assert_converged("before", &pb.solve_iteration(&before, law, &o).unwrap());
     let short = vec![0.0; 2 * m - 1];
     let e = pb
         .solve_iteration(
@@ -530,6 +539,97 @@ fn bad_slip_and_bad_k_leave_the_handle_as_it_was() {
     assert_eq!(got.u, want.u, "du after the bad calls");
     assert_eq!(got.lambda_n, want.lambda_n);
     assert_eq!(got.lambda_t, want.lambda_t);
+    assert_eq!(got.report.outer_iterations, want.report.outer_iterations);
+}
+
+/// Where the next iteration starts: the last converged one's multipliers,
+/// kept by `refactor` and by a solve that did not converge, forgotten by
+/// `reset_history` and by `set_contacts` with another m. Observed through
+/// the work of the same iteration (Newton steps and sweeps; one thread,
+/// deterministic): from its own answer less than cold, from zero as much.
+#[test]
+fn the_start_is_kept_and_forgotten_where_documented() {
+    let (_, sc) = scenes().remove(1);
+    let mu = vec![0.3; sc.m()];
+    let law = Friction::Coulomb(&mu);
+    let o = Options {
+        method: Method::Newton,
+        threads: 1,
+        ..Options::default()
+    };
+    let it = HostIteration {
+        r: &sc.f,
+        g: &sc.g,
+        slip: None,
+        lt_start: None,
+    };
+    let mut pb = sc.problem();
+    let cold = pb.solve_iteration(&it, law, &o).expect("cold");
+    assert_converged("cold", &cold);
+    let work = |r: &dualsplit::Report| r.outer_iterations + r.inner_iterations;
+    let cold_steps = work(&cold.report);
+    let steps = |pb: &mut ContactProblem| {
+        let s = pb.solve_iteration(&it, law, &o).expect("an iteration");
+        assert_converged("again", &s);
+        work(&s.report)
+    };
+    // Kept: the same iteration from its own answer.
+    let warm = steps(&mut pb);
+    assert!(
+        warm < cold_steps,
+        "from its own answer {warm}, cold {cold_steps}"
+    );
+    // Kept through a refactor (the same K).
+    pb.refactor(&Owned::of(&sc.k).view()).expect("refactor");
+    assert_eq!(steps(&mut pb), warm, "after refactor");
+    // Kept through a solve that did not converge (one PGS sweep on another
+    // load).
+    let half: Vec<f64> = sc.f.iter().map(|v| 0.3 * v).collect();
+    let one_sweep = Options {
+        method: Method::Pgs,
+        max_outer: 1,
+        ..o
+    };
+    let other = pb
+        .solve_iteration(&HostIteration { r: &half, ..it }, law, &one_sweep)
+        .expect("a limited iteration");
+    assert_ne!(other.report.status, dualsplit::SolveStatus::Converged);
+    assert_eq!(steps(&mut pb), warm, "after a solve that did not converge");
+    // Forgotten by reset_history.
+    pb.reset_history();
+    assert_eq!(steps(&mut pb), cold_steps, "after reset_history");
+    // Forgotten by set_contacts with another m (the first contact dropped).
+    let keep: Vec<usize> = (1..sc.m()).collect();
+    let rows = |a: &Csc, per: usize| {
+        let t: Vec<(usize, usize, f64)> = (0..a.ncols)
+            .flat_map(|j| {
+                (a.col_ptr[j]..a.col_ptr[j + 1]).map(move |p| (a.row_idx[p], j, a.values[p]))
+            })
+            .filter(|&(i, _, _)| i / per >= 1)
+            .map(|(i, j, v)| (i - per, j, v))
+            .collect();
+        Csc::from_triplets(a.nrows - per, a.ncols, &t)
+    };
+    let (n1, t1) = (rows(&sc.n, 1), rows(&sc.t, 2));
+    let mut fresh = ContactProblem::from_csc(3, sc.k.clone(), n1.clone(), t1.clone()).unwrap();
+    pb.set_contacts(&Owned::of(&n1).view(), &Owned::of(&t1).view())
+        .expect("new contacts");
+    let g1: Vec<f64> = keep.iter().map(|&i| sc.g[i]).collect();
+    let mu1 = vec![0.3; keep.len()];
+    let it1 = HostIteration { g: &g1, ..it };
+    let law1 = Friction::Coulomb(&mu1);
+    let a = pb
+        .solve_iteration(&it1, law1, &o)
+        .expect("after set_contacts");
+    let b = fresh
+        .solve_iteration(&it1, law1, &o)
+        .expect("a fresh handle");
+    assert_converged("after set_contacts", &a);
+    assert_eq!(
+        work(&a.report),
+        work(&b.report),
+        "after set_contacts with another m, the start is zero as on a fresh handle"
+    );
 }
 
 /// Through C: the slip-then-stick node of

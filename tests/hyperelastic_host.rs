@@ -1,6 +1,6 @@
 //! The nonlinear host example, c_examples/hyperelastic_host.c: a neo-Hookean
-//! block in plane strain and in 3D, pressed 15 % of its height onto a curved
-//! rigid foundation and dragged over it with Coulomb friction (in 3D 17
+//! block in plane strain and in 3D, pressed 15 % of its height onto a rigid
+//! foundation (an initial gap profile) and dragged over it with Coulomb friction (in 3D 17
 //! degrees off the T rows), its own Newton loop in C calling
 //! `ds_problem_refactor` and `ds_solve_iteration` every iteration. Built
 //! against the static library of this test run and run.

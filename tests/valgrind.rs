@@ -1,6 +1,8 @@
-//! The C demo (c_examples/block2d.c, small mesh) and the bad-input C program
-//! (c_examples/bad_input.c) under valgrind memcheck, built against the static
-//! library cargo built for this test run:
+//! The C demo (c_examples/block2d.c, small mesh), the bad-input C program
+//! (c_examples/bad_input.c) and the nonlinear host (c_examples/
+//! hyperelastic_host.c, small meshes in 2D and 3D: a refactor and a
+//! ds_solve_iteration per Newton iteration) under valgrind memcheck, built
+//! against the static library cargo built for this test run:
 //!
 //!     valgrind --error-exitcode=1 --leak-check=full --errors-for-leak-kinds=definite
 //!
@@ -25,6 +27,8 @@ fn build(src: &str, exe_name: &str) -> PathBuf {
     cmd.args(["-std=c99", "-Wall", "-Wextra", "-g", "-O1"])
         .arg("-I")
         .arg(root.join("include"))
+        .arg("-I")
+        .arg(root.join("c_examples"))
         .arg(root.join("c_examples").join(src))
         .arg(ctools::static_lib())
         .args(ctools::SYSTEM_LIBS)
@@ -97,4 +101,29 @@ fn bad_input_c_under_valgrind() {
     }
     let exe = build("bad_input.c", "bad_input_vg");
     memcheck(&exe, &[]);
+}
+
+#[test]
+fn hyperelastic_host_under_valgrind() {
+    if !have_valgrind() {
+        return;
+    }
+    let exe = build("hyperelastic_host.c", "hyperelastic_host_vg");
+    memcheck(&exe, &["--nx", "6", "--ny", "3", "--increments", "1", "1"]);
+    memcheck(
+        &exe,
+        &[
+            "--dim",
+            "3",
+            "--nx",
+            "3",
+            "--ny",
+            "3",
+            "--nz",
+            "2",
+            "--increments",
+            "1",
+            "1",
+        ],
+    );
 }

@@ -46,8 +46,9 @@ pub struct DsOptions {
     /// ds_problem_new_opts, which creates the handle in that form
     /// (DS_DUAL_FORM_MATRIX_FREE: K factored in the best plain ordering, nothing
     /// c x c formed; DS_DUAL_FORM_DENSE: contact DOFs last and A formed; AUTO: dense
-    /// up to 8000 dual unknowns where it fits max_memory and its factor costs at
-    /// most 10 times the best plain one in flops). Added in version 0.2.
+    /// up to 8000 dual unknowns where it fits max_memory, except where the
+    /// contact face ordered last would dominate the factor: see DsDualForm).
+    /// Added in version 0.2.
     pub dual_form: i32,
     /// Wall-clock budget of one ds_solve / ds_step in seconds, >= 0, 0 for none
     /// (default 0). No outer iteration starts after it; the solve then returns

@@ -77,8 +77,8 @@ unsafe fn solve_impl(
             slice_in(bound, m, bound_name)?,
         )
     };
-    // SAFETY: each is NULL (zero) or holds (d-1) m values (contract).
     let (slip, lt_start) = match mode {
+        // SAFETY: each is NULL (zero) or holds (d-1) m values (contract).
         Mode::Iteration { slip, lt_start } => unsafe {
             (
                 optional_in(slip, mt, "slip")?,

@@ -91,9 +91,10 @@ pub enum DsMethod {
 #[repr(C)]
 #[derive(Copy, Clone, Debug, PartialEq, Eq)]
 pub enum DsDualForm {
-    /// Dense A while d m <= 8000 dual unknowns and the factor with the contact
-    /// DOFs last costs at most 10 times the best plain one in flops (not on thin
-    /// slabs and long 2D strips), matrix-free otherwise; a method that
+    /// Dense A while d m <= 8000 dual unknowns, matrix-free beyond, and also
+    /// below where the contact face ordered last would be a dense block that
+    /// dominates the factor (thin slabs, long 2D strips; with DS_METHOD_AUTO,
+    /// DS_METHOD_NEWTON or DS_METHOD_MPRGP: docs/design.md section 6); a method that
     /// reads entries of A (all but DS_METHOD_AUTO, DS_METHOD_NEWTON and
     /// DS_METHOD_MPRGP) assembles A when it needs it.
     /// The default.

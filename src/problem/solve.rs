@@ -277,7 +277,8 @@ impl ContactProblem {
         let host = self.stiff.host().cloned();
         let counts = host.as_ref().map(|h| h.counts()).unwrap_or_default();
         // (f, g, the friction data and opts were checked by the caller.)
-        // b = B K^-1 f - [g; 0], with the forward half y_f = L^-1 P f kept for the
+        // b = B K^-1 f - [g; 0] ([g; -s] for a host iteration), with the
+        // forward half y_f = L^-1 P f kept for the
         // recovery of u.
         let mut y_f = vec![0.0; ndof];
         let mut u0 = vec![0.0; ndof];
@@ -591,7 +592,8 @@ struct Recovered<'a> {
 
 impl ContactProblem {
     /// The error measure of the iterate `lam` (docs/design.md section 5):
-    /// u = K^-1 (f - B^T lambda) recovered, v = [N u - g; T u] - D (lambda -
+    /// u = K^-1 (f - B^T lambda) recovered, v = [N u - g; T u] (less a host
+    /// iteration's tangential gaps -s: T u + s) - D (lambda -
     /// [0; lt_prev]) less the round's gap offset `s` at the nonlinear
     /// contacts (`law` = (those contacts, s)), the bounds p of `friction`, and
     /// the natural map's err against `b` (the round's right-hand side) with
