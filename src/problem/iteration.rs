@@ -53,7 +53,7 @@ impl ContactProblem {
     /// [`ContactProblem::step`] is neither used nor changed.
     ///
     /// Errors: as [`ContactProblem::solve`], and `BadSize` / `NotFinite` for
-    /// `slip` and `lt_start`. Non-convergence is `report.status`.
+    /// `slip` and `lt_start` (named slip and lambda_t_start in the message, as in C). Non-convergence is `report.status`.
     pub fn solve_iteration(
         &mut self,
         it: &HostIteration<'_>,
@@ -78,7 +78,7 @@ impl ContactProblem {
             check_vec("slip", s, mt)?;
         }
         if let Some(lt) = it.lt_start {
-            check_vec("lt_start", lt, mt)?;
+            check_vec("lambda_t_start", lt, mt)?;
         }
         opts.check("")?;
         let predicted = self.prepare_dual(opts)?;
