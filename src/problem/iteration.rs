@@ -53,7 +53,8 @@ impl ContactProblem {
     /// [`ContactProblem::step`] is neither used nor changed.
     ///
     /// Errors: as [`ContactProblem::solve`], and `BadSize` / `NotFinite` for
-    /// `slip` and `lt_start` (named slip and lambda_t_start in the message, as in C). Non-convergence is `report.status`.
+    /// `slip` and `lt_start` (named slip and lambda_t_start in the message, as
+    /// in C). Non-convergence is `report.status`.
     pub fn solve_iteration(
         &mut self,
         it: &HostIteration<'_>,
