@@ -9,8 +9,9 @@
 //! g - N u_j and the slip taken T u_j. Per iteration: refactor and solve in
 //! units of the best plain factorisation of K (analysis and numeric factor,
 //! AMD or METIS, the median of 3 runs, measured in the same run), the
-//! refactor's phases (numeric factor; the dual: condensation or contact
-//! blocks, lumped and layered preconditioners), Newton steps and products,
+//! refactor's phases (numeric factor; the drift of the contact blocks, with
+//! its solves; the dual: condensation or contact blocks, lumped and layered
+//! preconditioners; whether the blocks were kept), Newton steps and products,
 //! and |du| / |u|.
 //!
 //! ```text
@@ -170,7 +171,7 @@ fn run(
         t_create / t_factor
     );
     println!(
-        "| iteration | eps | refactor / factor | of which factor / dual | solve / factor | outer | inner | open / stick / slip | err | \\|du\\| / \\|u\\| |"
+        "| iteration | eps | refactor / factor | of which factor / drift (solves) / dual | solve / factor | outer | inner | open / stick / slip | err | \\|du\\| / \\|u\\| |"
     );
     println!("|---|---|---|---|---|---|---|---|---|---|");
     let ndof = sc.k.nrows;
@@ -186,9 +187,12 @@ fn run(
             t_refactor = t0.elapsed().as_secs_f64();
             let info = pb.last_refactor();
             phases = format!(
-                "{:.3} / {:.3}",
+                "{:.3} / {:.3} ({}) / {:.3}{}",
                 info.factor_seconds / t_factor,
-                info.dual_seconds / t_factor
+                info.drift_seconds / t_factor,
+                info.drift_solves,
+                info.dual_seconds / t_factor,
+                if info.blocks_kept { ", kept" } else { "" }
             );
         }
         let ku = mul(&sc.k, &u);

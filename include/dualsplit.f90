@@ -205,10 +205,12 @@ module dualsplit
       real(c_double)     :: analyse_seconds
       integer(c_int64_t) :: compliant_contacts !< contacts with finite c_N or k_T (0.8)
       integer(c_int64_t) :: power_law_contacts !< of those, m_N /= 1 (0.8)
+      integer(c_int64_t) :: blocks_age    !< refactors since the contact blocks were computed (0.10)
+      real(c_double)     :: err_factor    !< err's factor for kept blocks, 1 to 1.5 (0.10)
    end type DsInfo
 
    !> sizeof(DsInfo) in C (tests/fortran.rs checks it).
-   integer(c_size_t), parameter, public :: DS_INFO_SIZE = 136
+   integer(c_size_t), parameter, public :: DS_INFO_SIZE = 152
 
    !> What the last ds_solve or ds_step on a handle cost (ds_problem_last_cost):
    !> where its seconds went and the host's solves. ds_cost_init sets struct_size.
@@ -777,7 +779,8 @@ contains
       type(DsInfo), intent(out) :: info
       info = DsInfo(int(DS_INFO_SIZE, c_int32_t), 0, 0_c_int64_t, 0_c_int64_t, 0_c_int64_t, &
          0_c_int64_t, 0_c_int64_t, 0.0_c_double, 0, 0, 0, 0, 0_c_int64_t, 0_c_int64_t, &
-         0_c_int64_t, 0_c_int64_t, 0_c_int64_t, 0.0_c_double, 0_c_int64_t, 0_c_int64_t)
+         0_c_int64_t, 0_c_int64_t, 0_c_int64_t, 0.0_c_double, 0_c_int64_t, 0_c_int64_t, &
+         0_c_int64_t, 0.0_c_double)
    end subroutine ds_info_init
 
    !> The analysis alone (no handle, nothing factored): sizes, the factor's size

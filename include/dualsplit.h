@@ -766,7 +766,8 @@ typedef struct DsOptions {
  Set struct_size = sizeof(DsInfo) before the call: the struct grows at its end
  from version to version, and the library writes no byte past struct_size
  (fields a newer library has and the caller's struct lacks are left out).
- Added in version 0.5 (120 bytes); 136 bytes from version 0.8.
+ Added in version 0.5 (120 bytes); 136 bytes from version 0.8, 152 from
+ version 0.10.
  */
 typedef struct DsInfo {
   /*
@@ -860,6 +861,21 @@ typedef struct DsInfo {
    version 0.8.
    */
   int64_t power_law_contacts;
+  /*
+   Refactors since the contact blocks of a matrix-free dual were
+   computed: 0 where they are the current K's (always on a dense dual and
+   from ds_analyse); k where ds_problem_refactor kept those of the K k
+   refactors back because their drift was small. Added in version 0.10
+   (152 bytes).
+   */
+  int64_t blocks_age;
+  /*
+   The factor err (DsReport.err) is multiplied by so that it bounds err
+   on the current K's contact blocks: 1 where blocks_age is 0, at most
+   1.5 else (rho comes from the kept blocks; their estimated drift
+   bounds how far it lies from the current K's). Added in version 0.10.
+   */
+  double err_factor;
 } DsInfo;
 
 /*
@@ -1262,6 +1278,15 @@ void ds_problem_free(struct DsProblem *problem);
  given to ds_problem_new (e.g. after a geometric or material update); rebuilds the
  condensed dual. The history of ds_step and the multipliers the next
  ds_solve_iteration starts from are kept. On error the handle is unchanged.
+
+ A matrix-free dual keeps the contacts' diagonal blocks of the K they were
+ computed on (they cost 0.7-1.4 factorisations to compute afresh) where a
+ few Lanczos steps (4 to 8 solves with the new K) estimate that they drifted
+ so little that err, with rho from them, is at most 1.5 times err on the
+ new K's own blocks; err is then reported multiplied by that factor
+ (DsInfo.err_factor), so that it bounds the err of the new K, and
+ DsInfo.blocks_age counts the refactors since the blocks were computed.
+ Otherwise they are computed afresh (docs/design.md section 9).
 
  Returns DS_STATUS_OK, or the errors of ds_problem_new for K, and
  DS_STATUS_BAD_ARGUMENT if the pattern differs.

@@ -59,4 +59,14 @@ pub struct Info {
     /// Of those, the contacts whose normal law is a power law with m_N != 1
     /// (solved by Newton on the law: several dual solves per solve).
     pub power_law_contacts: usize,
+    /// Refactors since the matrix-free dual's contact blocks were computed:
+    /// 0 where they are the current K's (always on a dense dual and for an
+    /// analysis), k where [`crate::ContactProblem::refactor`] kept those of
+    /// the K k refactors back, their drift bounded (docs/design.md section 9).
+    pub blocks_age: usize,
+    /// The factor err is multiplied by so that it bounds err on the current
+    /// K's contact blocks (>= 1; 1 where `blocks_age` is 0): rho comes from
+    /// the kept blocks, and their drift bounds how far it lies from the
+    /// current K's.
+    pub err_factor: f64,
 }

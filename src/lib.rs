@@ -10,6 +10,7 @@ mod compliance;
 mod contact_rows;
 mod dense;
 mod dirichlet;
+mod drift;
 mod dual;
 mod error;
 mod factor;

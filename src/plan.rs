@@ -130,6 +130,8 @@ pub(crate) fn info_of(
         analyse_seconds: factor.analyse_seconds,
         compliant_contacts: 0,
         power_law_contacts: 0,
+        blocks_age: 0,
+        err_factor: 1.0,
     }
 }
 
@@ -451,6 +453,8 @@ pub(crate) fn host_info(
         analyse_seconds: 0.0,
         compliant_contacts: 0,
         power_law_contacts: 0,
+        blocks_age: 0,
+        err_factor: 1.0,
     }
 }
 

@@ -95,8 +95,21 @@ impl Sizes {
     /// (`k_bytes`) beside the old one, the new factor beside the old (kept until
     /// the dual is rebuilt, so that a failure restores it), and the larger of the
     /// factorisation's workspace and the dual's rebuild.
+    /// A matrix-free dual may keep its contact blocks: the values of the K
+    /// they were computed on are then held (at most `k_bytes`), and the
+    /// estimate of their drift works in K's pattern's values and a few
+    /// n-vectors (`drift::work_bytes`) before the dual is rebuilt.
     pub fn refactor(&self, how: Condensation, k_bytes: usize) -> usize {
-        self.resident(how) + k_bytes + self.factor + self.factor_scratch.max(self.forming(how).0)
+        let keep = if how == Condensation::MatrixFree {
+            k_bytes + crate::drift::work_bytes(self.n, k_bytes)
+        } else {
+            0
+        };
+        self.resident(how)
+            + k_bytes
+            + keep
+            + self.factor
+            + self.factor_scratch.max(self.forming(how).0)
     }
 
     /// The peak of replacing N and T (new ones of `nt_bytes`, a dual described by

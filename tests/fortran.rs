@@ -472,7 +472,8 @@ const LAYOUT_F90: &str = r#"program layout
       off(c_loc(i), c_loc(i%solve_bytes)), off(c_loc(i), c_loc(i%refactor_bytes)), &
       off(c_loc(i), c_loc(i%memory_limit)), &
       off(c_loc(i), c_loc(i%analyse_seconds)), &
-      off(c_loc(i), c_loc(i%compliant_contacts)), off(c_loc(i), c_loc(i%power_law_contacts))
+      off(c_loc(i), c_loc(i%compliant_contacts)), off(c_loc(i), c_loc(i%power_law_contacts)), &
+      off(c_loc(i), c_loc(i%blocks_age)), off(c_loc(i), c_loc(i%err_factor))
    write (*, '(a,99(1x,i0))') 'DS_INFO_SIZE', DS_INFO_SIZE
    write (*, '(a,99(1x,i0))') 'DsCost', c_sizeof(k), off(c_loc(k), c_loc(k%struct_size)), &
       off(c_loc(k), c_loc(k%solved)), off(c_loc(k), c_loc(k%solve_seconds)), &
@@ -520,14 +521,14 @@ int main(void)
     printf("DsProgress %d %d %d %d %d %d %d\n", (int)sizeof(DsProgress),
            O(DsProgress, iteration), O(DsProgress, err), O(DsProgress, n_open),
            O(DsProgress, n_stick), O(DsProgress, n_slip), O(DsProgress, elapsed_seconds));
-    printf("DsInfo %d %d %d %d %d %d %d %d %d %d %d %d %d %d %d %d %d %d %d %d %d\n", (int)sizeof(DsInfo),
+    printf("DsInfo %d %d %d %d %d %d %d %d %d %d %d %d %d %d %d %d %d %d %d %d %d %d %d\n", (int)sizeof(DsInfo),
            O(DsInfo, struct_size), O(DsInfo, d), O(DsInfo, n), O(DsInfo, m), O(DsInfo, c),
            O(DsInfo, nnz_k), O(DsInfo, factor_nnz), O(DsInfo, factor_flops),
            O(DsInfo, ordering), O(DsInfo, setup_form), O(DsInfo, method),
            O(DsInfo, solve_form), O(DsInfo, setup_bytes), O(DsInfo, resident_bytes),
            O(DsInfo, solve_bytes), O(DsInfo, refactor_bytes), O(DsInfo, memory_limit),
            O(DsInfo, analyse_seconds), O(DsInfo, compliant_contacts),
-           O(DsInfo, power_law_contacts));
+           O(DsInfo, power_law_contacts), O(DsInfo, blocks_age), O(DsInfo, err_factor));
     printf("DS_INFO_SIZE %d\n", (int)sizeof(DsInfo));
     printf("DsCost %d %d %d %d %d %d %d %d %d %d\n", (int)sizeof(DsCost),
            O(DsCost, struct_size), O(DsCost, solved), O(DsCost, solve_seconds),

@@ -21,7 +21,7 @@ mod common;
 
 use common::{Mesh, Owned, Scene, assert_close, assert_converged, mul, norm_inf, norm2};
 use dualsplit::{
-    ContactProblem, Csc, DualForm, ErrorKind, Friction, HostIteration, Method, Options,
+    ContactProblem, Csc, DualForm, ErrorKind, Friction, HostIteration, Method, Options, Solution,
 };
 
 /// Every method with each dual form it runs in.
@@ -703,4 +703,131 @@ fn ds_solve_iteration_through_c() {
     assert_close("C iteration 2: lambda_T", &lt, &[1.0], 1e-9, 8.0);
     // SAFETY: a handle from ds_problem_new, freed once.
     unsafe { ds_problem_free(h) };
+}
+
+/// err of a solution on K's own contact blocks (docs/design.md section 5),
+/// from the dense A = B K^-1 B^T and b = B K^-1 f - [g; 0] (an independent
+/// condensation by dense LU).
+fn exact_err(sc: &Scene, k: &Csc, sol: &Solution, mu: &[f64]) -> f64 {
+    let (d, m) = (sc.d, sc.m());
+    let c = d * m;
+    let rows: Vec<Vec<f64>> = (0..c)
+        .map(|r| {
+            let mut e = vec![0.0; c];
+            e[r] = 1.0;
+            let (en, et) = e.split_at(m);
+            let bt: Vec<f64> = common::mul_t(&sc.n, en)
+                .iter()
+                .zip(common::mul_t(&sc.t, et))
+                .map(|(a, b)| a + b)
+                .collect();
+            common::dense_solve(k, &bt)
+        })
+        .collect();
+    let b_of = |x: &[f64]| -> Vec<f64> {
+        let mut y = mul(&sc.n, x);
+        y.extend(mul(&sc.t, x));
+        y
+    };
+    let diag: Vec<f64> = (0..c).map(|r| b_of(&rows[r])[r]).collect();
+    let rho: Vec<f64> = (0..m)
+        .map(|i| {
+            let tr = diag[i] + (0..d - 1).map(|s| diag[m + (d - 1) * i + s]).sum::<f64>();
+            d as f64 / tr
+        })
+        .collect();
+    let mut b = b_of(&common::dense_solve(k, &sc.f));
+    for (bi, gi) in b.iter_mut().zip(&sc.g) {
+        *bi -= gi;
+    }
+    let mut v = b_of(&sol.u);
+    for (vi, gi) in v.iter_mut().zip(&sc.g) {
+        *vi -= gi;
+    }
+    let mut lam = sol.lambda_n.clone();
+    lam.extend(&sol.lambda_t);
+    let p: Vec<f64> = sol.lambda_n.iter().zip(mu).map(|(l, m)| l * m).collect();
+    dualsplit::internals::natural_map_error(&lam, &v, &rho, &b, &p, d)
+}
+
+/// A refactor of a matrix-free dual keeps the contact blocks of the K they
+/// were computed on while their drift bounds err's growth by 1.5, and says
+/// so: from K_0 = 1.2 K onto K, M = K^-1 (K - K_0) = -0.2 I, so the blocks of
+/// K are 1.2 times K_0's and err's factor is 1.2 exactly (one Lanczos step);
+/// the solution is the fresh handle's, and the reported err bounds err on
+/// K's own blocks. Onto 1.1 K the drift is still measured from K_0 (factor
+/// 1.2 / 1.1, age 2); onto 3 K (factor 3) the blocks are computed afresh, and
+/// new contacts start afresh too.
+#[test]
+fn a_refactor_keeps_the_contact_blocks_while_they_drift_little() {
+    let (_, sc) = scenes().pop().expect("the 3D scene");
+    let m = sc.m();
+    let mu = vec![0.4; m];
+    let law = Friction::Coulomb(&mu);
+    let o = Options {
+        method: Method::Newton,
+        dual_form: DualForm::MatrixFree,
+        threads: 1,
+        ..Options::default()
+    };
+    let k0 = Csc::from_view(&scaled(&sc.k, 1.2).view(), "K").expect("K");
+    let mut pb = ContactProblem::from_csc_with(sc.d, k0, sc.n.clone(), sc.t.clone(), &o)
+        .expect("a valid problem");
+    let info = pb.info(&o);
+    assert_eq!((info.blocks_age, info.err_factor), (0, 1.0));
+    pb.refactor(&Owned::of(&sc.k).view())
+        .expect("refactor onto K");
+    let cost = pb.last_refactor();
+    assert!(cost.blocks_kept && cost.drift_solves == 1, "{cost:?}");
+    let info = pb.info(&o);
+    assert_eq!(info.blocks_age, 1);
+    assert!((info.err_factor - 1.2).abs() < 1e-9, "{}", info.err_factor);
+    let got = pb.solve(&sc.f, &sc.g, law, &o).expect("a solve");
+    assert_converged("kept blocks", &got);
+    let mut fresh =
+        ContactProblem::from_csc_with(sc.d, sc.k.clone(), sc.n.clone(), sc.t.clone(), &o)
+            .expect("a valid problem");
+    let want = fresh.solve(&sc.f, &sc.g, law, &o).expect("a solve");
+    assert_converged("fresh handle", &want);
+    let scale = norm_inf(&want.lambda_n);
+    assert_close("lambda_N", &got.lambda_n, &want.lambda_n, 1e-7, scale);
+    assert_close("lambda_T", &got.lambda_t, &want.lambda_t, 1e-7, scale);
+    let exact = exact_err(&sc, &sc.k, &got, &mu);
+    // The dense condensation reproduces the fresh handle's own err.
+    let of_fresh = exact_err(&sc, &sc.k, &want, &mu);
+    assert!(
+        (of_fresh - want.report.err).abs() <= 1e-6 * want.report.err,
+        "err by the dense condensation {of_fresh:.6e} against the fresh handle's {:.6e}",
+        want.report.err
+    );
+    assert!(
+        exact <= got.report.err * (1.0 + 1e-6) && got.report.err <= o.tol,
+        "reported err {:.3e} does not bound err on K's blocks {exact:.3e}",
+        got.report.err
+    );
+    // Onto 1.1 K: measured from K_0 = 1.2 K, not from K.
+    pb.refactor(&scaled(&sc.k, 1.1).view())
+        .expect("refactor onto 1.1 K");
+    let info = pb.info(&o);
+    assert_eq!(info.blocks_age, 2);
+    assert!(
+        (info.err_factor - 1.2 / 1.1).abs() < 1e-9,
+        "{}",
+        info.err_factor
+    );
+    // Onto 3 K: beyond the bound, computed afresh.
+    pb.refactor(&scaled(&sc.k, 3.0).view())
+        .expect("refactor onto 3 K");
+    let cost = pb.last_refactor();
+    assert!(!cost.blocks_kept, "{cost:?}");
+    let info = pb.info(&o);
+    assert_eq!((info.blocks_age, info.err_factor), (0, 1.0));
+    // Kept again from 3 K, then new contacts: their blocks are new.
+    pb.refactor(&scaled(&sc.k, 2.9).view())
+        .expect("refactor onto 2.9 K");
+    assert_eq!(pb.info(&o).blocks_age, 1);
+    pb.set_contacts(&Owned::of(&sc.n).view(), &Owned::of(&sc.t).view())
+        .expect("the same contacts");
+    let info = pb.info(&o);
+    assert_eq!((info.blocks_age, info.err_factor), (0, 1.0));
 }

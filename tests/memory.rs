@@ -353,7 +353,7 @@ fn ds_analyse_and_ds_problem_info_fill_a_size_checked_dsinfo() {
     let (kd, nd, td) = (k.ds(), n.ds(), t.ds());
     let size = std::mem::size_of::<DsInfo>();
     // SAFETY: DsInfo is plain old data; any bit pattern is a value.
-    let mut out: DsInfo = unsafe { std::mem::transmute([0xA5u8; 136]) };
+    let mut out: DsInfo = unsafe { std::mem::transmute([0xA5u8; 152]) };
     out.struct_size = size as u32;
     // SAFETY: valid matrices and options; out is a whole DsInfo.
     let st = unsafe { ds_analyse(2, &kd, &nd, &td, &opts, &mut out) };
@@ -380,6 +380,7 @@ fn ds_analyse_and_ds_problem_info_fill_a_size_checked_dsinfo() {
     );
     assert!(out.setup_bytes >= out.resident_bytes && out.solve_bytes > out.resident_bytes);
     assert_eq!((out.compliant_contacts, out.power_law_contacts), (0, 0));
+    assert_eq!((out.blocks_age, out.err_factor), (0, 1.0));
     // An older caller's DsInfo of 56 bytes: nothing written past it.
     let mut buf = [0xA5u8; 128];
     let off = buf.as_ptr().align_offset(8);

@@ -66,6 +66,10 @@ pub struct Dual {
     /// that the solves of a history that fall back to MPRGP, or run it, pay
     /// for it once (`whole_norm`, `keep_whole_norm`); cleared with the shift.
     whole_norm: std::sync::atomic::AtomicU64,
+    /// The factor err is multiplied by (>= 1): 1 where the contact blocks
+    /// are those of this K, more where they are an earlier K's and rho with
+    /// them (`drift.rs`), so that err bounds the err on this K's blocks.
+    pub(crate) err_factor: f64,
 }
 
 /// How the condensed dual operator was formed.
@@ -176,12 +180,28 @@ impl Dual {
 
     /// Forms A in the way asked for (`TrailingBlock` requires the contact DOFs to
     /// be among the factor's trailing DOFs).
+    #[cfg(any(test, feature = "internals"))]
     pub fn build_with(
         factor: &Arc<Factor>,
         n: &Csc,
         t: &Csc,
         d: usize,
         how: Condensation,
+    ) -> Result<Dual> {
+        Self::build_keeping(factor, n, t, d, how, None)
+    }
+
+    /// [`Dual::build_with`], a matrix-free form taking the contacts' d x d
+    /// diagonal blocks `blocks` as given (those of an earlier K, whose drift
+    /// the caller weighed: see [`Dual::set_err_factor`]) instead of computing
+    /// them; a dense form ignores them.
+    pub(crate) fn build_keeping(
+        factor: &Arc<Factor>,
+        n: &Csc,
+        t: &Csc,
+        d: usize,
+        how: Condensation,
+        blocks: Option<Vec<f64>>,
     ) -> Result<Dual> {
         let start = Instant::now();
         let m = n.nrows;
@@ -191,7 +211,7 @@ impl Dual {
         let trailing = Self::trailing_of(factor, &b);
         let ledger = factor.ledger();
         if how == Condensation::MatrixFree {
-            let free = Operator::new(factor, &b, m, d)?;
+            let free = Operator::new(factor, &b, m, d, blocks)?;
             let claim = ledger.claim_f64(d * c);
             let (threads, ledger) = (factor.threads().clone(), ledger.clone());
             return Ok(Self::of_operator(
@@ -235,6 +255,7 @@ impl Dual {
             shift: Vec::new(),
             rigid_diag: Vec::new(),
             whole_norm: Default::default(),
+            err_factor: 1.0,
         })
     }
 
@@ -320,7 +341,22 @@ impl Dual {
             shift: Vec::new(),
             rigid_diag: Vec::new(),
             whole_norm: Default::default(),
+            err_factor: 1.0,
         }
+    }
+
+    /// The contacts' d x d diagonal blocks of A (row-major per contact) of
+    /// a matrix-free dual on the library's own factor; None otherwise.
+    pub(crate) fn own_blocks(&self) -> Option<&[f64]> {
+        let f = self.free.as_ref()?;
+        f.factor()?;
+        Some(&f.blocks)
+    }
+
+    /// Sets the factor err is multiplied by (see the field): `factor` >= 1.
+    pub(crate) fn set_err_factor(&mut self, factor: f64) {
+        debug_assert!(factor >= 1.0);
+        self.err_factor = factor;
     }
 
     /// The estimate of |A + D|_2 an earlier MPRGP run kept

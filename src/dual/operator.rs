@@ -189,8 +189,19 @@ pub(crate) fn own_solves_bytes(factor: &Factor, b: &Csc) -> usize {
 impl Operator {
     /// Errors: `OutOfMemory` when the allocator refuses its work space or the
     /// single-precision copy of the factor.
-    pub(super) fn new(factor: &Arc<Factor>, b: &Csc, m: usize, d: usize) -> Result<Operator> {
-        let blocks = crate::factor_tree::contact_blocks::contact_blocks(factor, b, m, d);
+    /// `blocks`: the contacts' diagonal blocks where the caller has them
+    /// (an earlier K's, see [`Dual::build_keeping`]), else computed here.
+    pub(super) fn new(
+        factor: &Arc<Factor>,
+        b: &Csc,
+        m: usize,
+        d: usize,
+        blocks: Option<Vec<f64>>,
+    ) -> Result<Operator> {
+        let blocks = match blocks {
+            Some(blocks) if blocks.len() == m * d * d => blocks,
+            _ => crate::factor_tree::contact_blocks::contact_blocks(factor, b, m, d),
+        };
         let single = factor.single_values()?;
         let own = OwnSolves::of(factor, b);
         let what = "the matrix-free dual's work space";

@@ -18,7 +18,8 @@ use crate::problem::ContactProblem;
 /// Set struct_size = sizeof(DsInfo) before the call: the struct grows at its end
 /// from version to version, and the library writes no byte past struct_size
 /// (fields a newer library has and the caller's struct lacks are left out).
-/// Added in version 0.5 (120 bytes); 136 bytes from version 0.8.
+/// Added in version 0.5 (120 bytes); 136 bytes from version 0.8, 152 from
+/// version 0.10.
 #[repr(C)]
 #[derive(Copy, Clone, Debug, PartialEq)]
 pub struct DsInfo {
@@ -73,6 +74,17 @@ pub struct DsInfo {
     /// (solved by Newton on the law: several dual solves per ds_solve). Added in
     /// version 0.8.
     pub power_law_contacts: i64,
+    /// Refactors since the contact blocks of a matrix-free dual were
+    /// computed: 0 where they are the current K's (always on a dense dual and
+    /// from ds_analyse); k where ds_problem_refactor kept those of the K k
+    /// refactors back because their drift was small. Added in version 0.10
+    /// (152 bytes).
+    pub blocks_age: i64,
+    /// The factor err (DsReport.err) is multiplied by so that it bounds err
+    /// on the current K's contact blocks: 1 where blocks_age is 0, at most
+    /// 1.5 else (rho comes from the kept blocks; their estimated drift
+    /// bounds how far it lies from the current K's). Added in version 0.10.
+    pub err_factor: f64,
 }
 
 /// A count or size as the C field (saturating; never reached in practice).
@@ -107,6 +119,8 @@ impl From<&Info> for DsInfo {
             analyse_seconds: i.analyse_seconds,
             compliant_contacts: i64_of(i.compliant_contacts),
             power_law_contacts: i64_of(i.power_law_contacts),
+            blocks_age: i64_of(i.blocks_age),
+            err_factor: i.err_factor,
         }
     }
 }
@@ -203,8 +217,8 @@ mod tests {
     use std::mem::{offset_of, size_of};
 
     #[test]
-    fn layout_of_version_0_8() {
-        assert_eq!(size_of::<DsInfo>(), 136);
+    fn layout_of_version_0_10() {
+        assert_eq!(size_of::<DsInfo>(), 152);
         assert_eq!(offset_of!(DsInfo, n), 8);
         assert_eq!(offset_of!(DsInfo, ordering), 56);
         assert_eq!(offset_of!(DsInfo, setup_bytes), 72);
@@ -212,5 +226,7 @@ mod tests {
         assert_eq!(offset_of!(DsInfo, analyse_seconds), 112);
         assert_eq!(offset_of!(DsInfo, compliant_contacts), 120);
         assert_eq!(offset_of!(DsInfo, power_law_contacts), 128);
+        assert_eq!(offset_of!(DsInfo, blocks_age), 136);
+        assert_eq!(offset_of!(DsInfo, err_factor), 144);
     }
 }

@@ -262,6 +262,15 @@ pub unsafe extern "C" fn ds_problem_free(problem: *mut DsProblem) {
 /// condensed dual. The history of ds_step and the multipliers the next
 /// ds_solve_iteration starts from are kept. On error the handle is unchanged.
 ///
+/// A matrix-free dual keeps the contacts' diagonal blocks of the K they were
+/// computed on (they cost 0.7-1.4 factorisations to compute afresh) where a
+/// few Lanczos steps (4 to 8 solves with the new K) estimate that they drifted
+/// so little that err, with rho from them, is at most 1.5 times err on the
+/// new K's own blocks; err is then reported multiplied by that factor
+/// (DsInfo.err_factor), so that it bounds the err of the new K, and
+/// DsInfo.blocks_age counts the refactors since the blocks were computed.
+/// Otherwise they are computed afresh (docs/design.md section 9).
+///
 /// Returns DS_STATUS_OK, or the errors of ds_problem_new for K, and
 /// DS_STATUS_BAD_ARGUMENT if the pattern differs.
 ///

@@ -99,7 +99,7 @@ impl DualProblem<'_> {
         for (vi, wi) in v.iter_mut().zip(w) {
             *vi = -wi;
         }
-        natural_map_error(lam, v, &self.dual.rho, self.b, p, self.dual.d)
+        self.dual.err_factor * natural_map_error(lam, v, &self.dual.rho, self.b, p, self.dual.d)
     }
 }
 

@@ -74,6 +74,21 @@ pub struct ContactProblem {
     iteration_start: Vec<f64>,
     /// What the last `refactor` cost (zero before the first).
     last_refactor: RefactorCost,
+    /// Where the matrix-free dual's contact blocks are an earlier K's.
+    kept_blocks: Option<KeptBlocks>,
+}
+
+/// The most err may grow by a refactor that keeps the contact blocks of an
+/// earlier K (`Drift::err_factor`): beyond it they are computed afresh.
+pub(crate) const KEEP_BLOCKS_MAX_ERR_FACTOR: f64 = 1.5;
+
+/// A matrix-free dual's contact blocks computed on an earlier K than the one
+/// the problem holds (see [`ContactProblem::refactor`]).
+struct KeptBlocks {
+    /// The values of the K they were computed on (the pattern is K's).
+    k_values: Vec<f64>,
+    /// Refactors since they were computed (at least 1).
+    refactors: usize,
 }
 
 /// What one [`ContactProblem::refactor`] cost, in seconds of wall clock.
@@ -81,6 +96,13 @@ pub struct ContactProblem {
 pub struct RefactorCost {
     /// The numeric factorisation of the new K (its symbolic analysis reused).
     pub factor_seconds: f64,
+    /// The estimate of the contact blocks' drift (a matrix-free dual: see
+    /// [`ContactProblem::refactor`]); 0 on a dense dual.
+    pub drift_seconds: f64,
+    /// Solves with the new K that estimate took.
+    pub drift_solves: usize,
+    /// Whether the refactor kept the contact blocks of an earlier K.
+    pub blocks_kept: bool,
     /// The condensed dual on the new factor: A from the trailing block (a
     /// dense dual) or the contact blocks, the lumped G = B K B^T and the
     /// layered Dirichlet preconditioner (a matrix-free one).
@@ -129,17 +151,18 @@ fn check_internal_form(k: &Csc, n: &Csc, t: &Csc) -> Result<()> {
 /// The dual of (N, T) on `factor` formed in the way `how`, holding the lumped
 /// preconditioner G = B K B^T when it is matrix-free, its operator A + D for
 /// the compliance diagonal `shift` (empty: rigid): every dual a problem holds
-/// is formed here.
+/// is formed here. A matrix-free one takes `blocks` as its contacts' blocks
+/// where given (an earlier K's, kept by a refactor: [`Dual::build_keeping`]).
 fn form_dual(
     factor: &Arc<Factor>,
     k: &Csc,
     (n, t): (&Csc, &Csc),
     d: usize,
-    how: Condensation,
+    (how, blocks): (Condensation, Option<Vec<f64>>),
     shift: &[f64],
     layer: Option<crate::dirichlet::Plan>,
 ) -> Result<Dual> {
-    let mut dual = Dual::build_with(factor, n, t, d, how)?;
+    let mut dual = Dual::build_keeping(factor, n, t, d, how, blocks)?;
     dual.set_lumped(k, layer);
     if !shift.is_empty() {
         dual.set_shift(shift);
@@ -345,6 +368,7 @@ impl ContactProblem {
             loads: LoadSpan::default(),
             iteration_start: Vec::new(),
             last_refactor: RefactorCost::default(),
+            kept_blocks: None,
         })
     }
 
@@ -358,7 +382,9 @@ impl ContactProblem {
         layer: Option<crate::dirichlet::Plan>,
     ) -> Result<Dual> {
         match &self.stiff {
-            Stiffness::Own { k, factor } => form_dual(factor, k, nt, self.d, how, shift, layer),
+            Stiffness::Own { k, factor } => {
+                form_dual(factor, k, nt, self.d, (how, None), shift, layer)
+            }
             Stiffness::Host { .. } => host_dual(&self.stiff, nt, self.d, shift, layer, None),
         }
     }
@@ -419,7 +445,7 @@ impl ContactProblem {
         factor.refactor(&k)?;
         let factor = Arc::new(factor);
         let how = Dual::condensation_for(&factor, &n, &t, d, plan.form);
-        let dual = form_dual(&factor, &k, (&n, &t), d, how, &[], plan.layer)?;
+        let dual = form_dual(&factor, &k, (&n, &t), d, (how, None), &[], plan.layer)?;
         let ndof = k.nrows;
         let c = dual.c;
         let m = n.nrows;
@@ -437,6 +463,7 @@ impl ContactProblem {
             loads: LoadSpan::default(),
             iteration_start: Vec::new(),
             last_refactor: RefactorCost::default(),
+            kept_blocks: None,
         })
     }
 
@@ -515,12 +542,21 @@ impl ContactProblem {
         Info {
             compliant_contacts: self.compliant_contacts(),
             power_law_contacts: self.compliance.nonlinear().len(),
+            blocks_age: self.kept_blocks.as_ref().map_or(0, |b| b.refactors),
+            err_factor: self.dual.err_factor,
             ..base
         }
     }
 
     /// Refactors K with new values and the same sparsity pattern (same storage);
     /// rebuilds the condensed dual. On error the problem is unchanged.
+    ///
+    /// A matrix-free dual on the library's factor keeps its contact blocks
+    /// (those of the K they were computed on) where their drift, the spectrum
+    /// of K^-1 (K - K_then) estimated by 4-8 Lanczos steps (`drift.rs`),
+    /// bounds err's growth by at most 1.5: err is then multiplied by that
+    /// bound ([`Info::err_factor`], [`Info::blocks_age`]); else they are
+    /// computed afresh.
     ///
     /// Errors: those of `new`, and `BadArgument` if the pattern differs.
     pub fn refactor(&mut self, k: &MatrixView<'_>) -> Result<()> {
@@ -556,16 +592,76 @@ impl ContactProblem {
         let factored = Instant::now();
         let how = Dual::condensation_for(&fresh, &self.n, &self.t, self.d, self.current_form());
         let shift = self.compliance.shift(self.d);
-        self.dual = form_dual(&fresh, &k, (&self.n, &self.t), self.d, how, &shift, None)?;
+        let Stiffness::Own { k: old_k, .. } = &self.stiff else {
+            unreachable!("matched above")
+        };
+        let kept = self.weigh_kept_blocks(how, &fresh, old_k, &k);
+        let weighed = Instant::now();
+        let (blocks, kept) = match kept {
+            Some((blocks, values, drift)) => (Some(blocks), Some((values, drift))),
+            None => (None, None),
+        };
+        let mut dual = form_dual(
+            &fresh,
+            &k,
+            (&self.n, &self.t),
+            self.d,
+            (how, blocks),
+            &shift,
+            None,
+        )?;
         self.last_refactor = RefactorCost {
             factor_seconds: (factored - start).as_secs_f64(),
-            dual_seconds: factored.elapsed().as_secs_f64(),
+            drift_seconds: (weighed - factored).as_secs_f64(),
+            dual_seconds: weighed.elapsed().as_secs_f64(),
+            drift_solves: kept.as_ref().map_or(0, |(_, d)| d.solves),
+            blocks_kept: kept.is_some(),
         };
+        match kept {
+            Some((values, drift)) => {
+                dual.set_err_factor(drift.err_factor());
+                self.kept_blocks = Some(KeptBlocks {
+                    k_values: values,
+                    refactors: self.kept_blocks.as_ref().map_or(0, |b| b.refactors) + 1,
+                });
+            }
+            None => self.kept_blocks = None,
+        }
+        self.dual = dual;
         self.stiff = Stiffness::Own { k, factor: fresh };
         self.history.forget_loads();
         self.history.lu = None;
         self.loads.clear();
         Ok(())
+    }
+
+    /// Whether a refactor onto `k` (factored in `fresh`; `old_k` the K it
+    /// replaces) keeps the matrix-free dual's contact blocks: where the dual
+    /// stays matrix-free on the library's own factor and the blocks' drift
+    /// from the K they were computed on (`drift.rs`) bounds err's growth by
+    /// at most [`KEEP_BLOCKS_MAX_ERR_FACTOR`]: the blocks, that K's values
+    /// and the drift. None: the blocks are computed afresh.
+    fn weigh_kept_blocks(
+        &self,
+        how: Condensation,
+        fresh: &Factor,
+        old_k: &Csc,
+        k: &Csc,
+    ) -> Option<(Vec<f64>, Vec<f64>, crate::drift::Drift)> {
+        if how != Condensation::MatrixFree || !self.dual.is_matrix_free() {
+            return None;
+        }
+        let blocks = self.dual.own_blocks()?;
+        if old_k.col_ptr != k.col_ptr || old_k.row_idx != k.row_idx {
+            return None;
+        }
+        let values = match &self.kept_blocks {
+            Some(kept) => &kept.k_values,
+            None => &old_k.values,
+        };
+        let drift = crate::drift::drift(fresh, k, values, KEEP_BLOCKS_MAX_ERR_FACTOR);
+        (drift.err_factor() <= KEEP_BLOCKS_MAX_ERR_FACTOR)
+            .then(|| (blocks.to_vec(), values.clone(), drift))
     }
 
     /// Replaces N and T (m may change) without refactoring K; rebuilds the condensed
@@ -649,6 +745,7 @@ impl ContactProblem {
         self.sizes = next;
         self.inputs.resize(self.sizes.inputs);
         self.dual = dual;
+        self.kept_blocks = None;
         self.n = n;
         self.t = t;
         Ok(())

@@ -111,6 +111,7 @@ impl ContactProblem {
             let shift = self.compliance.shift(self.d);
             let nt = (&self.n, &self.t);
             self.dual = self.new_dual(nt, next, &shift, None)?;
+            self.kept_blocks = None;
         }
         Ok(need)
     }
@@ -473,7 +474,7 @@ impl ContactProblem {
                 };
             }
             law_rho = self.dual.rho_rigid_at(&nonlinear);
-            err = natural_map_error(lam, &v, &law_rho, &b, &p, self.d);
+            err = self.dual.err_factor * natural_map_error(lam, &v, &law_rho, &b, &p, self.d);
             if end != End::Converged {
                 break;
             }
@@ -631,7 +632,7 @@ impl ContactProblem {
             v[i] -= offset[i];
         }
         friction.bounds(&lam[..m], out.p);
-        Ok(natural_map_error(lam, v, &self.dual.rho, b, out.p, self.d))
+        Ok(self.dual.err_factor * natural_map_error(lam, v, &self.dual.rho, b, out.p, self.d))
     }
 
     /// Puts the tangent of the nonlinear normal laws (`nonlinear`) at the

@@ -1,0 +1,360 @@
+//! How far the contacts' diagonal blocks of A = B K^-1 B^T can have moved
+//! since an earlier K (`K_ref`): the extreme eigenvalues of
+//! M = K^-1 (K - K_ref), estimated by a few Lanczos steps on the pencil
+//! (K - K_ref, K), each one solve with K's factor.
+//!
+//! With mu_min <= eig(M) <= mu_max (and mu_max < 1), K_ref = K^1/2 (I - M~)
+//! K^1/2 lies between (1 - mu_max) K and (1 - mu_min) K, so every block, and
+//! every trace of a block, of the new A lies between (1 - mu_max) and
+//! (1 - mu_min) times the old one. rho_i = d / trace(A_ii) (docs/design.md
+//! section 5) then moves by at most those factors, and the natural map's
+//! residual, non-decreasing in rho and no more than linear in it, moves with
+//! it: err on the new K is at most [`Drift::err_factor`] times err measured
+//! with the old blocks.
+
+use crate::factor::Factor;
+use crate::sparse::Csc;
+
+/// Lanczos steps at most (each one solve with K).
+const MAX_STEPS: usize = 8;
+
+/// Lanczos steps at least before the widened bounds are trusted: the
+/// extreme Ritz values of the first steps lie well inside the spectrum, and
+/// their residual bounds can miss its ends (on a material update of a slab,
+/// the first step's [-0.09, 0.02] against [-0.18, 0.06] from the fourth).
+const MIN_STEPS: usize = 4;
+
+/// The estimate: bounds of the spectrum of K^-1 (K - K_ref), each Ritz value
+/// widened by its residual bound (a Ritz value lies inside the spectrum, so
+/// the widening is what stands for the part of it the steps did not see).
+#[derive(Copy, Clone, Debug, PartialEq)]
+pub(crate) struct Drift {
+    /// Lower bound of the eigenvalues, at most 0.
+    pub(crate) mu_min: f64,
+    /// Upper bound of the eigenvalues, at least 0.
+    pub(crate) mu_max: f64,
+    /// Solves with K the estimate took.
+    pub(crate) solves: usize,
+}
+
+impl Drift {
+    /// The factor by which err on the new K's blocks can exceed err on the
+    /// old ones: max(1, 1 - mu_min) / min(1, 1 - mu_max) (the natural map's
+    /// part by the smaller rho, err's scale |b+| / trace(A) by the larger
+    /// trace); infinite when mu_max >= 1 (K - K_ref not bounded by K).
+    pub(crate) fn err_factor(&self) -> f64 {
+        let lo = 1.0 - self.mu_max;
+        let hi = 1.0 - self.mu_min;
+        if lo <= 0.0 || !lo.is_finite() || !hi.is_finite() {
+            return f64::INFINITY;
+        }
+        hi.max(1.0) / lo.min(1.0)
+    }
+}
+
+/// The drift of `k`'s blocks from those of the matrix with `k`'s pattern and
+/// the values `ref_values` (`factor` holds k's factor). Stops early where the
+/// Ritz values alone put [`Drift::err_factor`] beyond `give_up`, or from
+/// [`MIN_STEPS`] on where the widened bounds put it within.
+pub(crate) fn drift(factor: &Factor, k: &Csc, ref_values: &[f64], give_up: f64) -> Drift {
+    let n = k.nrows;
+    let delta: Vec<f64> = k
+        .values
+        .iter()
+        .zip(ref_values)
+        .map(|(a, b)| a - b)
+        .collect();
+    if delta.iter().all(|&x| x == 0.0) {
+        return Drift {
+            mu_min: 0.0,
+            mu_max: 0.0,
+            solves: 0,
+        };
+    }
+    // A fixed pseudo-random start (the same from run to run).
+    let mut state = 0x9e37_79b9_7f4a_7c15_u64;
+    let mut q: Vec<f64> = (0..n)
+        .map(|_| {
+            state ^= state << 13;
+            state ^= state >> 7;
+            state ^= state << 17;
+            (state >> 11) as f64 / (1u64 << 53) as f64 - 0.5
+        })
+        .collect();
+    let mut kq = vec![0.0; n];
+    k.mul_vec(&q, &mut kq);
+    let norm = dot(&q, &kq).sqrt();
+    if norm.is_nan() || norm <= 0.0 {
+        return unbounded(0);
+    }
+    q.iter_mut().for_each(|x| *x /= norm);
+    kq.iter_mut().for_each(|x| *x /= norm);
+    // The basis and K times it, for full reorthogonalisation in K's inner
+    // product (at most MAX_STEPS vectors).
+    let mut basis: Vec<(Vec<f64>, Vec<f64>)> = Vec::with_capacity(MAX_STEPS + 1);
+    let (mut alpha, mut beta) = (Vec::new(), Vec::new());
+    let mut p = vec![0.0; n];
+    let mut mem = faer::dyn_stack::MemBuffer::new(factor.solve_scratch(1));
+    let mut last = Drift {
+        mu_min: 0.0,
+        mu_max: 0.0,
+        solves: 0,
+    };
+    for step in 0..MAX_STEPS {
+        mul_with(k, &delta, &q, &mut p);
+        alpha.push(dot(&q, &p));
+        factor.solve_in_place(
+            faer::MatMut::from_column_major_slice_mut(&mut p, n, 1),
+            faer::dyn_stack::MemStack::new(&mut mem),
+        );
+        basis.push((std::mem::take(&mut q), std::mem::take(&mut kq)));
+        for _ in 0..2 {
+            for (qi, kqi) in &basis {
+                let c = dot(kqi, &p);
+                p.iter_mut().zip(qi).for_each(|(x, y)| *x -= c * y);
+            }
+        }
+        let mut kp = vec![0.0; n];
+        k.mul_vec(&p, &mut kp);
+        let b = dot(&p, &kp).max(0.0).sqrt();
+        if !b.is_finite() || alpha.iter().any(|a| !a.is_finite()) {
+            return unbounded(step + 1);
+        }
+        let scale = alpha.iter().fold(0.0_f64, |s, a| s.max(a.abs()));
+        // An invariant subspace: the Ritz values are eigenvalues.
+        let exhausted = b <= 1e-12 * scale.max(f64::MIN_POSITIVE);
+        let (theta, last_row) = tridiagonal_eigen(&alpha, &beta);
+        let res = |j: usize| {
+            if exhausted {
+                0.0
+            } else {
+                b * last_row[j].abs()
+            }
+        };
+        let (lo, hi) = (0, theta.len() - 1);
+        last = Drift {
+            mu_min: (theta[lo] - res(lo)).min(0.0),
+            mu_max: (theta[hi] + res(hi)).max(0.0),
+            solves: step + 1,
+        };
+        // Ritz values lie inside the spectrum: beyond give_up for certain.
+        let inner = Drift {
+            mu_min: theta[lo].min(0.0),
+            mu_max: theta[hi].max(0.0),
+            solves: step + 1,
+        };
+        let settled = step + 1 >= MIN_STEPS && last.err_factor() <= give_up;
+        if exhausted || settled || inner.err_factor() > give_up {
+            return last;
+        }
+        beta.push(b);
+        q = p.iter().map(|x| x / b).collect();
+        kq = kp.iter().map(|x| x / b).collect();
+    }
+    last
+}
+
+/// Bytes [`drift`] works in for K of order `n` whose copy takes `k_bytes`
+/// (the differences of the values, at most that; the basis and K times it,
+/// and three more n-vectors).
+pub(crate) fn work_bytes(n: usize, k_bytes: usize) -> usize {
+    k_bytes + (2 * (MAX_STEPS + 1) + 3) * n * std::mem::size_of::<f64>()
+}
+
+/// A drift nothing can be said of (a non-finite value on the way).
+fn unbounded(solves: usize) -> Drift {
+    Drift {
+        mu_min: f64::NEG_INFINITY,
+        mu_max: f64::INFINITY,
+        solves,
+    }
+}
+
+/// y := D x, D the matrix of `k`'s pattern with the values `values`.
+fn mul_with(k: &Csc, values: &[f64], x: &[f64], y: &mut [f64]) {
+    y.iter_mut().for_each(|v| *v = 0.0);
+    for (j, cols) in k.col_ptr.windows(2).enumerate() {
+        for p in cols[0]..cols[1] {
+            y[k.row_idx[p]] += values[p] * x[j];
+        }
+    }
+}
+
+fn dot(x: &[f64], y: &[f64]) -> f64 {
+    x.iter().zip(y).map(|(a, b)| a * b).sum()
+}
+
+/// Eigenvalues (ascending) of the symmetric tridiagonal matrix with diagonal
+/// `alpha` (k) and off-diagonal `beta` (k - 1), and the last component of
+/// each eigenvector, by cyclic Jacobi rotations (k is at most a few tens).
+fn tridiagonal_eigen(alpha: &[f64], beta: &[f64]) -> (Vec<f64>, Vec<f64>) {
+    let k = alpha.len();
+    let mut a = vec![0.0; k * k];
+    let mut v = vec![0.0; k * k];
+    for i in 0..k {
+        a[i * k + i] = alpha[i];
+        v[i * k + i] = 1.0;
+    }
+    for (i, &b) in beta.iter().enumerate() {
+        a[i * k + i + 1] = b;
+        a[(i + 1) * k + i] = b;
+    }
+    for _sweep in 0..50 {
+        let off: f64 = (0..k)
+            .flat_map(|i| (0..k).filter(move |&j| j != i).map(move |j| (i, j)))
+            .map(|(i, j)| a[i * k + j] * a[i * k + j])
+            .sum();
+        let diag: f64 = (0..k).map(|i| a[i * k + i] * a[i * k + i]).sum();
+        if off <= 1e-30 * diag.max(f64::MIN_POSITIVE) {
+            break;
+        }
+        for p in 0..k {
+            for q in p + 1..k {
+                let apq = a[p * k + q];
+                if apq == 0.0 {
+                    continue;
+                }
+                let theta = (a[q * k + q] - a[p * k + p]) / (2.0 * apq);
+                let t = theta.signum() / (theta.abs() + (theta * theta + 1.0).sqrt());
+                let t = if theta == 0.0 { 1.0 } else { t };
+                let c = 1.0 / (t * t + 1.0).sqrt();
+                let s = t * c;
+                for r in 0..k {
+                    let (arp, arq) = (a[r * k + p], a[r * k + q]);
+                    a[r * k + p] = c * arp - s * arq;
+                    a[r * k + q] = s * arp + c * arq;
+                }
+                for r in 0..k {
+                    let (apr, aqr) = (a[p * k + r], a[q * k + r]);
+                    a[p * k + r] = c * apr - s * aqr;
+                    a[q * k + r] = s * apr + c * aqr;
+                }
+                for r in 0..k {
+                    let (vrp, vrq) = (v[r * k + p], v[r * k + q]);
+                    v[r * k + p] = c * vrp - s * vrq;
+                    v[r * k + q] = s * vrp + c * vrq;
+                }
+            }
+        }
+    }
+    let mut order: Vec<usize> = (0..k).collect();
+    order.sort_by(|&i, &j| a[i * k + i].total_cmp(&a[j * k + j]));
+    let theta = order.iter().map(|&j| a[j * k + j]).collect();
+    let last_row = order.iter().map(|&j| v[(k - 1) * k + j]).collect();
+    (theta, last_row)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The 1D Laplacian of order n (Dirichlet ends), scaled by `s`, with the
+    /// entries of `zone` (rows and columns) scaled by another `z`.
+    fn laplacian(n: usize, s: f64, zone: std::ops::Range<usize>, z: f64) -> Csc {
+        let mut t = Vec::new();
+        for i in 0..n {
+            let w = |j: usize| {
+                if zone.contains(&i) && zone.contains(&j) {
+                    z
+                } else {
+                    1.0
+                }
+            };
+            t.push((i, i, 2.0 * s * w(i)));
+            if i + 1 < n {
+                t.push((i, i + 1, -s * w(i + 1)));
+                t.push((i + 1, i, -s * w(i + 1)));
+            }
+        }
+        Csc::from_triplets(n, n, &t)
+    }
+
+    #[test]
+    fn jacobi_finds_the_eigenvalues_of_a_known_tridiagonal() {
+        // diag 2, off-diagonal -1, order 5: 2 - 2 cos(j pi / 6).
+        let (theta, last) = tridiagonal_eigen(&[2.0; 5], &[-1.0; 4]);
+        for (j, t) in theta.iter().enumerate() {
+            let want = 2.0 - 2.0 * ((j + 1) as f64 * std::f64::consts::PI / 6.0).cos();
+            assert!((t - want).abs() < 1e-12, "{j}: {t} against {want}");
+        }
+        // Eigenvector j's last component: sqrt(2/6) sin(5 (j+1) pi / 6), up to sign.
+        for (j, l) in last.iter().enumerate() {
+            let want =
+                (2.0_f64 / 6.0).sqrt() * (5.0 * (j + 1) as f64 * std::f64::consts::PI / 6.0).sin();
+            assert!(
+                (l.abs() - want.abs()).abs() < 1e-12,
+                "{j}: {l} against {want}"
+            );
+        }
+    }
+
+    #[test]
+    fn a_scaled_k_drifts_by_its_scale_exactly() {
+        // K_ref = 1.2 K: M = K^-1 (K - 1.2 K) = -0.2 I, one step.
+        let k = laplacian(40, 1.0, 0..0, 1.0);
+        let k_ref = laplacian(40, 1.2, 0..0, 1.0);
+        let f = Factor::new(&k).unwrap();
+        let d = drift(&f, &k, &k_ref.values, 10.0);
+        assert_eq!(d.solves, 1);
+        assert!((d.mu_min + 0.2).abs() < 1e-12 && d.mu_max == 0.0, "{d:?}");
+        assert!((d.err_factor() - 1.2).abs() < 1e-12);
+        // The same K: no solve, factor 1.
+        let d = drift(&f, &k, &k.values, 10.0);
+        assert_eq!((d.solves, d.err_factor()), (0, 1.0));
+    }
+
+    #[test]
+    fn a_zone_made_stiffer_is_bounded_by_the_dense_spectrum() {
+        // K stiffer by 10 % on a zone; the exact spectrum of K^-1 (K - K_ref)
+        // from the dense generalised problem, by the same Jacobi on
+        // L^-1 dK L^-T: the estimate must contain it and not be far beyond.
+        let n = 60;
+        let k = laplacian(n, 1.0, 20..35, 1.1);
+        let k_ref = laplacian(n, 1.0, 0..0, 1.0);
+        let f = Factor::new(&k).unwrap();
+        let d = drift(&f, &k, &k_ref.values, 10.0);
+        let (lo, hi) = exact_spectrum(&k, &k_ref);
+        assert!(
+            d.mu_min <= lo + 1e-12 && d.mu_max >= hi - 1e-12,
+            "{d:?} {lo} {hi}"
+        );
+        assert!(
+            d.mu_max <= hi + 0.02 && d.mu_min >= lo - 0.02,
+            "{d:?} {lo} {hi}"
+        );
+        assert!(d.solves <= MAX_STEPS);
+    }
+
+    /// The extreme eigenvalues of K^-1 (K - K_ref), from the dense matrix
+    /// C = K^-1/2 (K - K_ref) K^-1/2 (K^-1/2 by K's own eigenvectors).
+    fn exact_spectrum(k: &Csc, k_ref: &Csc) -> (f64, f64) {
+        let n = k.nrows;
+        let dense = |a: &Csc| {
+            let mut m = faer::Mat::<f64>::zeros(n, n);
+            for j in 0..n {
+                for p in a.col_ptr[j]..a.col_ptr[j + 1] {
+                    m[(a.row_idx[p], j)] = a.values[p];
+                }
+            }
+            m
+        };
+        let (kd, rd) = (dense(k), dense(k_ref));
+        let eig = kd.self_adjoint_eigen(faer::Side::Lower).unwrap();
+        let (u, s) = (eig.U(), eig.S());
+        let mut half = faer::Mat::<f64>::zeros(n, n);
+        for j in 0..n {
+            let w = 1.0 / s[j].sqrt();
+            for i in 0..n {
+                half[(i, j)] = u[(i, j)] * w;
+            }
+        }
+        let c = half.transpose() * (&kd - &rd) * &half;
+        let ev = c.self_adjoint_eigen(faer::Side::Lower).unwrap();
+        let s = ev.S();
+        let vals: Vec<f64> = (0..n).map(|i| s[i]).collect();
+        (
+            vals.iter().cloned().fold(f64::INFINITY, f64::min),
+            vals.iter().cloned().fold(f64::NEG_INFINITY, f64::max),
+        )
+    }
+}
