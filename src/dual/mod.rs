@@ -178,8 +178,7 @@ impl Dual {
         self.free.is_some()
     }
 
-    /// Forms A in the way asked for (`TrailingBlock` requires the contact DOFs to
-    /// be among the factor's trailing DOFs).
+    /// [`Dual::build_keeping`] without blocks.
     #[cfg(any(test, feature = "internals"))]
     pub fn build_with(
         factor: &Arc<Factor>,
@@ -191,10 +190,12 @@ impl Dual {
         Self::build_keeping(factor, n, t, d, how, None)
     }
 
-    /// [`Dual::build_with`], a matrix-free form taking the contacts' d x d
-    /// diagonal blocks `blocks` as given (those of an earlier K, whose drift
-    /// the caller weighed: see [`Dual::set_err_factor`]) instead of computing
-    /// them; a dense form ignores them.
+    /// Forms A in the way asked for (`TrailingBlock` requires the contact
+    /// DOFs to be among the factor's trailing DOFs); a matrix-free form takes
+    /// the contacts' d x d diagonal blocks `blocks` where given (those of an
+    /// earlier K, whose drift the caller weighed: see
+    /// [`Dual::set_err_factor`]) instead of computing them; a dense form
+    /// ignores them.
     pub(crate) fn build_keeping(
         factor: &Arc<Factor>,
         n: &Csc,
