@@ -1288,6 +1288,11 @@ void ds_problem_free(struct DsProblem *problem);
  DsInfo.blocks_age counts the refactors since the blocks were computed.
  Otherwise they are computed afresh (docs/design.md section 9).
 
+ A K in coordinate format (DS_FORMAT_COO, any storage) whose triplets all
+ fall on the pattern the handle holds and cover it is placed triplet by
+ triplet, each by a binary search in its column, instead of sorted and
+ summed afresh (the same matrix, bit for bit).
+
  Returns DS_STATUS_OK, or the errors of ds_problem_new for K, and
  DS_STATUS_BAD_ARGUMENT if the pattern differs.
 

@@ -568,7 +568,15 @@ impl ContactProblem {
             );
         };
         let factor = factor.clone();
-        let k = Csc::symmetric_from_view(k, "K")?;
+        let Stiffness::Own { k: old_k, .. } = &self.stiff else {
+            unreachable!("matched above")
+        };
+        // A host's COO tangent on the pattern the handle holds is placed
+        // triplet by triplet; anything else is converted in full.
+        let k = match old_k.refill_symmetric(k) {
+            Some(k) => k,
+            None => Csc::symmetric_from_view(k, "K")?,
+        };
         if !factor.same_pattern(&k) {
             return fail(
                 ErrorKind::BadArgument,

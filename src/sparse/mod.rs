@@ -13,6 +13,7 @@
 
 mod assemble;
 mod congruence;
+mod refill;
 #[cfg(test)]
 mod tests;
 mod validate;
