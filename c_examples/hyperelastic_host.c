@@ -82,7 +82,7 @@
 #define MAX_ITER 30
 
 typedef struct {
-    int dim, times;
+    int dim, times, form;
     long nx, ny, nz, n_press, n_drag;
     double w, h, dz, young, nu, mu_f, curved, press, drag, theta, tol;
     const char *out, *dump;
@@ -123,6 +123,8 @@ static void usage(FILE *out)
             "  --increments P D      increments of the press and of the drag (default 3 3)\n"
             "  --tol t               Newton's tolerance on |R| / |f_ref| (default 1e-10)\n"
             "  --times               print the seconds of each refactor and solve\n"
+            "  --form F              the dual's form: auto (default), dense or\n"
+            "                        matrix-free (DsOptions.dual_form)\n"
             "  --out FILE            write each converged increment to FILE\n"
             "  --dump DIR            write the last tangent with the last residual and\n"
             "                        gaps to DIR (ds_problem_dump; not the slip taken)\n");
@@ -131,7 +133,7 @@ static void usage(FILE *out)
 static int parse_args(int argc, char **argv, Params *p)
 {
     int k, sized = 0;
-    p->dim = 2; p->times = 0;
+    p->dim = 2; p->times = 0; p->form = DS_DUAL_FORM_AUTO;
     p->nx = 24; p->ny = 12; p->nz = 0; p->n_press = 3; p->n_drag = 3;
     p->w = 2.0; p->h = 1.0; p->dz = 1.0; p->young = 100.0; p->nu = 0.3;
     p->mu_f = 0.3; p->curved = 0.1; p->press = 0.15; p->drag = 0.2; p->theta = 17.0;
@@ -172,7 +174,12 @@ static int parse_args(int argc, char **argv, Params *p)
         else if (strcmp(a, "--drag") == 0) ok = parse_double(v, &p->drag);
         else if (strcmp(a, "--theta") == 0) ok = parse_double(v, &p->theta);
         else if (strcmp(a, "--tol") == 0) ok = parse_double(v, &p->tol) && p->tol > 0.0;
-        else if (strcmp(a, "--out") == 0) p->out = v;
+        else if (strcmp(a, "--form") == 0) {
+            if (strcmp(v, "auto") == 0) p->form = DS_DUAL_FORM_AUTO;
+            else if (strcmp(v, "dense") == 0) p->form = DS_DUAL_FORM_DENSE;
+            else if (strcmp(v, "matrix-free") == 0) p->form = DS_DUAL_FORM_MATRIX_FREE;
+            else ok = 0;
+        } else if (strcmp(a, "--out") == 0) p->out = v;
         else if (strcmp(a, "--dump") == 0) p->dump = v;
         else if (strcmp(a, "--increments") == 0) {
             const char *v2 = (k + 2 < argc) ? argv[k + 2] : NULL;
@@ -507,6 +514,7 @@ int main(int argc, char **argv)
     tm = coo_matrix(&tmat, mt, neq);
     ds_options_default(&opts);
     opts.threads = 1;
+    opts.dual_form = par.form;
     if (par.out != NULL) {
         out = fopen(par.out, "w");
         if (out == NULL) {

@@ -753,9 +753,9 @@ fn exact_err(sc: &Scene, k: &Csc, sol: &Solution, mu: &[f64]) -> f64 {
 /// A refactor of a matrix-free dual keeps the contact blocks of the K they
 /// were computed on while their drift bounds err's growth by 1.5, and says
 /// so: from K_0 = 1.2 K onto K, M = K^-1 (K - K_0) = -0.2 I, so the blocks of
-/// K are 1.2 times K_0's and err's factor is 1.2 exactly (one Lanczos step);
-/// the solution is the fresh handle's, and the reported err bounds err on
-/// K's own blocks. Onto 1.1 K the drift is still measured from K_0 (factor
+/// K are 1.2 times K_0's and err's factor is 1.2 (one Lanczos step, to the
+/// single-precision solves' rounding); the solution is the fresh handle's,
+/// and the reported err bounds err on K's own blocks. Onto 1.1 K the drift is still measured from K_0 (factor
 /// 1.2 / 1.1, age 2); onto 3 K (factor 3) the blocks are computed afresh, and
 /// new contacts start afresh too.
 #[test]
@@ -781,7 +781,7 @@ fn a_refactor_keeps_the_contact_blocks_while_they_drift_little() {
     assert!(cost.blocks_kept && cost.drift_solves == 1, "{cost:?}");
     let info = pb.info(&o);
     assert_eq!(info.blocks_age, 1);
-    assert!((info.err_factor - 1.2).abs() < 1e-9, "{}", info.err_factor);
+    assert!((info.err_factor - 1.2).abs() < 1e-6, "{}", info.err_factor);
     let got = pb.solve(&sc.f, &sc.g, law, &o).expect("a solve");
     assert_converged("kept blocks", &got);
     let mut fresh =

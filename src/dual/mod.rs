@@ -187,22 +187,22 @@ impl Dual {
         d: usize,
         how: Condensation,
     ) -> Result<Dual> {
-        Self::build_keeping(factor, n, t, d, how, None)
+        Self::build_keeping(factor, n, t, d, how, Made::default())
     }
 
     /// Forms A in the way asked for (`TrailingBlock` requires the contact
     /// DOFs to be among the factor's trailing DOFs); a matrix-free form takes
-    /// the contacts' d x d diagonal blocks `blocks` where given (those of an
-    /// earlier K, whose drift the caller weighed: see
-    /// [`Dual::set_err_factor`]) instead of computing them; a dense form
-    /// ignores them.
+    /// what `made` holds instead of computing it: the contacts' d x d
+    /// diagonal blocks (those of an earlier K, whose drift the caller
+    /// weighed: see [`Dual::set_err_factor`]) and the factor's values in
+    /// single precision; a dense form ignores them.
     pub(crate) fn build_keeping(
         factor: &Arc<Factor>,
         n: &Csc,
         t: &Csc,
         d: usize,
         how: Condensation,
-        blocks: Option<Vec<f64>>,
+        made: Made,
     ) -> Result<Dual> {
         let start = Instant::now();
         let m = n.nrows;
@@ -212,7 +212,7 @@ impl Dual {
         let trailing = Self::trailing_of(factor, &b);
         let ledger = factor.ledger();
         if how == Condensation::MatrixFree {
-            let free = Operator::new(factor, &b, m, d, blocks)?;
+            let free = Operator::new(factor, &b, m, d, made)?;
             let claim = ledger.claim_f64(d * c);
             let (threads, ledger) = (factor.threads().clone(), ledger.clone());
             return Ok(Self::of_operator(
@@ -773,7 +773,7 @@ pub(crate) fn blocks_by_factor(
 
 use condense::*;
 use operator::*;
-pub(crate) use operator::{host_rows_bytes, own_solves_bytes};
+pub(crate) use operator::{Made, host_rows_bytes, own_solves_bytes};
 
 #[cfg(test)]
 pub(crate) mod tests;

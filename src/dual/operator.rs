@@ -29,6 +29,16 @@ pub(super) struct Operator {
     pub(super) solves: Solves,
 }
 
+/// What a refactor made before the matrix-free dual is formed, for it to
+/// take instead of making it again.
+#[derive(Default)]
+pub(crate) struct Made {
+    /// The contacts' d x d diagonal blocks (an earlier K's, kept).
+    pub(crate) blocks: Option<Vec<f64>>,
+    /// The factor's values in single precision ([`Factor::single_values`]).
+    pub(crate) single: Option<Vec<f32>>,
+}
+
 /// What a matrix-free dual's products solve with: K's factor, or the host.
 pub(super) enum Solves {
     Factor(Box<FactorSolves>),
@@ -189,20 +199,24 @@ pub(crate) fn own_solves_bytes(factor: &Factor, b: &Csc) -> usize {
 impl Operator {
     /// Errors: `OutOfMemory` when the allocator refuses its work space or the
     /// single-precision copy of the factor.
-    /// `blocks`: the contacts' diagonal blocks where the caller has them
-    /// (an earlier K's, see [`Dual::build_keeping`]), else computed here.
+    /// `made`: the contacts' diagonal blocks where the caller has them (an
+    /// earlier K's, see [`Dual::build_keeping`]) and the factor's
+    /// single-precision values where it made them; else computed here.
     pub(super) fn new(
         factor: &Arc<Factor>,
         b: &Csc,
         m: usize,
         d: usize,
-        blocks: Option<Vec<f64>>,
+        made: Made,
     ) -> Result<Operator> {
-        let blocks = match blocks {
+        let blocks = match made.blocks {
             Some(blocks) if blocks.len() == m * d * d => blocks,
             _ => crate::factor_tree::contact_blocks::contact_blocks(factor, b, m, d),
         };
-        let single = factor.single_values()?;
+        let single = match made.single {
+            Some(single) if single.len() == factor.values().len() => single,
+            _ => factor.single_values()?,
+        };
         let own = OwnSolves::of(factor, b);
         let what = "the matrix-free dual's work space";
         Ok(Operator {

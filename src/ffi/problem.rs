@@ -264,7 +264,7 @@ pub unsafe extern "C" fn ds_problem_free(problem: *mut DsProblem) {
 ///
 /// A matrix-free dual keeps the contacts' diagonal blocks of the K they were
 /// computed on (they cost 0.7-1.4 factorisations to compute afresh) where a
-/// few Lanczos steps (4 to 8 solves with the new K) estimate that they drifted
+/// few Lanczos steps (4 to 8 single-precision solves with the new K) estimate that they drifted
 /// so little that err, with rho from them, is at most 1.5 times err on the
 /// new K's own blocks; err is then reported multiplied by that factor
 /// (DsInfo.err_factor), so that it bounds the err of the new K, and

@@ -4,7 +4,7 @@
 
 use crate::compliance::Compliance;
 use crate::contact_rows::{check_shapes, stack_rows};
-use crate::dual::{Condensation, Dual};
+use crate::dual::{Condensation, Dual, Made};
 use crate::error::{ErrorKind, Result, fail};
 use crate::factor::Factor;
 use crate::friction::Friction;
@@ -151,18 +151,18 @@ fn check_internal_form(k: &Csc, n: &Csc, t: &Csc) -> Result<()> {
 /// The dual of (N, T) on `factor` formed in the way `how`, holding the lumped
 /// preconditioner G = B K B^T when it is matrix-free, its operator A + D for
 /// the compliance diagonal `shift` (empty: rigid): every dual a problem holds
-/// is formed here. A matrix-free one takes `blocks` as its contacts' blocks
-/// where given (an earlier K's, kept by a refactor: [`Dual::build_keeping`]).
+/// is formed here. A matrix-free one takes what `made` holds (a refactor's
+/// kept contact blocks and single-precision factor: [`Dual::build_keeping`]).
 fn form_dual(
     factor: &Arc<Factor>,
     k: &Csc,
     (n, t): (&Csc, &Csc),
     d: usize,
-    (how, blocks): (Condensation, Option<Vec<f64>>),
+    (how, made): (Condensation, Made),
     shift: &[f64],
     layer: Option<crate::dirichlet::Plan>,
 ) -> Result<Dual> {
-    let mut dual = Dual::build_keeping(factor, n, t, d, how, blocks)?;
+    let mut dual = Dual::build_keeping(factor, n, t, d, how, made)?;
     dual.set_lumped(k, layer);
     if !shift.is_empty() {
         dual.set_shift(shift);
@@ -383,7 +383,7 @@ impl ContactProblem {
     ) -> Result<Dual> {
         match &self.stiff {
             Stiffness::Own { k, factor } => {
-                form_dual(factor, k, nt, self.d, (how, None), shift, layer)
+                form_dual(factor, k, nt, self.d, (how, Made::default()), shift, layer)
             }
             Stiffness::Host { .. } => host_dual(&self.stiff, nt, self.d, shift, layer, None),
         }
@@ -445,7 +445,15 @@ impl ContactProblem {
         factor.refactor(&k)?;
         let factor = Arc::new(factor);
         let how = Dual::condensation_for(&factor, &n, &t, d, plan.form);
-        let dual = form_dual(&factor, &k, (&n, &t), d, (how, None), &[], plan.layer)?;
+        let dual = form_dual(
+            &factor,
+            &k,
+            (&n, &t),
+            d,
+            (how, Made::default()),
+            &[],
+            plan.layer,
+        )?;
         let ndof = k.nrows;
         let c = dual.c;
         let m = n.nrows;
@@ -603,7 +611,16 @@ impl ContactProblem {
         let Stiffness::Own { k: old_k, .. } = &self.stiff else {
             unreachable!("matched above")
         };
-        let kept = self.weigh_kept_blocks(how, &fresh, old_k, &k);
+        // A matrix-free dual's single-precision copy of the factor, made
+        // first: the drift's solves run on it.
+        let single = match how {
+            Condensation::MatrixFree if !fresh.is_dense() => Some(fresh.single_values()?),
+            _ => None,
+        };
+        let copied = Instant::now();
+        let kept = single
+            .as_ref()
+            .and_then(|single| self.weigh_kept_blocks(how, (&fresh, single), old_k, &k));
         let weighed = Instant::now();
         let (blocks, kept) = match kept {
             Some((blocks, values, drift)) => (Some(blocks), Some((values, drift))),
@@ -614,14 +631,14 @@ impl ContactProblem {
             &k,
             (&self.n, &self.t),
             self.d,
-            (how, blocks),
+            (how, Made { blocks, single }),
             &shift,
             None,
         )?;
         self.last_refactor = RefactorCost {
             factor_seconds: (factored - start).as_secs_f64(),
-            drift_seconds: (weighed - factored).as_secs_f64(),
-            dual_seconds: weighed.elapsed().as_secs_f64(),
+            drift_seconds: (weighed - copied).as_secs_f64(),
+            dual_seconds: (copied - factored).as_secs_f64() + weighed.elapsed().as_secs_f64(),
             drift_solves: kept.as_ref().map_or(0, |(_, d)| d.solves),
             blocks_kept: kept.is_some(),
         };
@@ -652,7 +669,7 @@ impl ContactProblem {
     fn weigh_kept_blocks(
         &self,
         how: Condensation,
-        fresh: &Factor,
+        (fresh, single): (&Factor, &[f32]),
         old_k: &Csc,
         k: &Csc,
     ) -> Option<(Vec<f64>, Vec<f64>, crate::drift::Drift)> {
@@ -667,7 +684,7 @@ impl ContactProblem {
             Some(kept) => &kept.k_values,
             None => &old_k.values,
         };
-        let drift = crate::drift::drift(fresh, k, values, KEEP_BLOCKS_MAX_ERR_FACTOR);
+        let drift = crate::drift::drift(fresh, single, k, values, KEEP_BLOCKS_MAX_ERR_FACTOR);
         (drift.err_factor() <= KEEP_BLOCKS_MAX_ERR_FACTOR)
             .then(|| (blocks.to_vec(), values.clone(), drift))
     }
