@@ -514,6 +514,7 @@ int main(int argc, char **argv)
     tm = coo_matrix(&tmat, mt, neq);
     ds_options_default(&opts);
     opts.threads = 1;
+    opts.host_loop = 1; /* refactored at every iteration: AUTO weighs for it */
     opts.dual_form = par.form;
     if (par.out != NULL) {
         out = fopen(par.out, "w");

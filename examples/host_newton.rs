@@ -17,8 +17,12 @@
 //! ```text
 //! cargo run --release --example host_newton -- [--scenes A,B,..] [--threads K]
 //!     [--iterations J] [--laws tresca,coulomb] [--form auto|dense|matrix-free]
+//!     [--host-loop 1|0]
 //! cargo run --release --example host_newton -- --baseline-of DIR [--threads K]
 //! ```
+//!
+//! The handles are made with `Options::host_loop` (`--host-loop 0`: without,
+//! as a handle for `ds_step` would be).
 //!
 //! `--baseline-of DIR` only times the best plain factorisation of the K of the
 //! problem folder DIR (as `c_examples/hyperelastic_host.c --dump DIR` writes
@@ -50,6 +54,7 @@ fn main() {
     let mut laws = vec!["coulomb".to_string()];
     let mut form = DualForm::Auto;
     let mut baseline_of: Option<String> = None;
+    let mut host_loop = true;
     let args: Vec<String> = std::env::args().skip(1).collect();
     let mut k = 0;
     while k < args.len() {
@@ -58,6 +63,7 @@ fn main() {
             "--scenes" => scenes = value().split(',').map(str::to_string).collect(),
             "--threads" => threads = value().parse().expect("--threads K"),
             "--iterations" => iterations = value().parse().expect("--iterations J"),
+            "--host-loop" => host_loop = value() == "1",
             "--laws" => laws = value().split(',').map(str::to_string).collect(),
             "--form" => form = DualForm::from_name(&value()).expect("a dual form"),
             "--baseline-of" => baseline_of = Some(value()),
@@ -83,6 +89,7 @@ fn main() {
             threads,
             dual_form: form,
             tol: 1e-10,
+            host_loop,
             ..Options::default()
         };
         for law in &laws {

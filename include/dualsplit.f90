@@ -138,11 +138,12 @@ module dualsplit
       integer(c_int32_t) :: threads       !< the handle's threads, 0 = all cores, 1 = the calling thread (default 0)
       integer(c_int32_t) :: ordering      !< a DS_ORDERING_* value (default DS_ORDERING_AUTO)
       integer(c_int64_t) :: max_memory    !< uint64_t in C: bytes the large allocations may take, 0 = the machine's limit (0.5)
+      integer(c_int32_t) :: host_loop     !< 1: the handle serves a host's Newton loop (0.10)
    end type DsOptions
 
    !> sizeof(DsOptions) in C: what ds_options_init is told (tests/fortran.rs checks
    !> it against the C compiler's sizeof).
-   integer(c_size_t), parameter, public :: DS_OPTIONS_SIZE = 80
+   integer(c_size_t), parameter, public :: DS_OPTIONS_SIZE = 88
 
    !> A sparse matrix borrowed from the caller (CSparse naming); see ds_matrix_csr.
    type, bind(C), public :: DsMatrix

@@ -650,15 +650,16 @@ typedef struct DsMatrix {
  The struct grows at its end from version to version; struct_size says which
  version the caller was compiled against, and the library reads no byte past
  it: 32 (version 0.1: up to max_inner), 40 (0.2: up to dual_form), 64 (0.3: up
- to stall_factor), 72 (0.4: up to ordering) and 80 (0.5) are accepted, the
- fields an older struct lacks take their defaults.
+ to stall_factor), 72 (0.4: up to ordering), 80 (0.5: up to max_memory) and
+ 88 (0.10) are accepted, the fields an older struct lacks take their
+ defaults.
 
  Errors when read: DS_STATUS_BAD_ARGUMENT if struct_size is not one of those
  sizes, method is not a DsMethod, tol is not finite and positive, max_outer is
  negative, max_inner is not positive, dual_form is not a DsDualForm,
  max_seconds is negative or not finite, stall_window is negative,
- stall_factor is not in (0, 1], threads is negative or above 4096, or ordering
- is not a DsOrdering.
+ stall_factor is not in (0, 1], threads is negative or above 4096, ordering
+ is not a DsOrdering, or host_loop is not 0 or 1.
  */
 typedef struct DsOptions {
   /*
@@ -755,6 +756,17 @@ typedef struct DsOptions {
    ds_step. Added in version 0.5.
    */
   uint64_t max_memory;
+  /*
+   1 when the handle serves a host's Newton loop (ds_problem_refactor
+   before nearly every ds_solve_iteration, docs/design.md section 9), 0
+   (default) otherwise. DS_DUAL_FORM_AUTO then creates a 3D problem
+   matrix-free where the method runs matrix-free and it fits max_memory:
+   its refactor is the plain numeric factor with the contact blocks
+   kept, where the dense route's orders the contact DOFs last (2.2-2.8
+   times the plain factor on a 40 x 40 x 20 block) and condenses again.
+   Read by ds_problem_new_opts. Added in version 0.10 (88 bytes).
+   */
+  int32_t host_loop;
 } DsOptions;
 
 /*
@@ -1181,17 +1193,18 @@ const char *ds_last_error_message(void);
 
 /*
  Fills the first `size` bytes of *opts with the defaults of the DsOptions of
- that size: struct_size = size, method DS_METHOD_AUTO (from 0.6; DS_METHOD_SPLIT
- before), tol 1e-10, max_outer
- 10000, max_inner 1000, dual_form DS_DUAL_FORM_AUTO, max_seconds 0 (none),
- stall_window 100, stall_factor 0.9, threads 0 (all cores), ordering
- DS_ORDERING_AUTO, max_memory 0 (the machine's limit). Pass sizeof(DsOptions) as the caller sees
- it (the ds_options_default macro does): a program compiled against an older
- header then gets its older struct filled, and nothing is written past it.
+ that size: struct_size = size, method DS_METHOD_AUTO (from 0.6;
+ DS_METHOD_SPLIT before), tol 1e-10, max_outer 10000, max_inner 1000,
+ dual_form DS_DUAL_FORM_AUTO, max_seconds 0 (none), stall_window 100,
+ stall_factor 0.9, threads 0 (all cores), ordering DS_ORDERING_AUTO,
+ max_memory 0 (the machine's limit), host_loop 0. Pass sizeof(DsOptions) as
+ the caller sees it (the ds_options_default macro does): a program compiled
+ against an older header then gets its older struct filled, and nothing is
+ written past it.
 
  Returns DS_STATUS_OK, DS_STATUS_NULL_POINTER (opts NULL) or
  DS_STATUS_BAD_ARGUMENT (size is not the size of a DsOptions of any version: 32,
- 40, 64, 72 or 80; opts misaligned); nothing is written on error.
+ 40, 64, 72, 80 or 88; opts misaligned); nothing is written on error.
 
  # Safety
  `opts` must be NULL or point to `size` writable bytes.
@@ -1551,7 +1564,9 @@ enum DsStatus ds_step(struct DsProblem *problem,
  on the slip of the WHOLE load increment: the slip the earlier iterations
  took plus this one's, s_j + T du.
 
- The host's loop, per load increment from the converged u_n:
+ The host's loop, on a handle made with DsOptions.host_loop = 1 (AUTO then
+ takes the route whose refactor is cheapest), per load increment from the
+ converged u_n:
 
  1. u_0 = u_n (j = 0).
  2. Assemble the tangent K_t(u_j), the residual r_j = f_ext - f_int(u_j)

@@ -244,6 +244,16 @@ pub struct Options {
     /// at once, and of `set_contacts`) and by every `solve` and `step` (a refused
     /// call leaves the problem as it was).
     pub max_memory: usize,
+    /// The problem serves a host's Newton loop: K refactored before nearly
+    /// every solve (`ContactProblem::refactor`, then `solve_iteration`;
+    /// docs/design.md section 9). `DualForm::Auto` then takes the
+    /// matrix-free route on 3D problems where the method runs matrix-free
+    /// (and it fits `max_memory`): its refactor is the plain numeric factor
+    /// with the contact blocks kept, where the dense route's orders the
+    /// contact DOFs last (2.2-2.8 times the plain factor on a 40 x 40 x 20
+    /// block) and condenses again. Default false. Read by
+    /// `ContactProblem::with_options`.
+    pub host_loop: bool,
     /// How a problem on the host's solves obtains the contacts' blocks (see
     /// [`HostBlocks`]; default `Auto`). Read by
     /// `ContactProblem::with_host_solver` (kept for `set_contacts`); ignored
@@ -327,6 +337,7 @@ impl Default for Options {
             ordering: Ordering::Auto,
             threads: 0,
             max_memory: 0,
+            host_loop: false,
             host_blocks: HostBlocks::Auto,
         }
     }

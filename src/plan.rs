@@ -210,7 +210,11 @@ pub(crate) fn route(
     let dense_first = match opts.dual_form {
         DualForm::Dense => true,
         DualForm::MatrixFree => false,
-        DualForm::Auto => c <= DENSE_MAX,
+        // A host's Newton loop refactors at every iteration: in 3D the
+        // dense route's contacts-last factor costs 2-3 plain ones each time.
+        DualForm::Auto => {
+            c <= DENSE_MAX && !(opts.host_loop && d == 3 && !opts.method.needs_entries())
+        }
     };
     if dense_first {
         // Contact DOFs last, so that the factor's trailing block condenses K

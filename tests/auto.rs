@@ -243,3 +243,104 @@ fn auto_takes_the_matrix_free_route_on_a_thin_slab() {
         DualForm::Dense
     );
 }
+
+/// A handle that serves a host's Newton loop (`Options::host_loop`) is made
+/// matrix-free in 3D under AUTO, where the method runs matrix-free: a block
+/// that AUTO otherwise condenses densely; a method that reads entries of A,
+/// an explicit dense form and a 2D strip keep the dense route. (Analysis
+/// only.) Its first refactor keeps its contact blocks (the same K: no drift).
+#[test]
+fn a_host_loop_takes_the_matrix_free_route_in_3d() {
+    let info = |sc: &Scene, o: &Options| {
+        ContactProblem::analyse_csc(sc.d, &sc.k, &sc.n, &sc.t, o).expect("the analysis")
+    };
+    let host = |o: Options| Options {
+        host_loop: true,
+        ..o
+    };
+    let block = block3d();
+    assert_eq!(
+        info(&block, &opts(Method::Auto)).setup_form,
+        DualForm::Dense
+    );
+    assert_eq!(
+        info(&block, &host(opts(Method::Auto))).setup_form,
+        DualForm::MatrixFree
+    );
+    assert_eq!(
+        info(&block, &host(opts(Method::Newton))).setup_form,
+        DualForm::MatrixFree
+    );
+    assert_eq!(
+        info(&block, &host(opts(Method::Pgs))).setup_form,
+        DualForm::Dense,
+        "a method that reads A"
+    );
+    let dense = Options {
+        dual_form: DualForm::Dense,
+        ..host(opts(Method::Auto))
+    };
+    assert_eq!(info(&block, &dense).setup_form, DualForm::Dense);
+    let strip = strip2d();
+    assert_eq!(
+        info(&strip, &host(opts(Method::Auto))).setup_form,
+        DualForm::Dense,
+        "2D"
+    );
+    // The handle: matrix-free, and a refactor onto the same K keeps its blocks.
+    let o = host(opts(Method::Auto));
+    let mut pb = ContactProblem::from_csc_with(
+        block.d,
+        block.k.clone(),
+        block.n.clone(),
+        block.t.clone(),
+        &o,
+    )
+    .expect("a valid problem");
+    assert!(pb.is_matrix_free());
+    pb.refactor(&Owned::of(&block.k).view()).expect("refactor");
+    let info = pb.info(&o);
+    assert_eq!((info.blocks_age, info.err_factor), (1, 1.0));
+    let mu = vec![0.3; block.m()];
+    let sol = pb
+        .solve(&block.f, &block.g, Friction::Coulomb(&mu), &o)
+        .expect("a solve");
+    assert_converged("host loop", &sol);
+    kkt_of(&block, Friction::Coulomb(&mu), &sol).assert_ok("host loop", 1e-8);
+}
+
+/// DsOptions.host_loop through C: 1 takes the matrix-free route on the 3D
+/// block, 2 is refused with the field named.
+#[test]
+fn ds_options_host_loop_reaches_the_route() {
+    let block = block3d();
+    let (k, n, t) = (
+        Owned::of(&block.k),
+        Owned::of(&block.n),
+        Owned::of(&block.t),
+    );
+    let (kd, nd, td) = (k.ds(), n.ds(), t.ds());
+    let mut o = DsOptions {
+        threads: 1,
+        host_loop: 1,
+        ..DsOptions::default()
+    };
+    let mut info = DsInfo {
+        struct_size: std::mem::size_of::<DsInfo>() as u32,
+        // SAFETY: DsInfo is plain old data; all zeros is a value.
+        ..unsafe { std::mem::zeroed() }
+    };
+    // SAFETY: valid matrices, options and DsInfo.
+    let st = unsafe { ds_analyse(3, &kd, &nd, &td, &o, &mut info) };
+    assert_eq!(st, DsStatus::Ok);
+    assert_eq!(info.setup_form, DsDualForm::MatrixFree as i32);
+    o.host_loop = 2;
+    // SAFETY: as above.
+    let st = unsafe { ds_analyse(3, &kd, &nd, &td, &o, &mut info) };
+    assert_eq!(st, DsStatus::BadArgument);
+    // SAFETY: the message is a NUL-terminated string the library owns.
+    let msg = unsafe { std::ffi::CStr::from_ptr(ds_last_error_message()) }
+        .to_string_lossy()
+        .into_owned();
+    assert!(msg.contains("host_loop = 2"), "{msg}");
+}

@@ -446,7 +446,7 @@ const LAYOUT_F90: &str = r#"program layout
       off(c_loc(o), c_loc(o%dual_form)), off(c_loc(o), c_loc(o%max_seconds)), &
       off(c_loc(o), c_loc(o%stall_window)), off(c_loc(o), c_loc(o%stall_factor)), &
       off(c_loc(o), c_loc(o%threads)), off(c_loc(o), c_loc(o%ordering)), &
-      off(c_loc(o), c_loc(o%max_memory))
+      off(c_loc(o), c_loc(o%max_memory)), off(c_loc(o), c_loc(o%host_loop))
    write (*, '(a,99(1x,i0))') 'DS_OPTIONS_SIZE', DS_OPTIONS_SIZE
    write (*, '(a,99(1x,i0))') 'DsReport', c_sizeof(r), off(c_loc(r), c_loc(r%status)), &
       off(c_loc(r), c_loc(r%method)), off(c_loc(r), c_loc(r%err)), &
@@ -504,11 +504,12 @@ int main(void)
            O(DsMatrix, format), O(DsMatrix, index_type), O(DsMatrix, base), O(DsMatrix, storage),
            O(DsMatrix, nrows), O(DsMatrix, ncols), O(DsMatrix, nnz), O(DsMatrix, p),
            O(DsMatrix, i), O(DsMatrix, x));
-    printf("DsOptions %d %d %d %d %d %d %d %d %d %d %d %d %d\n", (int)sizeof(DsOptions),
+    printf("DsOptions %d %d %d %d %d %d %d %d %d %d %d %d %d %d\n", (int)sizeof(DsOptions),
            O(DsOptions, struct_size), O(DsOptions, method), O(DsOptions, tol),
            O(DsOptions, max_outer), O(DsOptions, max_inner), O(DsOptions, dual_form),
            O(DsOptions, max_seconds), O(DsOptions, stall_window), O(DsOptions, stall_factor),
-           O(DsOptions, threads), O(DsOptions, ordering), O(DsOptions, max_memory));
+           O(DsOptions, threads), O(DsOptions, ordering), O(DsOptions, max_memory),
+           O(DsOptions, host_loop));
     printf("DS_OPTIONS_SIZE %d\n", (int)sizeof(DsOptions));
     printf("DsReport %d %d %d %d %d %d %d %d %d %d %d %d %d %d %d %d %d %d %d %d\n", (int)sizeof(DsReport),
            O(DsReport, status), O(DsReport, method), O(DsReport, err),

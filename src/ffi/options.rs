@@ -15,15 +15,16 @@ use std::panic::{AssertUnwindSafe, catch_unwind};
 /// The struct grows at its end from version to version; struct_size says which
 /// version the caller was compiled against, and the library reads no byte past
 /// it: 32 (version 0.1: up to max_inner), 40 (0.2: up to dual_form), 64 (0.3: up
-/// to stall_factor), 72 (0.4: up to ordering) and 80 (0.5) are accepted, the
-/// fields an older struct lacks take their defaults.
+/// to stall_factor), 72 (0.4: up to ordering), 80 (0.5: up to max_memory) and
+/// 88 (0.10) are accepted, the fields an older struct lacks take their
+/// defaults.
 ///
 /// Errors when read: DS_STATUS_BAD_ARGUMENT if struct_size is not one of those
 /// sizes, method is not a DsMethod, tol is not finite and positive, max_outer is
 /// negative, max_inner is not positive, dual_form is not a DsDualForm,
 /// max_seconds is negative or not finite, stall_window is negative,
-/// stall_factor is not in (0, 1], threads is negative or above 4096, or ordering
-/// is not a DsOrdering.
+/// stall_factor is not in (0, 1], threads is negative or above 4096, ordering
+/// is not a DsOrdering, or host_loop is not 0 or 1.
 #[repr(C)]
 #[derive(Copy, Clone, Debug, PartialEq)]
 pub struct DsOptions {
@@ -97,6 +98,15 @@ pub struct DsOptions {
     /// ds_problem_set_contacts; DsInfo.refactor_bytes is that need), ds_solve and
     /// ds_step. Added in version 0.5.
     pub max_memory: u64,
+    /// 1 when the handle serves a host's Newton loop (ds_problem_refactor
+    /// before nearly every ds_solve_iteration, docs/design.md section 9), 0
+    /// (default) otherwise. DS_DUAL_FORM_AUTO then creates a 3D problem
+    /// matrix-free where the method runs matrix-free and it fits max_memory:
+    /// its refactor is the plain numeric factor with the contact blocks
+    /// kept, where the dense route's orders the contact DOFs last (2.2-2.8
+    /// times the plain factor on a 40 x 40 x 20 block) and condenses again.
+    /// Read by ds_problem_new_opts. Added in version 0.10 (88 bytes).
+    pub host_loop: i32,
 }
 
 /// sizeof(DsOptions) of version 0.1 (struct_size, method, tol, max_outer,
@@ -110,11 +120,13 @@ const V03_SIZE: usize = 64;
 pub(crate) const V04_SIZE: usize = 72;
 /// sizeof(DsOptions) of version 0.5 (and max_memory).
 pub(crate) const V05_SIZE: usize = 80;
+/// sizeof(DsOptions) of version 0.10 (and host_loop, padded to 8 bytes).
+pub(crate) const V10_SIZE: usize = 88;
 /// sizeof(DsOptions) now.
 const SIZE: usize = std::mem::size_of::<DsOptions>();
 /// Every accepted struct_size.
-const SIZES: [usize; 5] = [V01_SIZE, V02_SIZE, V03_SIZE, V04_SIZE, V05_SIZE];
-const _: () = assert!(SIZE == V05_SIZE);
+const SIZES: [usize; 6] = [V01_SIZE, V02_SIZE, V03_SIZE, V04_SIZE, V05_SIZE, V10_SIZE];
+const _: () = assert!(SIZE == V10_SIZE);
 
 /// Copies the first `size` bytes of `from` to `to` (size at most sizeof(DsOptions)).
 ///
@@ -149,6 +161,7 @@ impl DsOptions {
             threads: i32::try_from(opts.threads).unwrap_or(i32::MAX),
             ordering: DsOrdering::from(opts.ordering) as i32,
             max_memory: u64::try_from(opts.max_memory).unwrap_or(u64::MAX),
+            host_loop: i32::from(opts.host_loop),
         }
     }
 
@@ -179,6 +192,11 @@ impl DsOptions {
             threads: count(i64::from(self.threads), "threads", 0)?,
             ordering: ordering.into(),
             max_memory: usize::try_from(self.max_memory).unwrap_or(usize::MAX),
+            host_loop: match self.host_loop {
+                0 => false,
+                1 => true,
+                v => return Err(bad(format!("opts.host_loop = {v} must be 0 or 1"))),
+            },
             // Set from DsHostSolver.blocks by ds_problem_new_host.
             host_blocks: crate::HostBlocks::Auto,
         };
@@ -221,7 +239,7 @@ impl DsOptions {
                 DsStatus::BadArgument,
                 format!(
                     "opts.struct_size = {size} is not the size of a DsOptions of any version \
-                     ({V01_SIZE}, {V02_SIZE}, {V03_SIZE}, {V04_SIZE} or {SIZE}): initialise \
+                     ({V01_SIZE}, {V02_SIZE}, {V03_SIZE}, {V04_SIZE}, {V05_SIZE} or {SIZE}): initialise \
                      the options with ds_options_init(&opts, sizeof opts)"
                 ),
             ));
@@ -253,17 +271,18 @@ impl Default for DsOptions {
 }
 
 /// Fills the first `size` bytes of *opts with the defaults of the DsOptions of
-/// that size: struct_size = size, method DS_METHOD_AUTO (from 0.6; DS_METHOD_SPLIT
-/// before), tol 1e-10, max_outer
-/// 10000, max_inner 1000, dual_form DS_DUAL_FORM_AUTO, max_seconds 0 (none),
-/// stall_window 100, stall_factor 0.9, threads 0 (all cores), ordering
-/// DS_ORDERING_AUTO, max_memory 0 (the machine's limit). Pass sizeof(DsOptions) as the caller sees
-/// it (the ds_options_default macro does): a program compiled against an older
-/// header then gets its older struct filled, and nothing is written past it.
+/// that size: struct_size = size, method DS_METHOD_AUTO (from 0.6;
+/// DS_METHOD_SPLIT before), tol 1e-10, max_outer 10000, max_inner 1000,
+/// dual_form DS_DUAL_FORM_AUTO, max_seconds 0 (none), stall_window 100,
+/// stall_factor 0.9, threads 0 (all cores), ordering DS_ORDERING_AUTO,
+/// max_memory 0 (the machine's limit), host_loop 0. Pass sizeof(DsOptions) as
+/// the caller sees it (the ds_options_default macro does): a program compiled
+/// against an older header then gets its older struct filled, and nothing is
+/// written past it.
 ///
 /// Returns DS_STATUS_OK, DS_STATUS_NULL_POINTER (opts NULL) or
 /// DS_STATUS_BAD_ARGUMENT (size is not the size of a DsOptions of any version: 32,
-/// 40, 64, 72 or 80; opts misaligned); nothing is written on error.
+/// 40, 64, 72, 80 or 88; opts misaligned); nothing is written on error.
 ///
 /// # Safety
 /// `opts` must be NULL or point to `size` writable bytes.
@@ -354,8 +373,9 @@ mod tests {
         use std::mem::{offset_of, size_of};
         assert_eq!(size_of::<V01>(), V01_SIZE);
         assert_eq!(size_of::<V02>(), V02_SIZE);
-        assert_eq!(SIZE, 80);
+        assert_eq!(SIZE, 88);
         assert_eq!(offset_of!(DsOptions, max_memory), V04_SIZE);
+        assert_eq!(offset_of!(DsOptions, host_loop), V05_SIZE);
         assert_eq!(offset_of!(V01, tol), offset_of!(DsOptions, tol));
         assert_eq!(offset_of!(V01, max_inner), offset_of!(DsOptions, max_inner));
         assert_eq!(offset_of!(V02, dual_form), offset_of!(DsOptions, dual_form));
@@ -578,6 +598,7 @@ mod tests {
             ),
             (DsOptions { threads: 5000, ..o }, "opts.threads = 5000"),
             (DsOptions { ordering: 3, ..o }, "opts.ordering = dense"),
+            (DsOptions { host_loop: 2, ..o }, "opts.host_loop = 2"),
         ];
         for (bad, text) in cases {
             // SAFETY: bad is a valid DsOptions.

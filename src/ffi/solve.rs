@@ -310,7 +310,9 @@ pub unsafe extern "C" fn ds_step(
 /// on the slip of the WHOLE load increment: the slip the earlier iterations
 /// took plus this one's, s_j + T du.
 ///
-/// The host's loop, per load increment from the converged u_n:
+/// The host's loop, on a handle made with DsOptions.host_loop = 1 (AUTO then
+/// takes the route whose refactor is cheapest), per load increment from the
+/// converged u_n:
 ///
 /// 1. u_0 = u_n (j = 0).
 /// 2. Assemble the tangent K_t(u_j), the residual r_j = f_ext - f_int(u_j)
