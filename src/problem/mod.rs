@@ -89,6 +89,8 @@ struct KeptBlocks {
     k_values: Vec<f64>,
     /// Refactors since they were computed (at least 1).
     refactors: usize,
+    /// The bytes of `k_values` on the factor's ledger.
+    _claim: memory::Claim,
 }
 
 /// What one [`ContactProblem::refactor`] cost, in seconds of wall clock.
@@ -623,7 +625,7 @@ impl ContactProblem {
             .and_then(|single| self.weigh_kept_blocks(how, (&fresh, single), old_k, &k));
         let weighed = Instant::now();
         let (blocks, kept) = match kept {
-            Some((blocks, values, drift)) => (Some(blocks), Some((values, drift))),
+            Some((blocks, drift)) => (Some(blocks), Some(drift)),
             None => (None, None),
         };
         let mut dual = form_dual(
@@ -639,19 +641,28 @@ impl ContactProblem {
             factor_seconds: (factored - start).as_secs_f64(),
             drift_seconds: (weighed - copied).as_secs_f64(),
             dual_seconds: (copied - factored).as_secs_f64() + weighed.elapsed().as_secs_f64(),
-            drift_solves: kept.as_ref().map_or(0, |(_, d)| d.solves),
+            drift_solves: kept.map_or(0, |d| d.solves),
             blocks_kept: kept.is_some(),
         };
-        match kept {
-            Some((values, drift)) => {
+        self.kept_blocks = match (kept, self.kept_blocks.take()) {
+            (Some(drift), before) => {
                 dual.set_err_factor(drift.err_factor());
-                self.kept_blocks = Some(KeptBlocks {
-                    k_values: values,
-                    refactors: self.kept_blocks.as_ref().map_or(0, |b| b.refactors) + 1,
-                });
+                // The K the blocks were computed on: the one replaced, or
+                // the one an earlier refactor kept them from.
+                Some(match before {
+                    Some(kept) => KeptBlocks {
+                        refactors: kept.refactors + 1,
+                        ..kept
+                    },
+                    None => KeptBlocks {
+                        _claim: fresh.ledger().claim_f64(old_k.values.len()),
+                        k_values: old_k.values.clone(),
+                        refactors: 1,
+                    },
+                })
             }
-            None => self.kept_blocks = None,
-        }
+            (None, _) => None,
+        };
         self.dual = dual;
         self.stiff = Stiffness::Own { k, factor: fresh };
         self.history.forget_loads();
@@ -664,15 +675,15 @@ impl ContactProblem {
     /// replaces) keeps the matrix-free dual's contact blocks: where the dual
     /// stays matrix-free on the library's own factor and the blocks' drift
     /// from the K they were computed on (`drift.rs`) bounds err's growth by
-    /// at most [`KEEP_BLOCKS_MAX_ERR_FACTOR`]: the blocks, that K's values
-    /// and the drift. None: the blocks are computed afresh.
+    /// at most [`KEEP_BLOCKS_MAX_ERR_FACTOR`]: the blocks and the drift. None:
+    /// the blocks are computed afresh.
     fn weigh_kept_blocks(
         &self,
         how: Condensation,
         (fresh, single): (&Factor, &[f32]),
         old_k: &Csc,
         k: &Csc,
-    ) -> Option<(Vec<f64>, Vec<f64>, crate::drift::Drift)> {
+    ) -> Option<(Vec<f64>, crate::drift::Drift)> {
         if how != Condensation::MatrixFree || !self.dual.is_matrix_free() {
             return None;
         }
@@ -685,8 +696,7 @@ impl ContactProblem {
             None => &old_k.values,
         };
         let drift = crate::drift::drift(fresh, single, k, values, KEEP_BLOCKS_MAX_ERR_FACTOR);
-        (drift.err_factor() <= KEEP_BLOCKS_MAX_ERR_FACTOR)
-            .then(|| (blocks.to_vec(), values.clone(), drift))
+        (drift.err_factor() <= KEEP_BLOCKS_MAX_ERR_FACTOR).then(|| (blocks.to_vec(), drift))
     }
 
     /// Replaces N and T (m may change) without refactoring K; rebuilds the condensed
