@@ -760,7 +760,8 @@ typedef struct DsOptions {
    1 when the handle serves a host's Newton loop (ds_problem_refactor
    before nearly every ds_solve_iteration, docs/design.md section 9), 0
    (default) otherwise. DS_DUAL_FORM_AUTO then creates a 3D problem
-   matrix-free where the method runs matrix-free and it fits max_memory:
+   matrix-free where the method runs matrix-free (the dense route is not
+   weighed):
    its refactor is the plain numeric factor with the contact blocks
    kept, where the dense route's orders the contact DOFs last (2.2-2.8
    times the plain factor on a 40 x 40 x 20 block) and condenses again.
@@ -884,8 +885,9 @@ typedef struct DsInfo {
   /*
    The factor err (DsReport.err) is multiplied by so that it bounds err
    on the current K's contact blocks: 1 where blocks_age is 0, at most
-   1.5 else (rho comes from the kept blocks; their estimated drift
-   bounds how far it lies from the current K's). Added in version 0.10.
+   1.5 else (rho comes from the kept blocks; their drift, estimated by
+   Lanczos steps and not certified, bounds how far it lies from the
+   current K's). Added in version 0.10.
    */
   double err_factor;
 } DsInfo;
@@ -968,7 +970,9 @@ typedef struct DsReport {
   /*
    Relative KKT error |r| / max(|lambda|, |b+| / trace(A)) of the natural map
    with rho_i = d / trace(A_ii) (dimensionless, invariant under scaling K and f;
-   b+ = b with the negative parts of b_N cut). Infinite when no u satisfies
+   b+ = b with the negative parts of b_N cut), multiplied by
+   DsInfo.err_factor after a ds_problem_refactor that kept the contact
+   blocks. Infinite when no u satisfies
    N u <= g (a penetrating contact without rows in N and T, or an unbounded
    dual found by the MPRGP methods); the status is then
    DS_STATUS_NOT_CONVERGED.
@@ -1294,10 +1298,11 @@ void ds_problem_free(struct DsProblem *problem);
 
  A matrix-free dual keeps the contacts' diagonal blocks of the K they were
  computed on (they cost 0.7-1.4 factorisations to compute afresh) where a
- few Lanczos steps (4 to 8 single-precision solves with the new K) estimate that they drifted
- so little that err, with rho from them, is at most 1.5 times err on the
- new K's own blocks; err is then reported multiplied by that factor
- (DsInfo.err_factor), so that it bounds the err of the new K, and
+ few Lanczos steps (at most 8 single-precision solves with the new K)
+ estimate that they drifted so little that err, with rho from them, is at
+ most 1.5 times err on the new K's own blocks; err is then reported
+ multiplied by that estimated factor (DsInfo.err_factor), so that it
+ bounds the err of the new K as far as the estimate holds, and
  DsInfo.blocks_age counts the refactors since the blocks were computed.
  Otherwise they are computed afresh (docs/design.md section 9).
 

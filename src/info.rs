@@ -62,11 +62,13 @@ pub struct Info {
     /// Refactors since the matrix-free dual's contact blocks were computed:
     /// 0 where they are the current K's (always on a dense dual and for an
     /// analysis), k where [`crate::ContactProblem::refactor`] kept those of
-    /// the K k refactors back, their drift bounded (docs/design.md section 9).
+    /// the K k refactors back, their drift small by an estimate
+    /// (docs/design.md section 9).
     pub blocks_age: usize,
     /// The factor err is multiplied by so that it bounds err on the current
-    /// K's contact blocks (>= 1; 1 where `blocks_age` is 0): rho comes from
-    /// the kept blocks, and their drift bounds how far it lies from the
-    /// current K's.
+    /// K's contact blocks (>= 1, at most 1.5; 1 where `blocks_age` is 0): rho
+    /// comes from the kept blocks, and the estimate of their drift bounds how
+    /// far it lies from the current K's (an estimate by Lanczos steps, not a
+    /// certified bound).
     pub err_factor: f64,
 }

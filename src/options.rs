@@ -248,7 +248,7 @@ pub struct Options {
     /// every solve (`ContactProblem::refactor`, then `solve_iteration`;
     /// docs/design.md section 9). `DualForm::Auto` then takes the
     /// matrix-free route on 3D problems where the method runs matrix-free
-    /// (and it fits `max_memory`): its refactor is the plain numeric factor
+    /// (the dense route is not weighed): its refactor is the plain numeric factor
     /// with the contact blocks kept, where the dense route's orders the
     /// contact DOFs last (2.2-2.8 times the plain factor on a 40 x 40 x 20
     /// block) and condenses again. Default false. Read by

@@ -335,9 +335,11 @@ fn ds_options_host_loop_reaches_the_route() {
     assert_eq!(st, DsStatus::Ok);
     assert_eq!(info.setup_form, DsDualForm::MatrixFree as i32);
     o.host_loop = 2;
+    let before = info;
     // SAFETY: as above.
     let st = unsafe { ds_analyse(3, &kd, &nd, &td, &o, &mut info) };
     assert_eq!(st, DsStatus::BadArgument);
+    assert_eq!(info, before, "info written on error");
     // SAFETY: the message is a NUL-terminated string the library owns.
     let msg = unsafe { std::ffi::CStr::from_ptr(ds_last_error_message()) }
         .to_string_lossy()

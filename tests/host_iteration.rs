@@ -709,6 +709,12 @@ fn ds_solve_iteration_through_c() {
 /// from the dense A = B K^-1 B^T and b = B K^-1 f - [g; 0] (an independent
 /// condensation by dense LU).
 fn exact_err(sc: &Scene, k: &Csc, sol: &Solution, mu: &[f64]) -> f64 {
+    exact_err_scaled(sc, k, sol, mu, 1.0)
+}
+
+/// [`exact_err`] with rho_i multiplied by `s` (the rho of the blocks of
+/// K / s, whose trace is K's over s).
+fn exact_err_scaled(sc: &Scene, k: &Csc, sol: &Solution, mu: &[f64], s: f64) -> f64 {
     let (d, m) = (sc.d, sc.m());
     let c = d * m;
     let rows: Vec<Vec<f64>> = (0..c)
@@ -733,7 +739,7 @@ fn exact_err(sc: &Scene, k: &Csc, sol: &Solution, mu: &[f64]) -> f64 {
     let rho: Vec<f64> = (0..m)
         .map(|i| {
             let tr = diag[i] + (0..d - 1).map(|s| diag[m + (d - 1) * i + s]).sum::<f64>();
-            d as f64 / tr
+            s * d as f64 / tr
         })
         .collect();
     let mut b = b_of(&common::dense_solve(k, &sc.f));
@@ -756,7 +762,7 @@ fn exact_err(sc: &Scene, k: &Csc, sol: &Solution, mu: &[f64]) -> f64 {
 /// K are 1.2 times K_0's and err's factor is 1.2 (one Lanczos step, to the
 /// single-precision solves' rounding); the solution is the fresh handle's,
 /// and the reported err bounds err on K's own blocks. Onto 1.1 K the drift is still measured from K_0 (factor
-/// 1.2 / 1.1, age 2); onto 3 K (factor 3) the blocks are computed afresh, and
+/// 1.2 / 1.1, age 2); onto 3 K (factor 2.5) the blocks are computed afresh, and
 /// new contacts start afresh too.
 #[test]
 fn a_refactor_keeps_the_contact_blocks_while_they_drift_little() {
@@ -793,6 +799,15 @@ fn a_refactor_keeps_the_contact_blocks_while_they_drift_little() {
     assert_close("lambda_N", &got.lambda_n, &want.lambda_n, 1e-7, scale);
     assert_close("lambda_T", &got.lambda_t, &want.lambda_t, 1e-7, scale);
     let exact = exact_err(&sc, &sc.k, &got, &mu);
+    // The reported err is err_factor times err with K_0's blocks (rho 1.2
+    // times K's): the factor is applied.
+    let with_kept = exact_err_scaled(&sc, &sc.k, &got, &mu, 1.2);
+    assert!(
+        (got.report.err - info.err_factor * with_kept).abs() <= 1e-6 * got.report.err,
+        "reported err {:.6e} against {} x {with_kept:.6e}",
+        got.report.err,
+        info.err_factor
+    );
     // The dense condensation reproduces the fresh handle's own err.
     let of_fresh = exact_err(&sc, &sc.k, &want, &mu);
     assert!(
@@ -815,7 +830,8 @@ fn a_refactor_keeps_the_contact_blocks_while_they_drift_little() {
         "{}",
         info.err_factor
     );
-    // Onto 3 K: beyond the bound, computed afresh.
+    // Onto 3 K (from K_0 = 1.2 K: mu = 0.6, factor 2.5): beyond the bound,
+    // computed afresh.
     pb.refactor(&scaled(&sc.k, 3.0).view())
         .expect("refactor onto 3 K");
     let cost = pb.last_refactor();

@@ -82,8 +82,9 @@ pub struct DsInfo {
     pub blocks_age: i64,
     /// The factor err (DsReport.err) is multiplied by so that it bounds err
     /// on the current K's contact blocks: 1 where blocks_age is 0, at most
-    /// 1.5 else (rho comes from the kept blocks; their estimated drift
-    /// bounds how far it lies from the current K's). Added in version 0.10.
+    /// 1.5 else (rho comes from the kept blocks; their drift, estimated by
+    /// Lanczos steps and not certified, bounds how far it lies from the
+    /// current K's). Added in version 0.10.
     pub err_factor: f64,
 }
 

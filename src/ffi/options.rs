@@ -101,7 +101,8 @@ pub struct DsOptions {
     /// 1 when the handle serves a host's Newton loop (ds_problem_refactor
     /// before nearly every ds_solve_iteration, docs/design.md section 9), 0
     /// (default) otherwise. DS_DUAL_FORM_AUTO then creates a 3D problem
-    /// matrix-free where the method runs matrix-free and it fits max_memory:
+    /// matrix-free where the method runs matrix-free (the dense route is not
+    /// weighed):
     /// its refactor is the plain numeric factor with the contact blocks
     /// kept, where the dense route's orders the contact DOFs last (2.2-2.8
     /// times the plain factor on a 40 x 40 x 20 block) and condenses again.

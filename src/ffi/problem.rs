@@ -264,10 +264,11 @@ pub unsafe extern "C" fn ds_problem_free(problem: *mut DsProblem) {
 ///
 /// A matrix-free dual keeps the contacts' diagonal blocks of the K they were
 /// computed on (they cost 0.7-1.4 factorisations to compute afresh) where a
-/// few Lanczos steps (4 to 8 single-precision solves with the new K) estimate that they drifted
-/// so little that err, with rho from them, is at most 1.5 times err on the
-/// new K's own blocks; err is then reported multiplied by that factor
-/// (DsInfo.err_factor), so that it bounds the err of the new K, and
+/// few Lanczos steps (at most 8 single-precision solves with the new K)
+/// estimate that they drifted so little that err, with rho from them, is at
+/// most 1.5 times err on the new K's own blocks; err is then reported
+/// multiplied by that estimated factor (DsInfo.err_factor), so that it
+/// bounds the err of the new K as far as the estimate holds, and
 /// DsInfo.blocks_age counts the refactors since the blocks were computed.
 /// Otherwise they are computed afresh (docs/design.md section 9).
 ///

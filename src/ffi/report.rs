@@ -29,7 +29,9 @@ pub struct DsReport {
     pub method: i32,
     /// Relative KKT error |r| / max(|lambda|, |b+| / trace(A)) of the natural map
     /// with rho_i = d / trace(A_ii) (dimensionless, invariant under scaling K and f;
-    /// b+ = b with the negative parts of b_N cut). Infinite when no u satisfies
+    /// b+ = b with the negative parts of b_N cut), multiplied by
+    /// DsInfo.err_factor after a ds_problem_refactor that kept the contact
+    /// blocks. Infinite when no u satisfies
     /// N u <= g (a penetrating contact without rows in N and T, or an unbounded
     /// dual found by the MPRGP methods); the status is then
     /// DS_STATUS_NOT_CONVERGED.
