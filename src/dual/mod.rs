@@ -360,6 +360,15 @@ impl Dual {
         self.err_factor = factor;
     }
 
+    /// err (docs/design.md section 5) of the multipliers `lam` with the
+    /// constraint values `v`, the scale `rho` (this dual's, or one derived
+    /// from it), the linear term `b` and the slip bounds `p`, multiplied by
+    /// the factor of kept contact blocks (see the field `err_factor`): every
+    /// err a solve reports or stops on is taken here.
+    pub(crate) fn error(&self, lam: &[f64], v: &[f64], rho: &[f64], b: &[f64], p: &[f64]) -> f64 {
+        self.err_factor * crate::report::natural_map_error(lam, v, rho, b, p, self.d)
+    }
+
     /// The estimate of |A + D|_2 an earlier MPRGP run kept
     /// ([`Dual::keep_whole_norm`]), if any.
     pub(crate) fn whole_norm(&self) -> Option<f64> {

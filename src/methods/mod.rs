@@ -33,7 +33,6 @@ use crate::dual::Dual;
 use crate::friction::Friction;
 
 use crate::options::{Method, Options};
-use crate::report::natural_map_error;
 use driver::OuterStep;
 use std::cell::RefCell;
 use std::time::Instant;
@@ -99,7 +98,7 @@ impl DualProblem<'_> {
         for (vi, wi) in v.iter_mut().zip(w) {
             *vi = -wi;
         }
-        self.dual.err_factor * natural_map_error(lam, v, &self.dual.rho, self.b, p, self.dual.d)
+        self.dual.error(lam, v, &self.dual.rho, self.b, p)
     }
 }
 

@@ -17,7 +17,7 @@ use crate::methods::{self, DualProblem, End, Monitor, Progress};
 use crate::options::{DualForm, Method, Options};
 use crate::plan;
 use crate::report::Report;
-use crate::report::{SolveStatus, contact_states, natural_map_error};
+use crate::report::{SolveStatus, contact_states};
 use crate::sizes::Sizes;
 use crate::sparse::{Csc, MatrixView};
 use std::sync::Arc;
@@ -570,7 +570,7 @@ impl ContactProblem {
     ///
     /// Errors: those of `new`, and `BadArgument` if the pattern differs.
     pub fn refactor(&mut self, k: &MatrixView<'_>) -> Result<()> {
-        let Stiffness::Own { factor, .. } = &self.stiff else {
+        let Stiffness::Own { factor, k: old_k } = &self.stiff else {
             return fail(
                 ErrorKind::BadArgument,
                 "this problem solves with the host's solver of K: refactor K on the \
@@ -578,9 +578,6 @@ impl ContactProblem {
             );
         };
         let factor = factor.clone();
-        let Stiffness::Own { k: old_k, .. } = &self.stiff else {
-            unreachable!("matched above")
-        };
         // A host's COO tangent on the pattern the handle holds is placed
         // triplet by triplet; anything else is converted in full.
         let k = match old_k.refill_symmetric(k) {
@@ -610,9 +607,6 @@ impl ContactProblem {
         let factored = Instant::now();
         let how = Dual::condensation_for(&fresh, &self.n, &self.t, self.d, self.current_form());
         let shift = self.compliance.shift(self.d);
-        let Stiffness::Own { k: old_k, .. } = &self.stiff else {
-            unreachable!("matched above")
-        };
         // A matrix-free dual's single-precision copy of the factor, made
         // first: the drift's solves run on it.
         let single = match how {
@@ -684,9 +678,10 @@ impl ContactProblem {
         old_k: &Csc,
         k: &Csc,
     ) -> Option<(Vec<f64>, crate::drift::Drift)> {
-        if how != Condensation::MatrixFree || !self.dual.is_matrix_free() {
+        if how != Condensation::MatrixFree {
             return None;
         }
+        // None unless the dual held is matrix-free on the library's factor.
         let blocks = self.dual.own_blocks()?;
         if old_k.col_ptr != k.col_ptr || old_k.row_idx != k.row_idx {
             return None;

@@ -474,7 +474,7 @@ impl ContactProblem {
                 };
             }
             law_rho = self.dual.rho_rigid_at(&nonlinear);
-            err = self.dual.err_factor * natural_map_error(lam, &v, &law_rho, &b, &p, self.d);
+            err = self.dual.error(lam, &v, &law_rho, &b, &p);
             if end != End::Converged {
                 break;
             }
@@ -632,7 +632,7 @@ impl ContactProblem {
             v[i] -= offset[i];
         }
         friction.bounds(&lam[..m], out.p);
-        Ok(self.dual.err_factor * natural_map_error(lam, v, &self.dual.rho, b, out.p, self.d))
+        Ok(self.dual.error(lam, v, &self.dual.rho, b, out.p))
     }
 
     /// Puts the tangent of the nonlinear normal laws (`nonlinear`) at the
