@@ -275,7 +275,10 @@ mod tests {
         let its = gmres(&mut op, &rhs, &mut pre, 1e-12, 100, &mut z).unwrap();
         assert_eq!((its, calls.get()), (3, 3));
         for i in 0..k {
-            assert!((z[i] - rhs[i] / eig(i)).abs() <= 1e-12 * rhs[i].abs(), "{i}");
+            assert!(
+                (z[i] - rhs[i] / eig(i)).abs() <= 1e-12 * rhs[i].abs(),
+                "{i}"
+            );
         }
     }
 }
