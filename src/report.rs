@@ -54,9 +54,9 @@ pub struct Report {
     pub choice: String,
     /// |r| / max(|lambda|, |b+| / trace(A)), the natural-map error of
     /// docs/design.md section 5 (dimensionless), multiplied by
-    /// `Info::err_factor` after a refactor that kept the contact blocks. Infinite when the contact constraints
-    /// admit no displacement (no u with N u <= g): a penetrating contact without
-    /// rows in N and T, or, for SplitMprgp and Mprgp, a dual unbounded below (a
+    /// `Info::err_factor` after a refactor that kept the contact blocks.
+    /// Infinite when the contact constraints admit no displacement (no u
+    /// with N u <= g): a penetrating contact without rows in N and T, or, for SplitMprgp and Mprgp, a dual unbounded below (a
     /// combination z >= 0 of normal rows with N^T z = 0 and g . z < 0, e.g. two
     /// opposite normals on one DOF with gaps that overlap). The other methods do not
     /// detect the latter: they end `Stalled` (their multipliers grow along the

@@ -565,8 +565,9 @@ impl ContactProblem {
     /// (those of the K they were computed on) where their drift, the spectrum
     /// of K^-1 (K - K_then) estimated by at most 8 Lanczos steps
     /// (`drift.rs`), bounds err's growth by at most 1.5 (an estimate, not a
-    /// certified bound): err is then multiplied by that estimated bound ([`Info::err_factor`], [`Info::blocks_age`]); else they are
-    /// computed afresh.
+    /// certified bound): err is then multiplied by that estimated bound
+    /// ([`Info::err_factor`], [`Info::blocks_age`]); else they are computed
+    /// afresh.
     ///
     /// Errors: those of `new`, and `BadArgument` if the pattern differs.
     pub fn refactor(&mut self, k: &MatrixView<'_>) -> Result<()> {
