@@ -52,6 +52,10 @@ impl ContactProblem {
     /// of m). They are kept only when this one converges. The history of
     /// [`ContactProblem::step`] is neither used nor changed.
     ///
+    /// `opts.tol` may follow the host's residual, loose in the early
+    /// iterations and `tol` in the last (an inexact Newton step; docs/design.md
+    /// section 9).
+    ///
     /// Errors: as [`ContactProblem::solve`], and `BadSize` / `NotFinite` for
     /// `slip` and `lt_start` (named slip and lambda_t_start in the message, as
     /// in C). Non-convergence is `report.status`.
