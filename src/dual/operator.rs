@@ -209,13 +209,15 @@ impl Operator {
         d: usize,
         made: Made,
     ) -> Result<Operator> {
-        let blocks = match made.blocks {
-            Some(blocks) if blocks.len() == m * d * d => blocks,
-            _ => crate::factor_tree::contact_blocks::contact_blocks(factor, b, m, d),
-        };
         let single = match made.single {
             Some(single) if single.len() == factor.values().len() => single,
             _ => factor.single_values()?,
+        };
+        let blocks = match made.blocks {
+            Some(blocks) if blocks.len() == m * d * d => blocks,
+            _ => {
+                crate::factor_tree::contact_blocks::contact_blocks_single(factor, b, m, d, &single)
+            }
         };
         let own = OwnSolves::of(factor, b);
         let what = "the matrix-free dual's work space";

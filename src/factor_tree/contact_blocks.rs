@@ -19,9 +19,14 @@
 //!   every top separator in full), and the only way for contacts whose DOFs are
 //!   off the pattern.
 //!
-//! On the slab (3d-64x64x6, c = 12,675) the forward solves need 3.5 x
+//! On the benchmark's slab (3d-64x64x6, c = 12,675) the forward solves need 3.5 x
 //! the factorisation's flops (every contact's path crosses the top separators,
 //! w^2 per column there), the selected inversion 2.0 x.
+//!
+//! Where the factor's single-precision copy is at hand (the matrix-free dual
+//! makes it for its rough products) a selected inversion of at least
+//! SINGLE_MIN_FLOPS runs on it in single precision, checked against a sample
+//! of contacts solved forward in double precision ([`contact_blocks_single`]).
 //!
 //! The matrix-free dual needs these blocks for rho (the error measure,
 //! docs/design.md section 5), for the diagonal of A and for Newton's
@@ -120,6 +125,7 @@ impl<'a> Face<'a> {
         if route == Route::Forward {
             return Plan {
                 selection: None,
+                on: Vec::new(),
                 forward: order,
             };
         }
@@ -162,11 +168,13 @@ impl<'a> Face<'a> {
         if taken {
             Plan {
                 selection: Some(selection),
+                on,
                 forward: off,
             }
         } else {
             Plan {
                 selection: None,
+                on: Vec::new(),
                 forward: order,
             }
         }
@@ -206,6 +214,35 @@ impl<'a> Face<'a> {
 
     /// The blocks of the contacts `order` ((first supernode, contact) pairs sorted
     /// by supernode) by grouped sparse forward solves, written into `blocks`.
+    /// Whether blocks from a selected inversion in single precision
+    /// (`rough`, the upper triangles of the contacts of `on`) serve: every
+    /// diagonal entry of `on`'s blocks positive and finite, and the traces of
+    /// up to [`SAMPLE`] of them, spread over `on`, within [`SINGLE_TOL`] of
+    /// their forward solves in double precision.
+    fn confirms(&self, on: &[(usize, usize)], rough: &[f64]) -> bool {
+        let d = self.d;
+        let dd = d * d;
+        let trace =
+            |blocks: &[f64], i: usize| (0..d).map(|a| blocks[i * dd + a * d + a]).sum::<f64>();
+        let diagonal_ok = on.iter().all(|&(_, i)| {
+            (0..d).all(|a| {
+                let v = rough[i * dd + a * d + a];
+                v.is_finite() && v > 0.0
+            })
+        });
+        if !diagonal_ok {
+            return false;
+        }
+        let step = on.len().div_ceil(SAMPLE).max(1);
+        let sample: Vec<(usize, usize)> = on.iter().step_by(step).copied().collect();
+        let mut exact = vec![0.0; self.m * dd];
+        self.forward_blocks(&sample, &mut exact);
+        sample.iter().all(|&(_, i)| {
+            let want = trace(&exact, i);
+            (trace(rough, i) - want).abs() <= SINGLE_TOL * want.abs()
+        })
+    }
+
     fn forward_blocks(&self, order: &[(usize, usize)], blocks: &mut [f64]) {
         let (factor, d) = (self.factor, self.d);
         let ns = self.tree.len();
@@ -394,8 +431,51 @@ impl<'a> Face<'a> {
 /// `[i d^2 .. (i+1) d^2]`, row-major, its rows and columns contact i's rows of B
 /// (normal first). Contacts without entries in B get a zero block.
 pub(crate) fn contact_blocks(factor: &Factor, b: &Csc, m: usize, d: usize) -> Vec<f64> {
-    contact_blocks_by(factor, b, m, d, Route::Cheaper)
+    contact_blocks_by(factor, b, m, d, Route::Cheaper, None)
 }
+
+/// [`contact_blocks`] where the factor's values in single precision are at
+/// hand (`single`: [`Factor::single_values`]): a selected inversion of at
+/// least [`SINGLE_MIN_FLOPS`] runs in single precision, about half the time
+/// (3d-64x64x6: 2.18 s -> 1.18 s, against 2.2 s for the factorisation), its
+/// blocks within about 2e-7 of the double-precision ones there (relative, per
+/// trace). Kept only where a sample of [`SAMPLE`] contacts' blocks, solved
+/// in double precision by forward solves, agrees within [`SINGLE_TOL`]
+/// (relative, per trace) and every block's diagonal is positive and finite;
+/// else the selected inversion runs again in double precision. The blocks
+/// serve as rho (an error of 1e-5 moves err by as little: the natural map's
+/// residual is non-decreasing in rho and no more than linear in it), as the
+/// diagonal of A and in Newton's preconditioner.
+pub(crate) fn contact_blocks_single(
+    factor: &Factor,
+    b: &Csc,
+    m: usize,
+    d: usize,
+    single: &[f32],
+) -> Vec<f64> {
+    contact_blocks_by(
+        factor,
+        b,
+        m,
+        d,
+        Route::Cheaper,
+        Some((single, SINGLE_MIN_FLOPS)),
+    )
+}
+
+/// Selected inversions of fewer flops stay in double precision (below it the
+/// saving was not measurable: 3d-24x24x4; from 3d-32x32x4, 1.9e9 flops, the
+/// contact blocks' share of the creation fell from 0.74-0.81 to 0.59-0.61
+/// of a factorisation).
+pub(crate) const SINGLE_MIN_FLOPS: f64 = 1e9;
+
+/// Contacts whose blocks check a selected inversion in single precision.
+pub(crate) const SAMPLE: usize = 16;
+
+/// Largest relative difference of a sampled trace, single against double
+/// precision, for which the single-precision blocks are kept (50 x what the
+/// slabs of the benchmark show).
+pub(crate) const SINGLE_TOL: f64 = 1e-5;
 
 /// How the blocks of the contacts on the factor's pattern are computed.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -410,12 +490,15 @@ pub(crate) enum Route {
 
 /// [`contact_blocks`] by the given route (contacts off the pattern always by
 /// forward solves).
+/// `single`: the factor's values in single precision and the flops from
+/// which the selected inversion runs on them (see [`contact_blocks_single`]).
 pub(crate) fn contact_blocks_by(
     factor: &Factor,
     b: &Csc,
     m: usize,
     d: usize,
     route: Route,
+    single: Option<(&[f32], f64)>,
 ) -> Vec<f64> {
     if factor.is_dense() {
         return dense_blocks(factor, b, m, d);
@@ -425,7 +508,17 @@ pub(crate) fn contact_blocks_by(
     let dd = d * d;
     let mut blocks = match &plan.selection {
         Some(sel) => {
-            let mut upper = sel.sums(factor, &face.tree, m * dd);
+            let rough = match single {
+                Some((values, min_flops)) if sel.flops() >= min_flops => {
+                    let rough = sel.sums_single(factor, values, &face.tree, m * dd);
+                    face.confirms(&plan.on, &rough).then_some(rough)
+                }
+                _ => None,
+            };
+            let mut upper = match rough {
+                Some(rough) => rough,
+                None => sel.sums(factor, &face.tree, m * dd),
+            };
             for i in 0..m {
                 for a in 0..d {
                     for e in 0..a {
@@ -447,6 +540,9 @@ struct Plan {
     /// pattern, when it is taken: the terms of entry (a, e), a <= e, of contact
     /// i go to slot i d^2 + a d + e.
     selection: Option<Selection>,
+    /// The contacts of the selection, as (first supernode, contact) pairs in
+    /// the order of `forward`.
+    on: Vec<(usize, usize)>,
     /// The contacts solved forward, as (first supernode, contact) pairs sorted
     /// by their first (deepest) supernode: the order they are solved in.
     forward: Vec<(usize, usize)>,
@@ -530,7 +626,7 @@ mod tests {
     fn check_blocks(f: &Factor, b: &Csc, m: usize, d: usize, route: Route, what: &str) {
         let c = b.nrows;
         let dense = dense_a(f, b);
-        let blocks = contact_blocks_by(f, b, m, d, route);
+        let blocks = contact_blocks_by(f, b, m, d, route, None);
         for i in 0..m {
             let rows: Vec<usize> = rows_of(i, m, d).collect();
             for a in 0..d {
@@ -589,7 +685,7 @@ mod tests {
                 for route in [Route::Cheaper, Route::Forward, Route::Selected] {
                     check_blocks(&f, &b, m, d, route, &format!("d {d} {ordering:?}"));
                     // The last contact has no entries: a zero block.
-                    let blocks = contact_blocks_by(&f, &b, m, d, route);
+                    let blocks = contact_blocks_by(&f, &b, m, d, route, None);
                     assert!(blocks[(m - 1) * d * d..].iter().all(|&v| v == 0.0));
                 }
                 let on = selected(&f, &b, m, d, Route::Selected);
@@ -649,6 +745,67 @@ mod tests {
                 check_blocks(&f, &b, m, d, route, &format!("{ordering:?}"));
             }
             assert_eq!(selected(&f, &b, m, d, Route::Selected), m);
+        }
+    }
+
+    /// The selected inversion in single precision (forced here: the grid is
+    /// below SINGLE_MIN_FLOPS): within SINGLE_TOL of the dense A, and not the
+    /// double-precision route's result (it ran); on a factor copy that is not
+    /// the factor's (its values 0.1 % larger: K^-1 0.2 % smaller) the sampled
+    /// check refuses it, and the double-precision route's blocks come back
+    /// exactly.
+    #[test]
+    fn single_precision_blocks_are_checked_against_double_solves() {
+        let (nx, ny, d) = (40, 30, 2);
+        let k = grid(nx, ny);
+        let n = nx * ny;
+        // Contacts on the bottom row (normal on the node, tangent towards its
+        // right neighbour): all on the factor's pattern.
+        let m = nx - 1;
+        let (mut nt, mut tt) = (Vec::new(), Vec::new());
+        for i in 0..m {
+            nt.push((i, i, -1.0));
+            tt.push((i, i, 1.0));
+            tt.push((i, i + 1, 0.5));
+        }
+        let b = stack_rows(
+            &Csc::from_triplets(m, n, &nt),
+            &Csc::from_triplets(m, n, &tt),
+        );
+        for (ordering, threads) in [(Ordering::Amd, 1), (Ordering::Metis, 2)] {
+            let f = Factor::with_last(&k, &[], ordering, Arc::new(Threads::new(threads))).unwrap();
+            assert_eq!(selected(&f, &b, m, d, Route::Selected), m);
+            let exact = contact_blocks_by(&f, &b, m, d, Route::Selected, None);
+            let single = f.single_values().unwrap();
+            let rough = contact_blocks_by(&f, &b, m, d, Route::Selected, Some((&single, 0.0)));
+            assert_ne!(
+                rough, exact,
+                "{ordering:?}: the single-precision route did not run"
+            );
+            let dense = dense_a(&f, &b);
+            let c = b.nrows;
+            for i in 0..m {
+                let rows: Vec<usize> = rows_of(i, m, d).collect();
+                let scale = (0..d)
+                    .map(|a| dense[rows[a] + rows[a] * c])
+                    .fold(0.0, f64::max);
+                for a in 0..d {
+                    for e in 0..d {
+                        let want = dense[rows[a] + rows[e] * c];
+                        let got = rough[i * d * d + a * d + e];
+                        assert!(
+                            (got - want).abs() <= SINGLE_TOL * scale,
+                            "{ordering:?} contact {i} ({a},{e}): {got} vs {want}"
+                        );
+                    }
+                }
+            }
+            let off: Vec<f32> = single.iter().map(|v| v * 1.001).collect();
+            let refused = contact_blocks_by(&f, &b, m, d, Route::Selected, Some((&off, 0.0)));
+            assert_eq!(refused, exact, "{ordering:?}: a wrong copy was not refused");
+            // Below the threshold the route stays in double precision.
+            let small = contact_blocks_by(&f, &b, m, d, Route::Selected, Some((&single, 1e30)));
+            assert_eq!(small, exact);
         }
     }
 }
