@@ -1585,8 +1585,8 @@ enum DsStatus ds_step(struct DsProblem *problem,
     |R_j| the out-of-balance force of step 5 relative to the host's force
     scale, keeps the loop's quadratic convergence and lets the last
     iterations solve to tol. In c_examples/hyperelastic_host.c this
-    costs no host iteration and cuts the Newton steps of the contact
-    solves by about 30 %.
+    costs no host iteration and cuts the contact solves' Krylov products
+    by 40-45 % and their time by 30-36 %.
  5. u_j+1 = u_j + du; stop when |du| and the residual
     |r_j+1 - N^T lambda_N - T^T lambda_T| are small, else j += 1 and go to 2.
 

@@ -60,9 +60,11 @@ impl Sizes {
             ),
             // The contacts' diagonal blocks (d c doubles at most) and, while
             // they are formed, what their selected inversion or forward solves
-            // work in on all threads (`blocks_work`); then one product's
-            // n-vector and solve workspace in double and single precision, L's
-            // values in single precision (the rough products), the lumped
+            // work in on all threads (`blocks_work`), beside all that is held
+            // after: one product's n-vector and solve workspace in double
+            // and single precision, L's values in single precision (the rough
+            // products; made first, the selected inversion may run on them),
+            // the lumped
             // preconditioner G = B K B^T and the layered Dirichlet one, and the
             // tree solves with their scratch (where they are taken).
             Condensation::MatrixFree => {

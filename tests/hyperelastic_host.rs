@@ -58,11 +58,13 @@ struct Iteration {
     states: (usize, usize, usize),
 }
 
-/// One increment as printed: its iterations and the residual it converged at.
+/// One increment as printed: its iterations, the residual it converged at
+/// and the Krylov products (inner iterations) of its contact solves.
 #[derive(Debug, Default)]
 struct Printed {
     iterations: Vec<Iteration>,
     converged: Option<f64>,
+    inner: usize,
 }
 
 fn number_after<'a>(line: &'a str, key: &str) -> &'a str {
@@ -94,6 +96,8 @@ fn parse_stdout(out: &str) -> Vec<Printed> {
                 .map(|x| x.trim().parse().unwrap())
                 .collect();
             assert_eq!(v[0].to_string(), s);
+            let inner: usize = number_after(l, "outer,").parse().unwrap();
+            incs.last_mut().unwrap().inner += inner;
             incs.last_mut().unwrap().iterations.push(Iteration {
                 residual,
                 states: (v[0], v[1], v[2]),
@@ -292,6 +296,8 @@ struct Run {
     stuck: usize,
     slipping: usize,
     iterations: Vec<usize>,
+    /// Krylov products of all the contact solves.
+    inner: usize,
 }
 
 /// Runs the example with `args`, asserts the printed convergence and checks
@@ -438,13 +444,15 @@ fn check_run(name: &str, args: &[&str]) -> Run {
         stuck: stuck_when_pressed,
         slipping: slipping_at_the_end,
         iterations: printed.iter().map(|inc| inc.iterations.len()).collect(),
+        inner: printed.iter().map(|inc| inc.inner).sum(),
     }
 }
 
 /// The example's contact solves follow the host's residual by default (an
 /// inexact Newton step, docs/design.md section 9); `--exact-contact` solves
 /// each to the final tolerance. Both must land on the nonlinear solution,
-/// and the loose solves must cost no host iteration.
+/// and the loose solves must cost no host iteration and fewer Krylov
+/// products in all.
 fn check_both(name: &str, args: &[&str]) -> Run {
     let forced = check_run(name, args);
     let exact_name = format!("{name}_exact");
@@ -459,6 +467,13 @@ fn check_both(name: &str, args: &[&str]) -> Run {
             k + 1
         );
     }
+    assert!(
+        forced.inner < exact.inner,
+        "{name}: {} Krylov products with the forced contact tolerance, {} with every \
+         solve to tol",
+        forced.inner,
+        exact.inner
+    );
     forced
 }
 

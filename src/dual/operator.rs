@@ -213,6 +213,7 @@ impl Operator {
             Some(single) if single.len() == factor.values().len() => single,
             _ => factor.single_values()?,
         };
+        let single_claim = factor.ledger().claim(single.len() * 4);
         let blocks = match made.blocks {
             Some(blocks) if blocks.len() == m * d * d => blocks,
             _ => {
@@ -233,7 +234,7 @@ impl Operator {
                     try_zeros(factor.n(), what)?,
                     try_scratch(factor.solve_scratch(1), what)?,
                 )),
-                _single_claim: factor.ledger().claim(single.len() * 4),
+                _single_claim: single_claim,
                 own,
                 narrow: std::cell::RefCell::new(Narrow::default()),
                 single,

@@ -212,13 +212,15 @@ impl<'a> Face<'a> {
         total
     }
 
-    /// The blocks of the contacts `order` ((first supernode, contact) pairs sorted
-    /// by supernode) by grouped sparse forward solves, written into `blocks`.
     /// Whether blocks from a selected inversion in single precision
     /// (`rough`, the upper triangles of the contacts of `on`) serve: every
-    /// diagonal entry of `on`'s blocks positive and finite, and the traces of
-    /// up to [`SAMPLE`] of them, spread over `on`, within [`SINGLE_TOL`] of
-    /// their forward solves in double precision.
+    /// diagonal entry of `on`'s blocks finite and not negative, and the upper
+    /// triangles of a sample of them within [`SINGLE_TOL`] of their forward
+    /// solves in double precision (relative to the block's largest diagonal
+    /// entry). The sample: [`SAMPLE`] contacts spread over `on` (ordered by
+    /// supernode, so over the elimination tree's subtrees), and the contacts
+    /// with the smallest and the largest trace. A check of the sampled
+    /// contacts only: an error confined to a few unsampled contacts passes.
     fn confirms(&self, on: &[(usize, usize)], rough: &[f64]) -> bool {
         let d = self.d;
         let dd = d * d;
@@ -227,22 +229,38 @@ impl<'a> Face<'a> {
         let diagonal_ok = on.iter().all(|&(_, i)| {
             (0..d).all(|a| {
                 let v = rough[i * dd + a * d + a];
-                v.is_finite() && v > 0.0
+                v.is_finite() && v >= 0.0
             })
         });
-        if !diagonal_ok {
-            return false;
+        if !diagonal_ok || on.is_empty() {
+            return diagonal_ok;
         }
         let step = on.len().div_ceil(SAMPLE).max(1);
-        let sample: Vec<(usize, usize)> = on.iter().step_by(step).copied().collect();
+        let mut sample: Vec<(usize, usize)> = on.iter().step_by(step).copied().collect();
+        let by_trace = |a: &&(usize, usize), b: &&(usize, usize)| {
+            trace(rough, a.1).total_cmp(&trace(rough, b.1))
+        };
+        sample.extend(on.iter().min_by(by_trace));
+        sample.extend(on.iter().max_by(by_trace));
+        sample.sort_unstable();
+        sample.dedup();
         let mut exact = vec![0.0; self.m * dd];
         self.forward_blocks(&sample, &mut exact);
         sample.iter().all(|&(_, i)| {
-            let want = trace(&exact, i);
-            (trace(rough, i) - want).abs() <= SINGLE_TOL * want.abs()
+            let scale = (0..d)
+                .map(|a| exact[i * dd + a * d + a].abs())
+                .fold(0.0, f64::max);
+            (0..d).all(|a| {
+                (a..d).all(|e| {
+                    let at = i * dd + a * d + e;
+                    (rough[at] - exact[at]).abs() <= SINGLE_TOL * scale
+                })
+            })
         })
     }
 
+    /// The blocks of the contacts `order` ((first supernode, contact) pairs sorted
+    /// by supernode) by grouped sparse forward solves, written into `blocks`.
     fn forward_blocks(&self, order: &[(usize, usize)], blocks: &mut [f64]) {
         let (factor, d) = (self.factor, self.d);
         let ns = self.tree.len();
@@ -439,10 +457,10 @@ pub(crate) fn contact_blocks(factor: &Factor, b: &Csc, m: usize, d: usize) -> Ve
 /// least [`SINGLE_MIN_FLOPS`] runs in single precision, about half the time
 /// (3d-64x64x6: 2.18 s -> 1.18 s, against 2.2 s for the factorisation), its
 /// blocks within about 2e-7 of the double-precision ones there (relative, per
-/// trace). Kept only where a sample of [`SAMPLE`] contacts' blocks, solved
-/// in double precision by forward solves, agrees within [`SINGLE_TOL`]
-/// (relative, per trace) and every block's diagonal is positive and finite;
-/// else the selected inversion runs again in double precision. The blocks
+/// trace). Kept only where a sample of contacts' blocks, solved in double
+/// precision by forward solves, agrees within [`SINGLE_TOL`] (`Face::confirms`)
+/// and no diagonal entry is negative or not finite; else the selected
+/// inversion runs again in double precision. The blocks
 /// serve as rho (an error of 1e-5 moves err by as little: the natural map's
 /// residual is non-decreasing in rho and no more than linear in it), as the
 /// diagonal of A and in Newton's preconditioner.
@@ -465,16 +483,18 @@ pub(crate) fn contact_blocks_single(
 
 /// Selected inversions of fewer flops stay in double precision (below it the
 /// saving was not measurable: 3d-24x24x4; from 3d-32x32x4, 1.9e9 flops, the
-/// contact blocks' share of the creation fell from 0.74-0.81 to 0.59-0.61
-/// of a factorisation).
+/// creation's dual fell from 0.63-0.90 to 0.55-0.68 of a factorisation,
+/// BENCHMARKS.md).
 pub(crate) const SINGLE_MIN_FLOPS: f64 = 1e9;
 
-/// Contacts whose blocks check a selected inversion in single precision.
+/// Contacts spread over the face whose blocks check a selected inversion in
+/// single precision (with the contacts of the smallest and largest trace).
 pub(crate) const SAMPLE: usize = 16;
 
-/// Largest relative difference of a sampled trace, single against double
-/// precision, for which the single-precision blocks are kept (50 x what the
-/// slabs of the benchmark show).
+/// Largest difference of a sampled block's entry, single against double
+/// precision, relative to the block's largest diagonal entry, for which the
+/// single-precision blocks are kept (50 x what the slabs of the benchmark
+/// show per trace).
 pub(crate) const SINGLE_TOL: f64 = 1e-5;
 
 /// How the blocks of the contacts on the factor's pattern are computed.
@@ -803,6 +823,15 @@ mod tests {
             let off: Vec<f32> = single.iter().map(|v| v * 1.001).collect();
             let refused = contact_blocks_by(&f, &b, m, d, Route::Selected, Some((&off, 0.0)));
             assert_eq!(refused, exact, "{ordering:?}: a wrong copy was not refused");
+            // A NaN in one value of the copy (the last supernode's, which
+            // every contact's path crosses): refused by the diagonal check.
+            let mut nan = single.clone();
+            *nan.last_mut().unwrap() = f32::NAN;
+            let refused = contact_blocks_by(&f, &b, m, d, Route::Selected, Some((&nan, 0.0)));
+            assert_eq!(
+                refused, exact,
+                "{ordering:?}: a copy with a NaN was not refused"
+            );
             // Below the threshold the route stays in double precision.
             let small = contact_blocks_by(&f, &b, m, d, Route::Selected, Some((&single, 1e30)));
             assert_eq!(small, exact);

@@ -460,7 +460,9 @@ fn gather<'z, T: Real>(
 /// The precisions the recurrence runs in: f64, and f32 on the factor's
 /// single-precision copy ([`Selection::sums_single`]).
 pub(crate) trait Real: faer::traits::RealField + Copy + Send + Sync {
+    /// x rounded to this precision.
     fn of(x: f64) -> Self;
+    /// The value in double precision (exact).
     fn to_f64(self) -> f64;
 }
 
