@@ -25,7 +25,8 @@
 //! press, mu Coulomb's) in the direction DEG degrees off the x axis (off the
 //! T rows), instead of 0.5 delta along x; R above 1 is gross slip. `--gap G`
 //! scales the paraboloid gap by G (below 1: more of the face closes).
-//! `--trace K` prints step K's progress per outer iteration.
+//! `--trace K` prints step K's progress per outer iteration (`--trace 0`: the
+//! cold increment's).
 //! `--path reversal`: press then shear as `press-shear`, the last quarter of
 //! the steps taking the shear back to its negative.
 //!
@@ -222,7 +223,18 @@ fn main() {
             // +1), as a host's first increment that takes the full load.
             let full = stats::history_load(&press, &shear, (1.0, 1.0));
             let t0 = Instant::now();
-            let cold = pb.solve(&full, &sc.g, friction, &opts).expect("solves");
+            let mut show = |p: &dualsplit::Progress| {
+                println!(
+                    "    cold iteration {}: err {:.2e}, open / stick / slip {} / {} / {}, {:.3} s",
+                    p.iteration, p.err, p.n_open, p.n_stick, p.n_slip, p.elapsed_seconds
+                );
+                true
+            };
+            let monitor: Option<dualsplit::Monitor<'_>> =
+                (trace == Some(0)).then_some(&mut show as dualsplit::Monitor<'_>);
+            let cold = pb
+                .solve_monitored(&full, &sc.g, friction, &opts, monitor)
+                .expect("solves");
             let t_cold = t0.elapsed().as_secs_f64();
             let r = &cold.report;
             assert_eq!(r.status, dualsplit::SolveStatus::Converged, "{r:?}");

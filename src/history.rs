@@ -19,7 +19,15 @@
 //! s is the least-squares fit of this step's load change to the last one's:
 //! 1 for equal proportional increments, 0 where the load turns at right angles
 //! (press, then shear: the plain warm start), and never negative (an unloading
-//! step is not the last path backwards: friction sticks on reversal). P is the
+//! step is not the last path backwards: friction sticks on reversal). The line
+//! is used only where it carries at least CARRIED_MIN of the load change's
+//! squared norm (s^2 |l_k - l_k-1|^2 against |l_k+1 - l_k|^2), else the plain
+//! warm start: where the load turns from press to shear, s is a rounding
+//! error (1e-15), and such a start, taken for a prediction, had Newton sort
+//! it by the natural map, where the whole shear increment made every sticking
+//! contact look slipping (measured on the 3d-32x32x4 slab's Coulomb
+//! press-shear path: that step took 14 Newton steps; 3-10 % of the history's
+//! products). P is the
 //! projection onto lambda_N >= 0, |lambda_T,i| <= p_i (mu_i lambda_N,i). Where
 //! the contact state changes the prediction is still nearer than lam_k on the
 //! contacts that keep theirs; Newton's warm start then sorts the contacts by
@@ -31,6 +39,10 @@ use crate::friction::{Friction, project_disk};
 /// one's load change is predicted as S_MAX of it (the line is not trusted that
 /// far out).
 const S_MAX: f64 = 4.0;
+
+/// The least share of this step's load change (squared norm) that the line
+/// must carry to be used (CARRIED_MIN; else the plain warm start).
+const CARRIED_MIN: f64 = 0.5;
 
 /// u_k and the last converged multipliers, with the contact-space loads of
 /// the last two steps.
@@ -120,13 +132,17 @@ impl History {
     /// `load`; None when there is nothing to extrapolate from.
     pub fn factor_for(&self, load: &[f64]) -> Option<f64> {
         let (last, (_, dl)) = (self.load.as_ref()?, self.prev.as_ref()?);
-        let (mut num, mut den) = (0.0, 0.0);
+        let (mut num, mut den, mut change) = (0.0, 0.0, 0.0);
         for ((x, y), z) in load.iter().zip(last).zip(dl) {
             num += (x - y) * z;
             den += z * z;
+            change += (x - y) * (x - y);
         }
         let s = num / den;
-        (den > 0.0 && s.is_finite() && s > 0.0).then(|| s.min(S_MAX))
+        // The share of |l_k+1 - l_k|^2 that the line carries (cos^2 of the
+        // angle between the two load changes).
+        let carried = num * num / (den * change);
+        (den > 0.0 && s.is_finite() && s > 0.0 && carried >= CARRIED_MIN).then(|| s.min(S_MAX))
     }
 
     /// The warm start of a step with load `load` into `lam` (c): the
@@ -217,6 +233,42 @@ mod tests {
         let l3h = vec![2.5, 0.0, 1.25, 0.0];
         assert_eq!(h.start(&l3h, law, 2, &mut lam), 0.5);
         assert_close(&lam, &[2.5, 0.0, 0.5, 0.0]);
+    }
+
+    #[test]
+    fn a_line_that_carries_little_of_the_load_change_is_not_used() {
+        let p = [1.0, 1.0];
+        let law = Friction::Tresca(&p);
+        let mut h = history();
+        let mut lam = vec![0.0; 4];
+        // Two press steps along the first component of l.
+        h.advance(
+            &[0.0; 3],
+            &[1.0, 0.0, 0.2, 0.0],
+            vec![1.0, 0.0, 0.0, 0.0],
+            None,
+        );
+        h.advance(
+            &[0.0; 3],
+            &[2.0, 0.0, 0.4, 0.0],
+            vec![2.0, 0.0, 0.0, 0.0],
+            None,
+        );
+        // Then shear with a rounding error's worth of press: s = 1e-15 > 0,
+        // yet the line carries 1e-30 of the change: the plain warm start.
+        let turn = vec![2.0 + 1e-15, 0.0, 1.0, 0.0];
+        assert!(h.factor_for(&turn).is_none());
+        assert_eq!(h.start(&turn, law, 2, &mut lam), 0.0);
+        assert_eq!(lam, [2.0, 0.0, 0.4, 0.0]);
+        // At 45 degrees the line carries exactly half (cos^2 = 1/2): used,
+        // s = 1 (the press part of the change equals the last change).
+        let oblique = vec![3.0, 0.0, 1.0, 0.0];
+        assert_eq!(h.start(&oblique, law, 2, &mut lam), 1.0);
+        assert_close(&lam, &[3.0, 0.0, 0.6, 0.0]);
+        // Beyond 45 degrees (cos^2 = 1/5): not used.
+        let steep = vec![3.0, 0.0, 2.0, 0.0];
+        assert_eq!(h.start(&steep, law, 2, &mut lam), 0.0);
+        assert_eq!(lam, [2.0, 0.0, 0.4, 0.0]);
     }
 
     #[test]

@@ -77,7 +77,21 @@ pub(super) fn linearise(
         let ny = yt[..d - 1].iter().map(|v| v * v).sum::<f64>().sqrt();
         // Coupling of the slipping tangential force to lambda_N (Coulomb).
         let mut coupling: Option<[f64; 2]> = None;
-        if r > 0.0 && ny < r {
+        // Stick or slip is decided against the bound of the normal force,
+        // except at a contact that closes in this step (lambda_N = 0, trial
+        // y_N > 0): its bound mu lambda_N is 0, so the natural map calls it
+        // slipping whatever its tangential trial, and its step would set
+        // lambda_T = mu (lambda_N + d_N) y_T / |y_T|, a slip at the full
+        // bound. It is sorted against mu y_N instead, the bound of its
+        // trial normal force (as Alart and Curnier's function does): a
+        // contact that closes sticking sticks from the first step (the
+        // matrix-free Coulomb histories of BENCHMARKS.md, "The load paths
+        // hosts take": 3-10 % fewer products, one path +2 %).
+        let r_sort = match coulomb_mu {
+            Some(mu) if lam[i] <= 0.0 && normal_free => mu[i] * yn,
+            _ => r,
+        };
+        if r_sort > 0.0 && ny < r_sort {
             // Stick: every tangential component free.
             for s in 0..d - 1 {
                 f[jt + s] = lam[jt + s] - yt[s];

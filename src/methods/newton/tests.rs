@@ -169,7 +169,7 @@ fn refinement_reaches_the_exact_residual_with_rough_products() {
 fn rough_sweeps_follow_the_exact_ones() {
     let (pb, g) = strip(41);
     let p = vec![2e-3; 41];
-    let b = rhs(&pb, &g, 4e-3, 3e-3);
+    let b = rhs(&pb, &g, 4e-3, 3e-6);
     let problem = DualProblem {
         dual: pb.dual(),
         b: &b,
@@ -694,4 +694,76 @@ fn the_forcing_term_reads_the_last_step() {
     // Never tighter than a step leaving |F| at ENOUGH of the target.
     let floor = ENOUGH * target * lam / 1e-6;
     assert!((forcing(1e-6, 1.0, target, lam, Some(good)) - floor).abs() < 1e-18);
+}
+
+/// A contact that closes in a Newton step (lambda_N = 0, y_N > 0) has the
+/// bound mu lambda_N = 0, so the natural map calls it slipping whatever its
+/// tangential trial; `linearise` sorts it against mu y_N instead. On the
+/// strip from zero multipliers (every contact closing), at three shears:
+/// each contact's tangential row is free exactly where |y_T| < mu y_N
+/// (checked contact by contact from w). At the smallest shear every contact
+/// sticks, and Newton from zero without warm-up sweeps then sorts every
+/// contact as the answer does and converges in one step, its answer
+/// sticking everywhere with w = 0 on every row (the KKT conditions of a
+/// closed sticking zone).
+#[test]
+fn a_closing_contact_is_sorted_by_its_trial_normal_force() {
+    let (pb, g) = strip(41);
+    let mu = vec![0.3; 41];
+    let dual = pb.dual();
+    let c = dual.c;
+    for (shear, want) in [(3e-5, Some(41)), (7e-5, None), (3e-4, Some(0))] {
+        let b = rhs(&pb, &g, 4e-3, shear);
+        let problem = DualProblem {
+            dual,
+            b: &b,
+            law: Friction::Coulomb(&mu),
+            monitor: None,
+            deadline: None,
+            predicted: false,
+            near: false,
+        };
+        let lam = vec![0.0; c];
+        let mut w = vec![0.0; c];
+        problem.gradient(&lam, &mut w);
+        let (mut e0, mut f) = (vec![0.0; c], vec![0.0; c]);
+        let red = step::linearise(&problem, &lam, &w, &mut e0, &mut f, 1.0);
+        let free: Vec<usize> = red.iter().map(|u| u.test[0].0).collect();
+        let mut sticking = 0;
+        for i in 0..41 {
+            let rho = dual.rho[i];
+            let (yn, yt) = (-rho * w[i], -rho * w[41 + i]);
+            assert!(yn > 0.0, "contact {i} closes");
+            assert!(free.contains(&i), "contact {i}'s normal is free");
+            let stick = yt.abs() < 0.3 * yn;
+            assert_eq!(
+                free.contains(&(41 + i)),
+                stick,
+                "shear {shear}, contact {i}"
+            );
+            sticking += stick as usize;
+        }
+        println!("shear {shear}: {sticking} of 41 sorted sticking");
+        match want {
+            Some(n) => assert_eq!(sticking, n, "shear {shear}"),
+            None => assert!((1..41).contains(&sticking), "shear {shear}: {sticking}"),
+        }
+        if want != Some(41) {
+            continue;
+        }
+        let mut lam = vec![0.0; c];
+        let (out, _) = drive_newton(dual, &b, Friction::Coulomb(&mu), &mut lam, |n| {
+            n.presweeps = 0
+        });
+        assert_eq!(out.outer, 1, "{out:?}");
+        problem.gradient(&lam, &mut w);
+        let scale = lam.iter().fold(0.0f64, |a, v| a.max(v.abs()));
+        for i in 0..41 {
+            assert!(
+                lam[i] > 0.0 && lam[41 + i].abs() < 0.3 * lam[i],
+                "contact {i}"
+            );
+            assert!(w[i].abs() <= 1e-10 * scale && w[41 + i].abs() <= 1e-10 * scale);
+        }
+    }
 }
