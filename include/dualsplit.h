@@ -1586,7 +1586,7 @@ enum DsStatus ds_step(struct DsProblem *problem,
     scale, keeps the loop's quadratic convergence and lets the last
     iterations solve to tol. In c_examples/hyperelastic_host.c this
     costs no host iteration and cuts the contact solves' Krylov products
-    by 40-45 % and their time by 30-36 %.
+    by 40-45 % and their time by 30-40 %.
  5. u_j+1 = u_j + du; stop when |du| and the residual
     |r_j+1 - N^T lambda_N - T^T lambda_T| are small, else j += 1 and go to 2.
 

@@ -767,3 +767,32 @@ fn a_closing_contact_is_sorted_by_its_trial_normal_force() {
         }
     }
 }
+
+/// The backtracking keeps the step length with the lowest |F| among those
+/// that meet the sufficient decrease, not the first that does.
+#[test]
+fn the_backtracking_keeps_the_best_length_that_decreases_enough() {
+    let pick = |tries: &[(f64, f64)]| {
+        tries
+            .iter()
+            .fold(None, |kept, &tried| better_length(1.0, kept, tried))
+    };
+    // The full step barely decreases |F|, half of it decreases it most.
+    let tries = [(1.0, 0.99), (0.5, 0.6), (0.25, 0.8), (0.125, 1.1)];
+    assert_eq!(pick(&tries), Some((0.5, 0.6)));
+    // A good full step is kept where no shorter one is lower.
+    assert_eq!(
+        pick(&[(1.0, 0.1), (0.5, 0.55), (0.25, 0.77)]),
+        Some((1.0, 0.1))
+    );
+    // Sufficient decrease: 1 - ARMIJO t of |F|, so a full step that lowers
+    // |F| by less than ARMIJO is refused where an eighth that lowers it by
+    // more than ARMIJO / 8 is kept.
+    let barely = 1.0 - 0.5 * ARMIJO;
+    assert_eq!(
+        pick(&[(1.0, barely), (0.125, barely)]),
+        Some((0.125, barely))
+    );
+    // Nothing decreases enough: None (the fallback takes over).
+    assert_eq!(pick(&[(1.0, 1.0), (0.5, 2.0)]), None);
+}
