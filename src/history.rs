@@ -26,7 +26,7 @@
 //! error (1e-15), and such a start, taken for a prediction, had Newton sort
 //! it by the natural map, where the whole shear increment made every sticking
 //! contact look slipping (measured on the 3d-32x32x4 slab's Coulomb
-//! press-shear path: that step took 14 Newton steps; 3-10 % of the history's
+//! press-shear path: that step took 14 Newton steps; 2-9 % of the histories'
 //! products). P is the
 //! projection onto lambda_N >= 0, |lambda_T,i| <= p_i (mu_i lambda_N,i). Where
 //! the contact state changes the prediction is still nearer than lam_k on the

@@ -86,7 +86,7 @@ pub(super) fn linearise(
         // trial normal force (as Alart and Curnier's function does): a
         // contact that closes sticking sticks from the first step (the
         // matrix-free Coulomb histories of BENCHMARKS.md, "The load paths
-        // hosts take": 3-10 % fewer products, one path +2 %).
+        // hosts take": up to 10 % fewer products, one path 2 % more).
         let r_sort = match coulomb_mu {
             Some(mu) if lam[i] <= 0.0 && normal_free => mu[i] * yn,
             _ => r,

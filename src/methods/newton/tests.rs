@@ -169,7 +169,7 @@ fn refinement_reaches_the_exact_residual_with_rough_products() {
 fn rough_sweeps_follow_the_exact_ones() {
     let (pb, g) = strip(41);
     let p = vec![2e-3; 41];
-    let b = rhs(&pb, &g, 4e-3, 3e-6);
+    let b = rhs(&pb, &g, 4e-3, 3e-3);
     let problem = DualProblem {
         dual: pb.dual(),
         b: &b,
