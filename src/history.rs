@@ -30,8 +30,8 @@
 //! products). P is the
 //! projection onto lambda_N >= 0, |lambda_T,i| <= p_i (mu_i lambda_N,i). Where
 //! the contact state changes the prediction is still nearer than lam_k on the
-//! contacts that keep theirs; Newton's warm start then sorts the contacts by
-//! the predicted multipliers.
+//! contacts that keep theirs; Newton sorts such a start by the natural map at
+//! it (a plain warm start by its multipliers).
 
 use crate::friction::{Friction, project_disk};
 

@@ -32,7 +32,10 @@ impl Reduced {
 
 /// Sorts the components at lam for the natural map F_c with c = cscale rho and
 /// returns the reduced unknowns and the explicit part e0 of the step (written into
-/// `e0`); `f` receives F_c(lam). A free row's right-hand side is -F_c/c = -w, taken
+/// `e0`); `f` receives F_c(lam), except on the tangential rows of a Coulomb
+/// contact that closes sticking (lambda_N = 0, sorted against mu y_N: there
+/// F_c = lambda_T, and `f` holds lambda_T - y_T, the sticking model's; `f`
+/// is read only here). A free row's right-hand side is -F_c/c = -w, taken
 /// from w directly (no cancellation when c is small).
 pub(super) fn linearise(
     problem: &DualProblem<'_>,
