@@ -168,13 +168,8 @@ fn main() {
                 }
                 let f = stats::history_load(&press, &shear, (a, b));
                 let t0 = Instant::now();
-                let mut show = |p: &dualsplit::Progress| {
-                    println!(
-                        "    step {k} iteration {}: err {:.2e}, open / stick / slip {} / {} / {}, {:.3} s",
-                        p.iteration, p.err, p.n_open, p.n_stick, p.n_slip, p.elapsed_seconds
-                    );
-                    true
-                };
+                let label = format!("step {k}");
+                let mut show = |p: &dualsplit::Progress| print_progress(&label, p);
                 let monitor: Option<dualsplit::Monitor<'_>> =
                     (trace == Some(k)).then_some(&mut show as dualsplit::Monitor<'_>);
                 let sol = pb
@@ -223,13 +218,7 @@ fn main() {
             // +1), as a host's first increment that takes the full load.
             let full = stats::history_load(&press, &shear, (1.0, 1.0));
             let t0 = Instant::now();
-            let mut show = |p: &dualsplit::Progress| {
-                println!(
-                    "    cold iteration {}: err {:.2e}, open / stick / slip {} / {} / {}, {:.3} s",
-                    p.iteration, p.err, p.n_open, p.n_stick, p.n_slip, p.elapsed_seconds
-                );
-                true
-            };
+            let mut show = |p: &dualsplit::Progress| print_progress("cold", p);
             let monitor: Option<dualsplit::Monitor<'_>> =
                 (trace == Some(0)).then_some(&mut show as dualsplit::Monitor<'_>);
             let cold = pb
@@ -346,4 +335,14 @@ fn draw(
         .draw()?;
     root.present()?;
     Ok(())
+}
+
+/// One line of a traced solve's progress (`--trace`), `label` naming the
+/// solve ("step K" or "cold"); true: go on.
+fn print_progress(label: &str, p: &dualsplit::Progress) -> bool {
+    println!(
+        "    {label} iteration {}: err {:.2e}, open / stick / slip {} / {} / {}, {:.3} s",
+        p.iteration, p.err, p.n_open, p.n_stick, p.n_slip, p.elapsed_seconds
+    );
+    true
 }

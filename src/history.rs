@@ -140,8 +140,9 @@ impl History {
         }
         let s = num / den;
         // The share of |l_k+1 - l_k|^2 that the line carries (cos^2 of the
-        // angle between the two load changes).
-        let carried = num * num / (den * change);
+        // angle between the two load changes), as s times num / change so
+        // that no product of squared norms can overflow.
+        let carried = s * (num / change);
         (den > 0.0 && s.is_finite() && s > 0.0 && carried >= CARRIED_MIN).then(|| s.min(S_MAX))
     }
 

@@ -80,8 +80,9 @@ pub(super) fn block_entry(problem: &DualProblem<'_>, ja: usize, jb: usize) -> f6
 
 /// The reduced system M z = rhs of a Newton step on a matrix-free dual, by
 /// preconditioned CG (symmetric M) or GMRES to the relative residual
-/// `krylov.eta`, each product M x one product with A. The preconditioner is
-/// S V^T G V S with G the dual's approximate inverse of A
+/// `krylov.eta`, each product M x one product with A (M = T^T A V + diag,
+/// T the reduced unknowns' test vectors, V their directions). The
+/// preconditioner is S V^T G T S with G the dual's approximate inverse of A
 /// (`Dual::precondition`: the layered Dirichlet one B S_l B^T of
 /// `dirichlet.rs` where it was formed, else the lumped G = B K B^T that FETI
 /// codes use for the same operator) and S_l = sqrt(a_l / M_ll),
@@ -147,10 +148,17 @@ pub(super) fn krylov_step(
         }
     };
     let (mut gv, mut gg) = (vec![0.0; dual.c], vec![0.0; dual.c]);
-    // The preconditioner S V^T G V S, S_l = sqrt(a_l / (a_l + diag_l)) with
+    // The preconditioner S V^T G T S, S_l = sqrt(a_l / (a_l + diag_l)) with
     // a_l = v_l^T A v_l (G ~ A^-1 where diag vanishes, 1 / M_ll where it
     // dominates), G the dual's approximate inverse of A (`Dual::precondition`:
-    // layered Dirichlet or lumped); Jacobi without one.
+    // layered Dirichlet or lumped); Jacobi without one. A residual (test
+    // space) enters lambda-space by the test vectors and the correction
+    // leaves by the directions, so that M times it is about T^T A V V^T G T,
+    // near the identity; T and V differ only where a Coulomb normal drags
+    // its slip force (its direction e_N + mu n, its test e_N), and there
+    // the residual of its gap row is no longer spread over its slip row by
+    // mu n: V on both sides, as before, took 3-5 % more products over the
+    // load-path family's warm Coulomb histories (BENCHMARKS.md).
     // The interface compliance's D (`Dual::set_shift`) counts with the
     // diagonal term (G approximates A^-1, not (A + D)^-1), and the Jacobi
     // part (1 - S_l^2) / M_ll is added where D is present: a soft interface
@@ -181,7 +189,7 @@ pub(super) fn krylov_step(
     let mut pre = |x: &[f64], y: &mut [f64]| {
         gv.iter_mut().for_each(|e| *e = 0.0);
         for ((u, &xl), &sl) in red.iter().zip(x).zip(&scale) {
-            for &(j, c) in &u.dir[..u.n_dir] {
+            for &(j, c) in &u.test[..u.n_test] {
                 gv[j] += c * sl * xl;
             }
         }

@@ -763,7 +763,14 @@ fn a_closing_contact_is_sorted_by_its_trial_normal_force() {
                 lam[i] > 0.0 && lam[41 + i].abs() < 0.3 * lam[i],
                 "contact {i}"
             );
-            assert!(w[i].abs() <= 1e-10 * scale && w[41 + i].abs() <= 1e-10 * scale);
+            // The gradient (a gap) in force units, rho w, against the forces.
+            let rho = dual.rho[i];
+            assert!(
+                rho * w[i].abs() <= 1e-10 * scale && rho * w[41 + i].abs() <= 1e-10 * scale,
+                "contact {i}: rho w = {:.1e}, {:.1e}; |lambda| {scale:.1e}",
+                rho * w[i],
+                rho * w[41 + i]
+            );
         }
     }
 }
@@ -795,4 +802,13 @@ fn the_backtracking_keeps_the_best_length_that_decreases_enough() {
     );
     // Nothing decreases enough: None (the fallback takes over).
     assert_eq!(pick(&[(1.0, 1.0), (0.5, 2.0)]), None);
+    // A tie keeps the longer step, tried first.
+    assert_eq!(pick(&[(1.0, 0.5), (0.5, 0.5)]), Some((1.0, 0.5)));
+    // A length whose |F| is not a number (an overflow along the step) is
+    // never kept, before or after one that is.
+    assert_eq!(
+        pick(&[(1.0, f64::NAN), (0.5, 0.7), (0.25, f64::NAN)]),
+        Some((0.5, 0.7))
+    );
+    assert_eq!(pick(&[(1.0, f64::NAN), (0.5, f64::INFINITY)]), None);
 }
