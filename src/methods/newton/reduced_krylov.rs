@@ -151,14 +151,15 @@ pub(super) fn krylov_step(
     // The preconditioner S V^T G T S, S_l = sqrt(a_l / (a_l + diag_l)) with
     // a_l = v_l^T A v_l (G ~ A^-1 where diag vanishes, 1 / M_ll where it
     // dominates), G the dual's approximate inverse of A (`Dual::precondition`:
-    // layered Dirichlet or lumped); Jacobi without one. A residual (test
-    // space) enters lambda-space by the test vectors and the correction
-    // leaves by the directions, so that M times it is about T^T A V V^T G T,
-    // near the identity; T and V differ only where a Coulomb normal drags
-    // its slip force (its direction e_N + mu n, its test e_N), and there
-    // the residual of its gap row is no longer spread over its slip row by
-    // mu n: V on both sides, as before, took 3-5 % more products over the
-    // load-path family's warm Coulomb histories (BENCHMARKS.md).
+    // layered Dirichlet or lumped); Jacobi without one. A residual enters
+    // lambda-space by the test vectors and the correction leaves by the
+    // directions. T and V differ only where a Coulomb normal drags its slip
+    // force (its direction e_N + mu n, its test e_N): there the residual of
+    // its gap row is no longer spread over its slip row by mu n. A measured
+    // choice, not a derived one (T^T V = I, so the square case's inverse
+    // is T^T A^-1 V, which this P is the transpose of): V on both sides,
+    // as before, took 3-6 % more products over the load-path family's warm
+    // Coulomb histories (BENCHMARKS.md); T^T G V is still to be measured.
     // The interface compliance's D (`Dual::set_shift`) counts with the
     // diagonal term (G approximates A^-1, not (A + D)^-1), and the Jacobi
     // part (1 - S_l^2) / M_ll is added where D is present: a soft interface
