@@ -30,6 +30,8 @@
 
 #[path = "bench/baseline.rs"]
 mod baseline;
+#[path = "bench/csc_view.rs"]
+mod csc_view;
 #[path = "bench/scene.rs"]
 #[allow(dead_code)]
 mod scene;
@@ -37,10 +39,8 @@ mod scene;
 #[allow(dead_code)]
 mod stats;
 
-use dualsplit::{
-    ContactProblem, Csc, DualForm, Format, Friction, HostIteration, Indices, MatrixView, Options,
-    Storage,
-};
+use csc_view::{indices, view};
+use dualsplit::{ContactProblem, Csc, DualForm, Friction, HostIteration, Options};
 use scene::{Scene, Spec};
 use std::time::Instant;
 
@@ -115,27 +115,6 @@ fn tangent(k: &Csc, eps: f64) -> Csc {
         }
     }
     out
-}
-
-/// K's index arrays as the C layer would hand them over (64-bit).
-fn indices(k: &Csc) -> (Vec<i64>, Vec<i64>) {
-    (
-        k.col_ptr.iter().map(|&v| v as i64).collect(),
-        k.row_idx.iter().map(|&v| v as i64).collect(),
-    )
-}
-
-fn view<'a>(k: &'a Csc, (p, i): &'a (Vec<i64>, Vec<i64>)) -> MatrixView<'a> {
-    MatrixView {
-        format: Format::Csc,
-        storage: Storage::Full,
-        base: 0,
-        nrows: k.nrows,
-        ncols: k.ncols,
-        p: Indices::I64(p),
-        i: Indices::I64(i),
-        x: &k.values,
-    }
 }
 
 fn norm(x: &[f64]) -> f64 {
