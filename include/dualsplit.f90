@@ -944,7 +944,9 @@ contains
    !> ((d-1) m values, optional: absent for zero), lambda_t_start the tangential
    !> forces at the start of the increment (optional; read only at contacts with
    !> a finite k_t). Returns the correction du and the TOTAL contact forces;
-   !> starts from the last converged iteration's multipliers. opts and report
+   !> starts from the last converged iteration's multipliers (the first
+   !> iteration of an increment, slip absent, from their extrapolation along
+   !> the last two increments where they lie on a line). opts and report
    !> optional; outputs written as ds_solve. The optional slip and
    !> lambda_t_start come last here (in C they come before du): pass them by
    !> keyword.

@@ -1602,8 +1602,11 @@ enum DsStatus ds_step(struct DsProblem *problem,
  ds_solve_iteration on the handle (zero before the first, after
  ds_history_reset or a ds_problem_set_contacts that changed m), which
  ds_problem_refactor keeps: at a converging host loop they are already
- this iteration's answer. The history of ds_step is neither used nor
- changed.
+ this iteration's answer. The first iteration of an increment (slip NULL)
+ starts, where the load changes of the last two increments lie on one
+ line, from the extrapolation of the multipliers that ended them (two
+ products more; docs/design.md section 9). The history of ds_step is
+ neither used nor changed.
 
  - problem, opts, friction, bound: as ds_solve.
  - r: the host's residual f_ext - f_int(u_j), n values (force units).

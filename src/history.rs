@@ -44,6 +44,10 @@ const S_MAX: f64 = 4.0;
 /// must carry to be used (CARRIED_MIN; else the plain warm start).
 const CARRIED_MIN: f64 = 0.5;
 
+/// The most a host increment's prediction may raise the natural residual
+/// over lambda_n's and still be used (see [`Increments`]).
+pub(crate) const INCREMENT_RISE: f64 = 4.0;
+
 /// u_k and the last converged multipliers, with the contact-space loads of
 /// the last two steps.
 pub(crate) struct History {
@@ -132,18 +136,7 @@ impl History {
     /// `load`; None when there is nothing to extrapolate from.
     pub fn factor_for(&self, load: &[f64]) -> Option<f64> {
         let (last, (_, dl)) = (self.load.as_ref()?, self.prev.as_ref()?);
-        let (mut num, mut den, mut change) = (0.0, 0.0, 0.0);
-        for ((x, y), z) in load.iter().zip(last).zip(dl) {
-            num += (x - y) * z;
-            den += z * z;
-            change += (x - y) * (x - y);
-        }
-        let s = num / den;
-        // The share of |l_k+1 - l_k|^2 that the line carries (cos^2 of the
-        // angle between the two load changes), as s times num / change so
-        // that no product of squared norms can overflow.
-        let carried = s * (num / change);
-        (den > 0.0 && s.is_finite() && s > 0.0 && carried >= CARRIED_MIN).then(|| s.min(S_MAX))
+        line_factor(load.iter().zip(last).map(|(x, y)| x - y), dl)
     }
 
     /// The warm start of a step with load `load` into `lam` (c): the
@@ -180,6 +173,91 @@ impl History {
         });
         self.lam.copy_from_slice(lam);
         self.load = Some(load);
+    }
+}
+
+/// The extrapolation factor s of the module docs for a load change `change`
+/// (this step's, component by component) on the line of the last one,
+/// `last`: None where the line carries less than CARRIED_MIN of the change,
+/// s <= 0, or nothing is finite.
+fn line_factor(change: impl Iterator<Item = f64>, last: &[f64]) -> Option<f64> {
+    let (mut num, mut den, mut sq) = (0.0, 0.0, 0.0);
+    for (x, z) in change.zip(last) {
+        num += x * z;
+        den += z * z;
+        sq += x * x;
+    }
+    let s = num / den;
+    // The share of |l_k+1 - l_k|^2 that the line carries (cos^2 of the
+    // angle between the two load changes), as s times num / sq so that no
+    // product of squared norms can overflow.
+    let carried = s * (num / sq);
+    (den > 0.0 && s.is_finite() && s > 0.0 && carried >= CARRIED_MIN).then(|| s.min(S_MAX))
+}
+
+/// The predictor of a nonlinear host's increments (`solve_iteration`,
+/// docs/design.md section 9): the line of the module docs through the
+/// multipliers that ended the last two increments.
+///
+/// A host iteration's multipliers are total forces, but its K, r and gaps
+/// are those of its iterate, so there is no total contact-space load to fit.
+/// The first iteration of an increment (no slip taken yet) has instead its
+/// load change with the contact forces frozen at lambda_n, those that ended
+/// the last increment: q = B K^-1 (r - B^T lambda_n) = b + [g; 0] - A lambda_n
+/// (one product), the response of the contact rows to the out-of-balance
+/// force the increment's load made. q of two successive increments take the
+/// place of l_k+1 - l_k and l_k - l_k-1 in s, and the start is
+/// P(lambda_n + s (lambda_n - lambda_n-1)).
+///
+/// The line is not trusted where its start's natural residual |F| exceeds
+/// lambda_n's by more than INCREMENT_RISE (`ContactProblem::solve_iteration`
+/// measures both: one product more). The first iteration's |F| at lambda_n
+/// is large (the whole load change is in it), and a good prediction can
+/// raise it 2-4 times (its contact states not yet sorted); one that raises
+/// it 16-25 times (an increment where most sticking contacts start to slip)
+/// took more Newton steps than lambda_n, and a host that repeats an
+/// iteration from its own answer (|F| near zero there) must not be moved
+/// off it.
+#[derive(Default)]
+pub(crate) struct Increments {
+    /// lambda_n-1 (the multipliers the first iteration of the last
+    /// increment started from) and that iteration's q, once it converged;
+    /// None before, and after the contacts or the history changed.
+    last: Option<(Vec<f64>, Vec<f64>)>,
+}
+
+impl Increments {
+    /// Forgets the last increment (a reset, new contacts).
+    pub fn forget(&mut self) {
+        self.last = None;
+    }
+
+    /// The start of an increment's first iteration with load change `q` (c)
+    /// from lambda_n in `lam` (c): the prediction of the type docs where the
+    /// last increment is known and its line carries q, else lambda_n
+    /// unchanged. Returns the extrapolation factor used (0: none).
+    pub fn start(&self, q: &[f64], law: Friction<'_>, d: usize, lam: &mut [f64]) -> f64 {
+        let Some((prev, last_q)) = self.last.as_ref() else {
+            return 0.0;
+        };
+        if prev.len() != lam.len() || last_q.len() != q.len() {
+            return 0.0;
+        }
+        let Some(s) = line_factor(q.iter().copied(), last_q) else {
+            return 0.0;
+        };
+        for (x, p) in lam.iter_mut().zip(prev) {
+            *x += s * (*x - p);
+        }
+        project(lam, law, d);
+        s
+    }
+
+    /// Records a converged first iteration of an increment: the multipliers
+    /// it started from (lambda_n, before any prediction) and its load
+    /// change q.
+    pub fn advance(&mut self, start: Vec<f64>, q: Vec<f64>) {
+        self.last = Some((start, q));
     }
 }
 
@@ -364,5 +442,47 @@ mod tests {
         assert_eq!(h.lu, None, "unknown until the history is reset");
         h.reset();
         assert_eq!(h.lu.as_deref(), Some(&[][..]));
+    }
+
+    /// The host's increments: the first increment records, the second
+    /// extrapolates along the line of the two ends, by the fit of its load
+    /// change q to the last one, projected onto the friction disc; a
+    /// change at right angles, one of another length and a forgotten line
+    /// give lambda_n unchanged.
+    #[test]
+    fn a_hosts_increments_continue_on_the_line_of_their_load_changes() {
+        let p = [1.0, 1.0];
+        let law = Friction::Tresca(&p);
+        let mut incs = Increments::default();
+        let q = vec![1.0, 0.0, 0.5, 0.0];
+        // Nothing recorded: lambda_n.
+        let mut lam = vec![1.0, 0.0, 0.2, 0.0];
+        assert_eq!(incs.start(&q, law, 2, &mut lam), 0.0);
+        assert_eq!(lam, [1.0, 0.0, 0.2, 0.0]);
+        // The first increment started at zero with load change q.
+        incs.advance(vec![0.0; 4], q.clone());
+        // The next one, from lambda_n = [1, 0, 0.2, 0], with 1.5 q: s = 1.5.
+        let mut lam = vec![1.0, 0.0, 0.2, 0.0];
+        let q2: Vec<f64> = q.iter().map(|v| 1.5 * v).collect();
+        assert_eq!(incs.start(&q2, law, 2, &mut lam), 1.5);
+        assert_close(&lam, &[2.5, 0.0, 0.5, 0.0]);
+        // Past the disc (|lambda_T| <= 1): projected onto it.
+        let mut lam = vec![1.0, 0.0, 0.8, 0.0];
+        assert_eq!(incs.start(&q, law, 2, &mut lam), 1.0);
+        assert_close(&lam, &[2.0, 0.0, 1.0, 0.0]);
+        // A load change at right angles to the last: lambda_n.
+        let mut lam = vec![1.0, 0.0, 0.2, 0.0];
+        let turn = vec![0.0, 1.0, 0.0, 0.0];
+        assert_eq!(incs.start(&turn, law, 2, &mut lam), 0.0);
+        assert_eq!(lam, [1.0, 0.0, 0.2, 0.0]);
+        // Another number of unknowns (new contacts): lambda_n.
+        let mut short = vec![1.0, 0.2];
+        assert_eq!(incs.start(&[1.0, 0.5], law, 1, &mut short), 0.0);
+        assert_eq!(short, [1.0, 0.2]);
+        // Forgotten: lambda_n.
+        incs.forget();
+        let mut lam = vec![1.0, 0.0, 0.2, 0.0];
+        assert_eq!(incs.start(&q, law, 2, &mut lam), 0.0);
+        assert_eq!(lam, [1.0, 0.0, 0.2, 0.0]);
     }
 }

@@ -90,6 +90,12 @@ impl DualProblem<'_> {
         }
     }
 
+    /// |F(lam)|_2, the natural map's residual in force units (Newton's merit,
+    /// `newton.rs`), given w = A lam - b.
+    pub fn natural_residual(&self, lam: &[f64], w: &[f64]) -> f64 {
+        newton::residual_norm(self, lam, w)
+    }
+
     /// The error of docs/design.md section 5 at `lam`, given w = A lam - b; `p` and `v`
     /// are scratch of length m and d m.
     pub fn error(&self, lam: &[f64], w: &[f64], p: &mut [f64], v: &mut [f64]) -> f64 {

@@ -20,6 +20,11 @@
 //! solve it unchanged, and the error measure reads v = [N du - g_j; T du + s_j].
 //! The iteration starts from the multipliers of the last converged iteration
 //! on the handle: at a converging host loop they are this iteration's answer.
+//! The first iteration of an increment (no slip taken) starts from the line
+//! through the multipliers that ended the last two increments, where the
+//! load changes of the two increments lie on one line
+//! (`history::Increments`): under a proportional load the increment's
+//! answer lies near it, where the last one's is a whole increment away.
 
 use super::*;
 
@@ -49,7 +54,9 @@ impl ContactProblem {
     /// du in `Solution::u` and the total contact forces, starting from the
     /// multipliers of the last converged iteration on this handle (zero
     /// before the first, after [`ContactProblem::reset_history`] or a change
-    /// of m). They are kept only when this one converges. The history of
+    /// of m), or, for the first iteration of an increment (`it.slip` None),
+    /// from the line through the multipliers that ended the last two
+    /// increments (module docs). They are kept only when this one converges. The history of
     /// [`ContactProblem::step`] is neither used nor changed.
     ///
     /// `opts.tol` may follow the host's residual, loose in the early
@@ -100,19 +107,39 @@ impl ContactProblem {
         if lam.len() != c {
             lam = vec![0.0; c];
         }
+        // The first iteration of an increment (no slip taken yet) from the
+        // multipliers that ended the last one starts from the increments'
+        // prediction (`history::Increments`), a later one from the last
+        // iteration's multipliers.
+        let first = it.slip.is_none() && lam.iter().any(|&x| x != 0.0);
+        let lam_n = first.then(|| lam.clone());
+        // Lent to the solve (which needs the handle mutable) and put back
+        // after; a panic inside forgets it (no prediction for the next
+        // increment).
+        let increments = std::mem::take(&mut self.increments);
+        let warm = if first {
+            solve::Warm::Increment(&increments)
+        } else {
+            solve::Warm::Given
+        };
         let lt = it.lt_start.unwrap_or(&[]);
-        let solve::Solved { sol, .. } = self.solve_from(
+        let solved = self.solve_from(
             (it.r, it.r),
             &gaps,
             friction,
             opts,
             &mut lam,
-            (None, lt),
+            (warm, lt),
             monitor,
             predicted,
-        )?;
+        );
+        self.increments = increments;
+        let solve::Solved { sol, load, .. } = solved?;
         if sol.report.status == SolveStatus::Converged {
             self.iteration_start = lam;
+            if let (Some(start), Some(q)) = (lam_n, load) {
+                self.increments.advance(start, q);
+            }
         }
         Ok(sol)
     }

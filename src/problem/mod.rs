@@ -8,7 +8,7 @@ use crate::dual::{Condensation, Dual, Made};
 use crate::error::{ErrorKind, Result, fail};
 use crate::factor::Factor;
 use crate::friction::Friction;
-use crate::history::History;
+use crate::history::{History, Increments};
 use crate::host::KSolve;
 use crate::info::Info;
 use crate::load_span::LoadSpan;
@@ -72,6 +72,8 @@ pub struct ContactProblem {
     /// The multipliers of the last converged host iteration (c; empty before
     /// the first), where the next one starts (`iteration.rs`).
     iteration_start: Vec<f64>,
+    /// The predictor of a host's increments (`history::Increments`).
+    increments: Increments,
     /// What the last `refactor` cost (zero before the first).
     last_refactor: RefactorCost,
     /// Where the matrix-free dual's contact blocks are an earlier K's.
@@ -369,6 +371,7 @@ impl ContactProblem {
             compliance: Compliance::rigid(m),
             loads: LoadSpan::default(),
             iteration_start: Vec::new(),
+            increments: Increments::default(),
             last_refactor: RefactorCost::default(),
             kept_blocks: None,
         })
@@ -472,6 +475,7 @@ impl ContactProblem {
             compliance: Compliance::rigid(m),
             loads: LoadSpan::default(),
             iteration_start: Vec::new(),
+            increments: Increments::default(),
             last_refactor: RefactorCost::default(),
             kept_blocks: None,
         })
@@ -772,6 +776,7 @@ impl ContactProblem {
         if self.iteration_start.len() != dual.c {
             self.iteration_start.clear();
         }
+        self.increments.forget();
         self.compliance = compliance;
         self.sizes = next;
         self.inputs.resize(self.sizes.inputs);
@@ -939,7 +944,7 @@ impl ContactProblem {
             friction,
             opts,
             &mut lam,
-            (None, lt),
+            (solve::Warm::Given, lt),
             monitor,
             predicted,
         )?;
@@ -1012,7 +1017,7 @@ impl ContactProblem {
         // bug), so that the handle keeps its history and stays usable.
         let history = std::mem::replace(&mut self.history, History::new(0, 0));
         let solved = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
-            let hist = (Some(&history), &history.lt[..]);
+            let hist = (solve::Warm::History(&history), &history.lt[..]);
             self.solve_from(
                 (&f, f_total),
                 &g,
@@ -1060,6 +1065,7 @@ impl ContactProblem {
     pub fn reset_history(&mut self) {
         self.history.reset();
         self.iteration_start.clear();
+        self.increments.forget();
     }
 
     /// Contact dimension d (2 or 3).

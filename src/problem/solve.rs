@@ -4,6 +4,7 @@
 //! the dual tolerance tightened where rounding in A needs it).
 
 use super::*;
+use crate::history::INCREMENT_RISE;
 use crate::load_span::{Map, max_amplification};
 
 /// Times the dual error is tightened when the error measured on the recovered u
@@ -28,8 +29,20 @@ struct Load<'a> {
     lu: Option<&'a [f64]>,
 }
 
+/// Where an increment solve starts.
+pub(super) enum Warm<'a> {
+    /// From the multipliers it is given.
+    Given,
+    /// A step of the history: from its prediction.
+    History(&'a History),
+    /// The first iteration of a host's increment, from lambda_n given: from
+    /// the increments' prediction (`history::Increments`).
+    Increment(&'a Increments),
+}
+
 /// What an increment solve gives: the solution, and for a step of the
-/// history its contact-space load (the predictor's) and the forward half its
+/// history its contact-space load (for the first iteration of a host's
+/// increment its load change q; the predictors') and the forward half its
 /// u was back-substituted from (`History::lu`; None off the dense dual from
 /// the trailing block).
 pub(super) struct Solved {
@@ -255,8 +268,9 @@ impl ContactProblem {
 
     /// The increment solve of the load `f` (in a history f = f_total - K u_k,
     /// else f_total = f), starting from the multipliers in `lam`, or, for a
-    /// step of `history`, from the history's prediction (then the step's
-    /// contact-space load is returned too, for the history), the elastic
+    /// step of the history or the first iteration of a host's increment
+    /// (`warm`), from the prediction (then the step's contact-space load or
+    /// the increment's load change is returned too, for the predictor), the elastic
     /// slip's return mapping from `lt_prev` (empty: zero); `predicted` is the
     /// solve's memory prediction (from `prepare_dual`), for the report.
     #[allow(clippy::too_many_arguments)]
@@ -267,7 +281,7 @@ impl ContactProblem {
         friction: Friction<'_>,
         opts: &Options,
         lam: &mut [f64],
-        (history, lt_prev): (Option<&History>, &[f64]),
+        (warm, lt_prev): (Warm<'_>, &[f64]),
         mut monitor: Option<Monitor<'_>>,
         predicted: usize,
     ) -> Result<Solved> {
@@ -283,6 +297,10 @@ impl ContactProblem {
         // recovery of u.
         let mut y_f = vec![0.0; ndof];
         let mut u0 = vec![0.0; ndof];
+        let history = match warm {
+            Warm::History(h) => Some(h),
+            _ => None,
+        };
         let u_k = history.map(|h| &h.u[..]);
         let lu = match history {
             Some(h) => h.lu.as_deref(),
@@ -303,13 +321,48 @@ impl ContactProblem {
             *bi -= gi;
         }
         let mut extrapolated = false;
-        let load = history.map(|h| {
-            let mut bu = vec![0.0; c];
-            self.dual.rows.mul_vec(&h.u, &mut bu);
-            let load = History::load_of(&b, &bu, m);
-            extrapolated = h.start(&load, friction, self.d, lam) > 0.0;
-            load
-        });
+        let load = match warm {
+            Warm::Given => None,
+            Warm::History(h) => {
+                let mut bu = vec![0.0; c];
+                self.dual.rows.mul_vec(&h.u, &mut bu);
+                let load = History::load_of(&b, &bu, m);
+                extrapolated = h.start(&load, friction, self.d, lam) > 0.0;
+                Some(load)
+            }
+            Warm::Increment(incs) => {
+                // q = b + [g; 0] - A lambda_n (`history::Increments`), and
+                // w = A lambda_n - b.
+                let (mut q, mut w) = (vec![0.0; c], vec![0.0; c]);
+                self.dual.apply(lam, &mut w);
+                for (((qj, wj), bj), gj) in q.iter_mut().zip(&mut w).zip(&b).zip(g) {
+                    *wj -= bj;
+                    *qj = gj - *wj;
+                }
+                let mut start = lam.to_vec();
+                if incs.start(&q, friction, self.d, &mut start) > 0.0 {
+                    // The prediction is kept unless its natural residual
+                    // exceeds lambda_n's by more than INCREMENT_RISE (one
+                    // product; `history::Increments`).
+                    let at = DualProblem {
+                        dual: &self.dual,
+                        b: &b,
+                        law: friction,
+                        monitor: None,
+                        deadline: None,
+                        predicted: false,
+                        near: false,
+                    };
+                    let before = at.natural_residual(lam, &w);
+                    at.gradient(&start, &mut w);
+                    if at.natural_residual(&start, &w) <= INCREMENT_RISE * before {
+                        lam.copy_from_slice(&start);
+                        extrapolated = true;
+                    }
+                }
+                Some(q)
+            }
+        };
         // The compliance's tangential term is centred at the force the return
         // mapping starts from: b += D_T lambda_T,prev (a history's last force;
         // zero in a single solve).

@@ -128,7 +128,7 @@ const STALL_DROP: f64 = 1e-2;
 
 /// |F(lam)|_2, the natural map of the module docs at lam (w = A lam - b), in force
 /// units: unlike err it does not shrink when lambda grows without bound.
-fn residual_norm(problem: &DualProblem<'_>, lam: &[f64], w: &[f64]) -> f64 {
+pub(super) fn residual_norm(problem: &DualProblem<'_>, lam: &[f64], w: &[f64]) -> f64 {
     let dual = problem.dual;
     let (m, d) = (dual.m, dual.d);
     let mut r2 = 0.0;
