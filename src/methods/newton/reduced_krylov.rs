@@ -159,7 +159,9 @@ pub(super) fn krylov_step(
     // choice, not a derived one (T^T V = I, so the square case's inverse
     // is T^T A^-1 V, which this P is the transpose of): V on both sides,
     // as before, took 3-6 % more products over the load-path family's warm
-    // Coulomb histories (BENCHMARKS.md); T^T G V is still to be measured.
+    // Coulomb histories (BENCHMARKS.md); the transpose, S T^T G V S, took
+    // as many as this one (within 3 %, either way) on 3d-24x24x4,
+    // 3d-32x32x4 and 3d-64x64x6.
     // The interface compliance's D (`Dual::set_shift`) counts with the
     // diagonal term (G approximates A^-1, not (A + D)^-1), and the Jacobi
     // part (1 - S_l^2) / M_ll is added where D is present: a soft interface
