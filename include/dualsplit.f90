@@ -941,7 +941,8 @@ contains
    !> dualsplit.h for the loop step by step): r is the host's residual
    !> f_ext - f_int(u_j) without contact forces (n values), g the gaps at u_j
    !> (m values), slip the slip already taken in the increment T (u_j - u_n)
-   !> ((d-1) m values, optional: absent for zero), lambda_t_start the tangential
+   !> ((d-1) m values, optional: absent at the first iteration of an
+   !> increment only), lambda_t_start the tangential
    !> forces at the start of the increment (optional; read only at contacts with
    !> a finite k_t). Returns the correction du and the TOTAL contact forces;
    !> starts from the last converged iteration's multipliers (the first

@@ -924,9 +924,10 @@ fn a_proportional_ramp_starts_each_increment_on_the_line() {
         // The dense route's Newton starts with sweeps and is near the answer
         // from the line (11-12 against 30-40 here); the matrix-free one's
         // steps at tol 1e-10 hardly change with a start a few times nearer
-        // (Newton's forcing terms are relative to the start's |F|), and the
-        // line costs two products (q and the guard's residual; 102 against
-        // 102 here).
+        // (Newton's forcing terms are relative to the start's |F|: 102
+        // against 102 here, the line's own two products not counted in
+        // these iterations), so there the line must cost at most one
+        // iteration per increment.
         let (line, plain) = (total[0], total[1]);
         match form {
             DualForm::Dense => assert!(

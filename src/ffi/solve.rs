@@ -22,8 +22,8 @@ enum Mode {
     /// ds_step: one step of the history.
     Step,
     /// ds_solve_iteration: one iteration of the host's Newton loop, with the
-    /// slip already taken and the increment's starting tangential forces
-    /// (each NULL for zero).
+    /// slip already taken (NULL: the first iteration of an increment) and
+    /// the increment's starting tangential forces (NULL for zero).
     Iteration {
         slip: *const f64,
         lt_start: *const f64,
@@ -317,7 +317,9 @@ pub unsafe extern "C" fn ds_step(
 /// 1. u_0 = u_n (j = 0).
 /// 2. Assemble the tangent K_t(u_j), the residual r_j = f_ext - f_int(u_j)
 ///    WITHOUT contact forces, the gaps g_j at u_j and the slip already taken
-///    s_j = T (u_j - u_n) (NULL at j = 0, or where nothing slipped).
+///    s_j = T (u_j - u_n) (NULL at j = 0 only: NULL marks the first
+///    iteration of an increment; zeros at a later one where nothing
+///    slipped).
 /// 3. ds_problem_refactor(problem, K_t) (same pattern).
 /// 4. ds_solve_iteration(problem, opts, friction, r_j, g_j, bound, s_j,
 ///    lambda_t_start, du, lambda_n, lambda_t, report). The contact solve
@@ -345,15 +347,18 @@ pub unsafe extern "C" fn ds_step(
 /// ds_problem_refactor keeps: at a converging host loop they are already
 /// this iteration's answer. The first iteration of an increment (slip NULL)
 /// starts, where the load changes of the last two increments lie on one
-/// line, from the extrapolation of the multipliers that ended them (two
-/// products more; docs/design.md section 9). The history of ds_step is
-/// neither used nor changed.
+/// line, from the extrapolation of the multipliers that ended them (at
+/// most two products more; not with an interface compliance; docs/design.md
+/// section 9). A host that cuts an increment back retries it from the
+/// failed try's last multipliers and line (the answer does not depend on
+/// the start; ds_history_reset starts it from zero). The history of ds_step
+/// is neither used nor changed.
 ///
 /// - problem, opts, friction, bound: as ds_solve.
 /// - r: the host's residual f_ext - f_int(u_j), n values (force units).
 /// - g: the gaps at u_j, m values (length units; g_i < 0 a penetration).
 /// - slip: s_j = T (u_j - u_n), (d-1) m values, one per row of T (length
-///   units), or NULL for zero.
+///   units), or NULL at the first iteration of an increment (zero slip).
 /// - lambda_t_start: the tangential forces at the start of the increment,
 ///   (d-1) m values, or NULL for zero. Read only at contacts with an elastic
 ///   slip (ds_problem_set_compliance, finite k_t), whose law is

@@ -39,8 +39,9 @@ pub struct HostIteration<'a> {
     /// units; negative: penetration at u_j).
     pub g: &'a [f64],
     /// s_j = T (u_j - u_n), the slip already taken in the increment ((d - 1) m
-    /// values, one per row of T, length units); None for zero (the first
-    /// iteration of an increment).
+    /// values, one per row of T, length units); None marks the first
+    /// iteration of an increment (zero slip, and the increments' line of the
+    /// module docs); a later iteration where nothing slipped passes zeros.
     pub slip: Option<&'a [f64]>,
     /// The tangential forces at the start of the increment ((d - 1) m values),
     /// where an interface compliance (`set_compliance`, k_T finite) makes
@@ -111,7 +112,7 @@ impl ContactProblem {
         // multipliers that ended the last one starts from the increments'
         // prediction (`history::Increments`), a later one from the last
         // iteration's multipliers.
-        let first = it.slip.is_none() && lam.iter().any(|&x| x != 0.0);
+        let first = it.slip.is_none();
         let lam_n = first.then(|| lam.clone());
         // Lent to the solve (which needs the handle mutable) and put back
         // after; a panic inside forgets it (no prediction for the next
@@ -135,10 +136,25 @@ impl ContactProblem {
         );
         self.increments = increments;
         let solve::Solved { sol, load, .. } = solved?;
-        if sol.report.status == SolveStatus::Converged {
+        let converged = sol.report.status == SolveStatus::Converged;
+        if converged {
             self.iteration_start = lam;
-            if let (Some(start), Some(q)) = (lam_n, load) {
-                self.increments.advance(start, q);
+        }
+        // An increment's first iteration records its start and load change
+        // for the next one; where it records nothing the line is forgotten,
+        // so that the next increment does not pair lambda_n with an older
+        // increment's end. Nothing is recorded where it did not converge, or
+        // measured no load change (an interface compliance), or started from
+        // zero: the line is drawn between increments that both started in
+        // contact, as a history's (3d-52x52x4 host example: a line through
+        // the zero start took the second increment's first solve from 54 to
+        // 84 products).
+        if let Some(start) = lam_n {
+            match load {
+                Some(q) if converged && start.iter().any(|&x| x != 0.0) => {
+                    self.increments.advance(start, q)
+                }
+                _ => self.increments.forget(),
             }
         }
         Ok(sol)

@@ -828,8 +828,9 @@ impl ContactProblem {
             self.compliance.carry(&law, &mut self.history.lt, self.d);
         }
         self.dual.set_shift(&law.shift(self.d));
-        // The predictor's loads were those of the old A + D.
+        // The predictors' loads were those of the old A + D.
         self.history.forget_loads();
+        self.increments.forget();
         self.compliance = law;
         Ok(())
     }

@@ -330,6 +330,9 @@ impl ContactProblem {
                 extrapolated = h.start(&load, friction, self.d, lam) > 0.0;
                 Some(load)
             }
+            // Not with an interface compliance: A + D would mix D lambda_n
+            // into q, and the solve's b is shifted below.
+            Warm::Increment(_) if !self.dual.shift().is_empty() => None,
             Warm::Increment(incs) => {
                 // q = b + [g; 0] - A lambda_n (`history::Increments`), and
                 // w = A lambda_n - b.
@@ -342,7 +345,7 @@ impl ContactProblem {
                 let mut start = lam.to_vec();
                 if incs.start(&q, friction, self.d, &mut start) > 0.0 {
                     // The prediction is kept unless its natural residual
-                    // exceeds lambda_n's by more than INCREMENT_RISE (one
+                    // exceeds lambda_n's more than INCREMENT_RISE times (one
                     // product; `history::Increments`).
                     let at = DualProblem {
                         dual: &self.dual,
