@@ -210,7 +210,7 @@ fn line_factor(change: impl Iterator<Item = f64>, last: &[f64]) -> Option<f64> {
 /// P(lambda_n + s (lambda_n - lambda_n-1)).
 ///
 /// The line is not trusted where its start's natural residual |F| exceeds
-/// lambda_n's by more than INCREMENT_RISE (`ContactProblem::solve_iteration`
+/// lambda_n's more than INCREMENT_RISE times (`ContactProblem::solve_iteration`
 /// measures both: one product more). The first iteration's |F| at lambda_n
 /// is large (the whole load change is in it), and a good prediction can
 /// raise it 2-4 times (its contact states not yet sorted); one that raises
@@ -222,12 +222,14 @@ fn line_factor(change: impl Iterator<Item = f64>, last: &[f64]) -> Option<f64> {
 pub(crate) struct Increments {
     /// lambda_n-1 (the multipliers the first iteration of the last
     /// increment started from) and that iteration's q, once it converged;
-    /// None before, and after the contacts or the history changed.
+    /// None before, after the contacts, the compliance or the history
+    /// changed, and after a first iteration that recorded nothing.
     last: Option<(Vec<f64>, Vec<f64>)>,
 }
 
 impl Increments {
-    /// Forgets the last increment (a reset, new contacts).
+    /// Forgets the last increment (a reset, new contacts or compliance, a
+    /// first iteration that recorded nothing).
     pub fn forget(&mut self) {
         self.last = None;
     }

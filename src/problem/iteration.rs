@@ -57,8 +57,9 @@ impl ContactProblem {
     /// before the first, after [`ContactProblem::reset_history`] or a change
     /// of m), or, for the first iteration of an increment (`it.slip` None),
     /// from the line through the multipliers that ended the last two
-    /// increments (module docs). They are kept only when this one converges. The history of
-    /// [`ContactProblem::step`] is neither used nor changed.
+    /// increments (module docs). They are kept only when this one
+    /// converges. The history of [`ContactProblem::step`] is neither used
+    /// nor changed.
     ///
     /// `opts.tol` may follow the host's residual, loose in the early
     /// iterations and `tol` in the last (an inexact Newton step; docs/design.md
