@@ -334,28 +334,25 @@ impl ContactProblem {
             // into q, and the solve's b is shifted below.
             Warm::Increment(_) if !self.dual.shift().is_empty() => None,
             Warm::Increment(incs) => {
-                // q = b + [g; 0] - A lambda_n (`history::Increments`), and
-                // w = A lambda_n - b.
-                let (mut q, mut w) = (vec![0.0; c], vec![0.0; c]);
-                self.dual.apply(lam, &mut w);
-                for (((qj, wj), bj), gj) in q.iter_mut().zip(&mut w).zip(&b).zip(g) {
-                    *wj -= bj;
-                    *qj = gj - *wj;
-                }
+                let at = DualProblem {
+                    dual: &self.dual,
+                    b: &b,
+                    law: friction,
+                    monitor: None,
+                    deadline: None,
+                    predicted: false,
+                    near: false,
+                };
+                // w = A lambda_n - b and q = b + [g; 0] - A lambda_n = [g; 0]
+                // - w (`history::Increments`).
+                let mut w = vec![0.0; c];
+                at.gradient(lam, &mut w);
+                let q: Vec<f64> = g.iter().zip(&w).map(|(gj, wj)| gj - wj).collect();
                 let mut start = lam.to_vec();
                 if incs.start(&q, friction, self.d, &mut start) > 0.0 {
                     // The prediction is kept unless its natural residual
                     // exceeds lambda_n's more than INCREMENT_RISE times (one
                     // product; `history::Increments`).
-                    let at = DualProblem {
-                        dual: &self.dual,
-                        b: &b,
-                        law: friction,
-                        monitor: None,
-                        deadline: None,
-                        predicted: false,
-                        near: false,
-                    };
                     let before = at.natural_residual(lam, &w);
                     at.gradient(&start, &mut w);
                     if at.natural_residual(&start, &w) <= INCREMENT_RISE * before {
