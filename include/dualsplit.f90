@@ -207,7 +207,7 @@ module dualsplit
       integer(c_int64_t) :: compliant_contacts !< contacts with finite c_N or k_T (0.8)
       integer(c_int64_t) :: power_law_contacts !< of those, m_N /= 1 (0.8)
       integer(c_int64_t) :: blocks_age    !< refactors since the contact blocks were computed (0.10)
-      real(c_double)     :: err_factor    !< err's factor for kept blocks, 1 to 1.5 (0.10)
+      real(c_double)     :: err_factor    !< err's factor for kept blocks, 1 to 3 (0.10)
    end type DsInfo
 
    !> sizeof(DsInfo) in C (tests/fortran.rs checks it).

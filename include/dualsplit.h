@@ -849,7 +849,9 @@ typedef struct DsInfo {
   uint64_t solve_bytes;
   /*
    Predicted peak bytes of ds_problem_refactor (the old and the new factor
-   are held at once; max_memory must allow for it).
+   are held at once; max_memory must allow for it), before the slots of
+   a coordinate-format K's triplets (4 bytes per triplet, 8 where one
+   triangle is given; see ds_problem_refactor), which the check adds.
    */
   uint64_t refactor_bytes;
   /*
@@ -885,7 +887,7 @@ typedef struct DsInfo {
   /*
    The factor err (DsReport.err) is multiplied by so that it bounds err
    on the current K's contact blocks: 1 where blocks_age is 0, at most
-   1.5 else (rho comes from the kept blocks; their drift, estimated by
+   3 else (rho comes from the kept blocks; their drift, estimated by
    Lanczos steps and not certified, bounds how far it lies from the
    current K's). Added in version 0.10.
    */
@@ -1300,7 +1302,7 @@ void ds_problem_free(struct DsProblem *problem);
  computed on (they cost 0.7-1.4 factorisations to compute afresh) where a
  few Lanczos steps (at most 8 single-precision solves with the new K)
  estimate that they drifted so little that err, with rho from them, is at
- most 1.5 times err on the new K's own blocks; err is then reported
+ most 3 times err on the new K's own blocks; err is then reported
  multiplied by that estimated factor (DsInfo.err_factor), so that it
  bounds the err of the new K as far as the estimate holds, and
  DsInfo.blocks_age counts the refactors since the blocks were computed.
@@ -1308,8 +1310,12 @@ void ds_problem_free(struct DsProblem *problem);
 
  A K in coordinate format (DS_FORMAT_COO, any storage) whose triplets all
  fall on the pattern the handle holds and cover it is placed triplet by
- triplet, each by a binary search in its column, instead of sorted and
- summed afresh (the same matrix, bit for bit).
+ triplet instead of sorted and summed afresh (the same matrix, bit for
+ bit): at the slot where the triplet of the same number fell at the last
+ refactor where it still lies there (a host that assembles in a fixed
+ order), else by a binary search in its column. The handle keeps those
+ slots: 4 bytes per triplet (8 where one triangle is given), beyond
+ DsInfo.refactor_bytes.
 
  Returns DS_STATUS_OK, or the errors of ds_problem_new for K, and
  DS_STATUS_BAD_ARGUMENT if the pattern differs.

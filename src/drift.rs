@@ -119,6 +119,9 @@ pub(crate) fn drift(
     for step in 0..MAX_STEPS {
         mul_with(k, &delta, &q, &mut p);
         alpha.push(dot(&q, &p));
+        // K times the solve's result is (K - K_ref) q, up to the solve's
+        // rounding: kept instead of a product with K.
+        kp.copy_from_slice(&p);
         rhs.iter_mut().zip(&p).for_each(|(r, x)| *r = *x as f32);
         factor.solve_single(
             single,
@@ -131,9 +134,9 @@ pub(crate) fn drift(
             for (qi, kqi) in &basis {
                 let c = dot(kqi, &p);
                 p.iter_mut().zip(qi).for_each(|(x, y)| *x -= c * y);
+                kp.iter_mut().zip(kqi).for_each(|(x, y)| *x -= c * y);
             }
         }
-        k.mul_vec(&p, &mut kp);
         let b = dot(&p, &kp).max(0.0).sqrt();
         if !b.is_finite() || alpha.iter().any(|a| !a.is_finite()) {
             return unbounded(step + 1);

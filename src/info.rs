@@ -66,7 +66,7 @@ pub struct Info {
     /// (docs/design.md section 9).
     pub blocks_age: usize,
     /// The factor err is multiplied by so that it bounds err on the current
-    /// K's contact blocks (>= 1, at most 1.5; 1 where `blocks_age` is 0): rho
+    /// K's contact blocks (>= 1, at most 3; 1 where `blocks_age` is 0): rho
     /// comes from the kept blocks, and the estimate of their drift bounds how
     /// far it lies from the current K's (an estimate by Lanczos steps, not a
     /// certified bound).

@@ -830,17 +830,17 @@ fn a_refactor_keeps_the_contact_blocks_while_they_drift_little() {
         "{}",
         info.err_factor
     );
-    // Onto 3 K (from K_0 = 1.2 K: mu = 0.6, factor 2.5): beyond the bound,
+    // Onto 5 K (from K_0 = 1.2 K: mu = 0.76, factor 4.2): beyond the bound,
     // computed afresh.
-    pb.refactor(&scaled(&sc.k, 3.0).view())
-        .expect("refactor onto 3 K");
+    pb.refactor(&scaled(&sc.k, 5.0).view())
+        .expect("refactor onto 5 K");
     let cost = pb.last_refactor();
     assert!(!cost.blocks_kept, "{cost:?}");
     let info = pb.info(&o);
     assert_eq!((info.blocks_age, info.err_factor), (0, 1.0));
-    // Kept again from 3 K, then new contacts: their blocks are new.
-    pb.refactor(&scaled(&sc.k, 2.9).view())
-        .expect("refactor onto 2.9 K");
+    // Kept again from 5 K, then new contacts: their blocks are new.
+    pb.refactor(&scaled(&sc.k, 4.9).view())
+        .expect("refactor onto 4.9 K");
     assert_eq!(pb.info(&o).blocks_age, 1);
     pb.set_contacts(&Owned::of(&sc.n).view(), &Owned::of(&sc.t).view())
         .expect("the same contacts");

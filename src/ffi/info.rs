@@ -58,7 +58,9 @@ pub struct DsInfo {
     /// Predicted peak bytes during one solve with that method (its largest case).
     pub solve_bytes: u64,
     /// Predicted peak bytes of ds_problem_refactor (the old and the new factor
-    /// are held at once; max_memory must allow for it).
+    /// are held at once; max_memory must allow for it), before the slots of
+    /// a coordinate-format K's triplets (4 bytes per triplet, 8 where one
+    /// triangle is given; see ds_problem_refactor), which the check adds.
     pub refactor_bytes: u64,
     /// The memory limit the predictions are checked against, bytes
     /// (DsOptions.max_memory, else this process's address-space limit or the
@@ -82,7 +84,7 @@ pub struct DsInfo {
     pub blocks_age: i64,
     /// The factor err (DsReport.err) is multiplied by so that it bounds err
     /// on the current K's contact blocks: 1 where blocks_age is 0, at most
-    /// 1.5 else (rho comes from the kept blocks; their drift, estimated by
+    /// 3 else (rho comes from the kept blocks; their drift, estimated by
     /// Lanczos steps and not certified, bounds how far it lies from the
     /// current K's). Added in version 0.10.
     pub err_factor: f64,

@@ -19,7 +19,7 @@ use crate::plan;
 use crate::report::Report;
 use crate::report::{SolveStatus, contact_states};
 use crate::sizes::Sizes;
-use crate::sparse::{Csc, MatrixView};
+use crate::sparse::{Csc, MatrixView, TripletSlots};
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 
@@ -78,11 +78,22 @@ pub struct ContactProblem {
     last_refactor: RefactorCost,
     /// Where the matrix-free dual's contact blocks are an earlier K's.
     kept_blocks: Option<KeptBlocks>,
+    /// Where a host's COO triplets fell at the last refactor: guesses only,
+    /// checked at each use (a refactor that fails after placing them
+    /// changes no later result).
+    coo_slots: TripletSlots,
 }
 
 /// The most err may grow by a refactor that keeps the contact blocks of an
 /// earlier K (`Drift::err_factor`): beyond it they are computed afresh.
-pub(crate) const KEEP_BLOCKS_MAX_ERR_FACTOR: f64 = 1.5;
+/// Computing them costs 0.7-1.4 factorisations; kept ones cost err's
+/// scaling (a solve to tol / err_factor on their rho) and a preconditioner
+/// a little off. A host's first tangent of an increment drifts 1.7-2.6 from
+/// the last increment's blocks on the 3D host example (the geometry moved),
+/// the later ones 1.0-1.3 more: at 3 (1.5 before) a refactor there cost
+/// 1.12-1.13 factorisations on average instead of 1.31, for 3 % more Krylov
+/// products (docs/design.md section 9).
+pub(crate) const KEEP_BLOCKS_MAX_ERR_FACTOR: f64 = 3.0;
 
 /// A matrix-free dual's contact blocks computed on an earlier K than the one
 /// the problem holds (see [`ContactProblem::refactor`]).
@@ -374,6 +385,7 @@ impl ContactProblem {
             increments: Increments::default(),
             last_refactor: RefactorCost::default(),
             kept_blocks: None,
+            coo_slots: TripletSlots::default(),
         })
     }
 
@@ -478,6 +490,7 @@ impl ContactProblem {
             increments: Increments::default(),
             last_refactor: RefactorCost::default(),
             kept_blocks: None,
+            coo_slots: TripletSlots::default(),
         })
     }
 
@@ -568,7 +581,7 @@ impl ContactProblem {
     /// A matrix-free dual on the library's factor keeps its contact blocks
     /// (those of the K they were computed on) where their drift, the spectrum
     /// of K^-1 (K - K_then) estimated by at most 8 Lanczos steps
-    /// (`drift.rs`), bounds err's growth by at most 1.5 (an estimate, not a
+    /// (`drift.rs`), bounds err's growth by at most 3 (an estimate, not a
     /// certified bound): err is then multiplied by that estimated bound
     /// ([`Info::err_factor`], [`Info::blocks_age`]); else they are computed
     /// afresh.
@@ -585,7 +598,8 @@ impl ContactProblem {
         let factor = factor.clone();
         // A host's COO tangent on the pattern the handle holds is placed
         // triplet by triplet; anything else is converted in full.
-        let k = match old_k.refill_symmetric(k) {
+        let slots_bytes = TripletSlots::bytes(k);
+        let k = match old_k.refill_symmetric(k, &mut self.coo_slots, factor.ledger()) {
             Some(k) => k,
             None => Csc::symmetric_from_view(k, "K")?,
         };
@@ -596,7 +610,9 @@ impl ContactProblem {
             );
         }
         memory::check(
-            self.sizes.refactor(self.dual.condensation, k.bytes()),
+            self.sizes
+                .refactor(self.dual.condensation, k.bytes())
+                .saturating_add(slots_bytes),
             memory::limit(self.max_memory),
             self.max_memory,
             "refactoring K (the old and the new factor are held at once)",
