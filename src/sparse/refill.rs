@@ -22,6 +22,9 @@ use std::sync::Arc;
 #[derive(Debug, Default)]
 pub(crate) struct TripletSlots {
     slots: Vec<u32>,
+    /// Whether the slots are those of a refill that met every entry of the
+    /// pattern: triplets that all land on them cover it again.
+    complete: bool,
     _claim: Option<Claim>,
 }
 
@@ -86,15 +89,22 @@ impl Csc {
         if view.p.len() != len || view.x.len() != len {
             return None;
         }
-        let mut values = vec![0.0; self.values.len()];
-        let mut met = vec![false; self.values.len()];
+        let nnz = self.values.len();
+        // -0.0 + x is x bit for bit (-0.0 included): each entry's sum is the
+        // full conversion's, which starts from its first triplet.
+        let mut values = vec![-0.0; nnz];
         let (upper, lower) = match view.storage {
             Storage::Full => (false, false),
             Storage::Upper => (true, false),
             Storage::Lower => (false, true),
         };
         let passes = if upper || lower { 2 } else { 1 };
-        let mut slots = slots.ready(passes * len, self.values.len(), ledger);
+        let complete = std::mem::take(&mut slots.complete);
+        let mut guesses = slots.ready(passes * len, nnz, ledger);
+        let usable = guesses.is_some();
+        // The entries met, where the slots cannot vouch for them: made at the
+        // first triplet off its slot (those before it marked from theirs).
+        let mut met = (!(usable && complete)).then(|| vec![false; nnz]);
         // The stored triplets, then (one triangle given) their mirrors: the
         // order in which the full conversion sums them.
         for mirror in [false, true] {
@@ -112,27 +122,39 @@ impl Csc {
                 let (r, c) = match mirror {
                     false => (r, c),
                     true if r != c => (c, r),
-                    true => continue,
+                    true => {
+                        // No slot: none read by `met_so_far` either.
+                        if let Some(s) = guesses.as_deref_mut() {
+                            s[offset + k] = u32::MAX;
+                        }
+                        continue;
+                    }
                 };
                 let (lo, hi) = (self.col_ptr[c], self.col_ptr[c + 1]);
-                let guess = slots
+                let guess = guesses
                     .as_deref()
                     .map_or(usize::MAX, |s| s[offset + k] as usize);
                 let q = if (lo..hi).contains(&guess) && self.row_idx[guess] == r {
                     guess
                 } else {
                     let q = lo + self.row_idx[lo..hi].binary_search(&r).ok()?;
-                    if let Some(s) = slots.as_deref_mut() {
+                    if let Some(s) = guesses.as_deref_mut() {
+                        if met.is_none() {
+                            met = Some(met_so_far(&s[..offset + k], nnz));
+                        }
                         // q < nnz < u32::MAX (`TripletSlots::ready`).
                         s[offset + k] = q as u32;
                     }
                     q
                 };
-                values[q] = if met[q] { values[q] + x } else { x };
-                met[q] = true;
+                values[q] += x;
+                if let Some(met) = met.as_mut() {
+                    met[q] = true;
+                }
             }
         }
-        if met.iter().any(|&m| !m) || values.iter().any(|v| !v.is_finite()) {
+        let missing = met.is_some_and(|met| met.iter().any(|&m| !m));
+        if missing || values.iter().any(|v| !v.is_finite()) {
             return None;
         }
         let a = Csc {
@@ -145,8 +167,22 @@ impl Csc {
         if !(upper || lower) {
             check_symmetric(&a, "K", base).ok()?;
         }
+        // Every entry met, by these slots' triplets.
+        slots.complete = usable;
         Some(a)
     }
+}
+
+/// The entries of a pattern of `nnz` met by the triplets placed at `slots`
+/// (u32::MAX where none was: the mirror of a diagonal triplet).
+fn met_so_far(slots: &[u32], nnz: usize) -> Vec<bool> {
+    let mut met = vec![false; nnz];
+    for &q in slots {
+        if let Some(m) = met.get_mut(q as usize) {
+            *m = true;
+        }
+    }
+    met
 }
 
 #[cfg(test)]
@@ -256,6 +292,19 @@ mod tests {
                 &ledger,
             )
         };
+        assert!(refill(&|_| {}).is_some());
+        // An entry missing with as many triplets, after a refill whose
+        // slots met every entry: (0, 5) and (5, 0) moved onto the diagonal.
+        assert!(
+            refill(&|a| {
+                for k in 0..a.0.len() {
+                    if matches!((a.0[k], a.1[k]), (0, 5) | (5, 0)) {
+                        a.1[k] = a.0[k];
+                    }
+                }
+            })
+            .is_none()
+        );
         assert!(refill(&|_| {}).is_some());
         // An entry off the pattern (0, 3) and its mirror.
         assert!(
