@@ -358,7 +358,7 @@ mod tests {
             "{d:?} {lo} {hi}"
         );
         assert!(d.solves <= MAX_STEPS);
-        // Beyond a refactor's bound of 1.5 (mu_max = 0.7: a factor 3.3),
+        // Beyond a bound of 1.5 (mu_max = 0.7: a factor 3.3),
         // it gives up as soon as the Ritz values alone say so.
         let early = drift(&f, &single, &k, &k_ref.values, 1.5);
         assert!(

@@ -757,12 +757,12 @@ fn exact_err_scaled(sc: &Scene, k: &Csc, sol: &Solution, mu: &[f64], s: f64) -> 
 }
 
 /// A refactor of a matrix-free dual keeps the contact blocks of the K they
-/// were computed on while their drift bounds err's growth by 1.5, and says
+/// were computed on while their drift bounds err's growth by 3, and says
 /// so: from K_0 = 1.2 K onto K, M = K^-1 (K - K_0) = -0.2 I, so the blocks of
 /// K are 1.2 times K_0's and err's factor is 1.2 (one Lanczos step, to the
 /// single-precision solves' rounding); the solution is the fresh handle's,
 /// and the reported err bounds err on K's own blocks. Onto 1.1 K the drift is still measured from K_0 (factor
-/// 1.2 / 1.1, age 2); onto 3 K (factor 2.5) the blocks are computed afresh, and
+/// 1.2 / 1.1, age 2); onto 5 K (factor 4.2) the blocks are computed afresh, and
 /// new contacts start afresh too.
 #[test]
 fn a_refactor_keeps_the_contact_blocks_while_they_drift_little() {

@@ -123,8 +123,14 @@ impl Csc {
                     false => (r, c),
                     true if r != c => (c, r),
                     true => {
-                        // No slot: none read by `met_so_far` either.
+                        // No slot: none read by `met_so_far` either. Where
+                        // the last refill placed a triplet here (K sent in
+                        // another storage), the slots no longer vouch for
+                        // the entries it met: the marks are made now.
                         if let Some(s) = guesses.as_deref_mut() {
+                            if met.is_none() && s[offset + k] != u32::MAX {
+                                met = Some(met_so_far(&s[..offset + k], nnz));
+                            }
                             s[offset + k] = u32::MAX;
                         }
                         continue;
@@ -329,6 +335,33 @@ mod tests {
                 a.2.retain(|_| *it.next().unwrap());
             })
             .is_none()
+        );
+        // Upper storage after a full refill of as many placements: the
+        // upper triangle without (0, 5), whose mirrors fall on the slots of
+        // the full triplets and whose diagonal's mirrors skip the slots
+        // that held (0, 5) and (5, 0).
+        let diag = [(0, 0), (1, 1), (2, 2), (3, 3), (4, 4), (5, 5)];
+        let links = [(0, 1), (1, 2), (2, 3), (3, 4), (4, 5)];
+        let mut full: Vec<(i64, i64)> = diag.iter().chain(&links).copied().collect();
+        full.extend([(0, 5), (5, 0), (0, 0), (0, 0), (0, 0), (0, 0)]);
+        full.extend(links.iter().map(|&(r, c)| (c, r)));
+        let upper = &full[..diag.len() + links.len()];
+        let view_of = |t: &[(i64, i64)]| -> Arrays {
+            (
+                t.iter().map(|e| e.0).collect(),
+                t.iter().map(|e| e.1).collect(),
+                vec![1.0; t.len()],
+            )
+        };
+        let (a_full, a_upper) = ([view_of(&full)], [view_of(upper)]);
+        let mut own = TripletSlots::default();
+        assert!(
+            k0.refill_symmetric(&coo(&a_full, Storage::Full, 0), &mut own, &ledger)
+                .is_some()
+        );
+        assert!(
+            k0.refill_symmetric(&coo(&a_upper, Storage::Upper, 0), &mut own, &ledger)
+                .is_none()
         );
         // Not finite, out of range, not symmetric, unequal lengths.
         assert!(refill(&|a| a.2[3] = f64::NAN).is_none());
