@@ -840,11 +840,13 @@ typedef struct DsInfo {
    */
   uint64_t setup_bytes;
   /*
-   Predicted bytes the handle holds between calls.
+   Predicted bytes the handle holds between calls (with the slots a
+   refactor from a coordinate-format K keeps, once it has made them).
    */
   uint64_t resident_bytes;
   /*
-   Predicted peak bytes during one solve with that method (its largest case).
+   Predicted peak bytes during one solve with that method (its largest
+   case; the slots of resident_bytes included).
    */
   uint64_t solve_bytes;
   /*

@@ -41,7 +41,10 @@ pub struct Info {
     /// Predicted peak bytes of the library's large allocations while the problem
     /// is created (factorisation, then condensation), held between calls, during
     /// one solve with that method (its largest case), and during a refactorisation
-    /// with new values of K (the old and the new factor at once).
+    /// with new values of K (the old and the new factor at once). Held between
+    /// calls and during a solve include the slots that a refactor from a
+    /// coordinate-format K keeps (4 bytes per triplet, 8 where one triangle
+    /// is given).
     pub setup_bytes: usize,
     pub resident_bytes: usize,
     pub solve_bytes: usize,

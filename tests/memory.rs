@@ -501,6 +501,49 @@ fn refactor_and_new_contacts_respect_the_handles_max_memory() {
     }
 }
 
+/// A refactor from a coordinate-format K keeps the triplets' slots on the
+/// handle (4 bytes each): the resident and solve predictions count them,
+/// the solve's report predicts what ds_problem_info says, and the library's
+/// own count of the solve stays within it.
+#[test]
+fn the_slots_of_a_coordinate_format_refactor_are_predicted() {
+    let _serial = SERIAL.lock().unwrap_or_else(|e| e.into_inner());
+    warm_up();
+    let sc = block3d();
+    let opts = one_thread();
+    let (k, n, t) = (sc.k.clone(), sc.n.clone(), sc.t.clone());
+    let mut pb = ContactProblem::from_csc_with(sc.d, k, n, t, &opts).expect("setup");
+    let before = pb.info(&opts);
+    let k = &sc.k;
+    let mut cols = Vec::with_capacity(k.values.len());
+    for c in 0..k.ncols {
+        cols.extend((k.col_ptr[c]..k.col_ptr[c + 1]).map(|_| c as i64));
+    }
+    let rows: Vec<i64> = k.row_idx.iter().map(|&r| r as i64).collect();
+    let coo = dualsplit::MatrixView {
+        format: dualsplit::Format::Coo,
+        storage: dualsplit::Storage::Full,
+        base: 0,
+        nrows: k.nrows,
+        ncols: k.ncols,
+        p: dualsplit::Indices::I64(&cols),
+        i: dualsplit::Indices::I64(&rows),
+        x: &k.values,
+    };
+    pb.refactor(&coo).expect("refactor");
+    let slots = 4 * k.values.len();
+    let after = pb.info(&opts);
+    assert_eq!(after.resident_bytes, before.resident_bytes + slots);
+    assert_eq!(after.solve_bytes, before.solve_bytes + slots);
+    let p = vec![0.3; sc.m()];
+    let sol = pb
+        .solve(&sc.f, &sc.g, Friction::Tresca(&p), &opts)
+        .expect("solve");
+    let r = &sol.report;
+    assert_eq!(r.memory_predicted, after.solve_bytes);
+    assert!(r.memory_peak <= r.memory_predicted, "{r:?}");
+}
+
 /// The matrix-free path allocates no c x c array: on a slab whose
 /// every bottom node is a contact (c = 1,875 = n, so that even a dense factor of K
 /// stays below c^2 doubles), no single allocation of the creation and a Coulomb

@@ -53,9 +53,11 @@ pub struct DsInfo {
     /// Predicted peak bytes of the library's large allocations while the handle
     /// is created (factorisation, then condensation).
     pub setup_bytes: u64,
-    /// Predicted bytes the handle holds between calls.
+    /// Predicted bytes the handle holds between calls (with the slots a
+    /// refactor from a coordinate-format K keeps, once it has made them).
     pub resident_bytes: u64,
-    /// Predicted peak bytes during one solve with that method (its largest case).
+    /// Predicted peak bytes during one solve with that method (its largest
+    /// case; the slots of resident_bytes included).
     pub solve_bytes: u64,
     /// Predicted peak bytes of ds_problem_refactor (the old and the new factor
     /// are held at once; max_memory must allow for it), before the slots of

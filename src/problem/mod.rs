@@ -566,7 +566,11 @@ impl ContactProblem {
                 plan::host_info(self.d, k.as_ref(), &self.n, &self.sizes, opts, limit)
             }
         };
+        // The slots of a coordinate-format K's last refactor stay held.
+        let slots = self.coo_slots.held_bytes();
         Info {
+            resident_bytes: base.resident_bytes.saturating_add(slots),
+            solve_bytes: base.solve_bytes.saturating_add(slots),
             compliant_contacts: self.compliant_contacts(),
             power_law_contacts: self.compliance.nonlinear().len(),
             blocks_age: self.kept_blocks.as_ref().map_or(0, |b| b.refactors),

@@ -41,6 +41,12 @@ impl TripletSlots {
             .saturating_mul(passes * std::mem::size_of::<u32>())
     }
 
+    /// Bytes the slots held now take (kept between refactors: a solve's
+    /// memory need counts them).
+    pub(crate) fn held_bytes(&self) -> usize {
+        self.slots.len() * std::mem::size_of::<u32>()
+    }
+
     /// Slots for `count` placements, reused where they have that length,
     /// else made afresh (counted on `ledger`) with no guess in them; None
     /// where the pattern's slots do not fit in u32 or the memory is refused
