@@ -137,14 +137,22 @@ pub(crate) fn drift(
                 kp.iter_mut().zip(kqi).for_each(|(x, y)| *x -= c * y);
             }
         }
-        let b = dot(&p, &kp).max(0.0).sqrt();
+        let mut b = dot(&p, &kp).max(0.0).sqrt();
+        let scale = alpha.iter().fold(0.0_f64, |s, a| s.max(a.abs()));
+        let tiny = 1e-5 * scale.max(f64::MIN_POSITIVE);
+        if b <= tiny {
+            // The kept K p carries the solve's rounding K e, which can
+            // cancel p^T K p on an ill-conditioned K: a product with K
+            // confirms the end before the widening is dropped.
+            k.mul_vec(&p, &mut kp);
+            b = dot(&p, &kp).max(0.0).sqrt();
+        }
         if !b.is_finite() || alpha.iter().any(|a| !a.is_finite()) {
             return unbounded(step + 1);
         }
-        let scale = alpha.iter().fold(0.0_f64, |s, a| s.max(a.abs()));
         // An invariant subspace: the Ritz values are eigenvalues (up to the
         // single-precision solves' rounding).
-        let exhausted = b <= 1e-5 * scale.max(f64::MIN_POSITIVE);
+        let exhausted = b <= tiny;
         let (theta, last_row) = tridiagonal_eigen(&alpha, &beta);
         // Each end widened by its residual bound, and by a tenth of the
         // Ritz values' spread at least: the residual only says that some
