@@ -851,9 +851,10 @@ typedef struct DsInfo {
   uint64_t solve_bytes;
   /*
    Predicted peak bytes of ds_problem_refactor (the old and the new factor
-   are held at once; max_memory must allow for it), before the slots of
-   a coordinate-format K's triplets (4 bytes per triplet, 8 where one
-   triangle is given; see ds_problem_refactor), which the check adds.
+   are held at once; max_memory must allow for it), with the slots of
+   resident_bytes; a refactor from a coordinate-format K makes its slots
+   first (4 bytes per triplet, 8 where one triangle is given; see
+   ds_problem_refactor) and checks them with the rest.
    */
   uint64_t refactor_bytes;
   /*
@@ -1316,8 +1317,8 @@ void ds_problem_free(struct DsProblem *problem);
  bit): at the slot where the triplet of the same number fell at the last
  refactor where it still lies there (a host that assembles in a fixed
  order), else by a binary search in its column. The handle keeps those
- slots: 4 bytes per triplet (8 where one triangle is given), beyond
- DsInfo.refactor_bytes.
+ slots: 4 bytes per triplet (8 where one triangle is given), counted from
+ then on in DsInfo.resident_bytes and the predictions made on it.
 
  Returns DS_STATUS_OK, or the errors of ds_problem_new for K, and
  DS_STATUS_BAD_ARGUMENT if the pattern differs.

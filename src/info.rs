@@ -42,9 +42,9 @@ pub struct Info {
     /// is created (factorisation, then condensation), held between calls, during
     /// one solve with that method (its largest case), and during a refactorisation
     /// with new values of K (the old and the new factor at once). Held between
-    /// calls and during a solve include the slots that a refactor from a
-    /// coordinate-format K keeps (4 bytes per triplet, 8 where one triangle
-    /// is given).
+    /// calls, during a solve and during a refactorisation include the slots
+    /// that a refactor from a coordinate-format K keeps (4 bytes per triplet,
+    /// 8 where one triangle is given).
     pub setup_bytes: usize,
     pub resident_bytes: usize,
     pub solve_bytes: usize,

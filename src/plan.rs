@@ -163,6 +163,7 @@ pub(crate) fn sizes_and_layer(
         lumped: crate::sparse::congruence_bytes(k, &b, &b.transpose()),
         own_solves: crate::dual::own_solves_bytes(factor, &b),
         dirichlet: layer.as_ref().map_or(0, |p| p.bytes()),
+        slots: 0,
     };
     (sizes, layer)
 }

@@ -36,13 +36,17 @@ pub(crate) struct Sizes {
     /// Bytes of the layered Dirichlet preconditioner a matrix-free dual holds
     /// where it pays (`dirichlet::Plan::bytes`; 0 where it does not).
     pub dirichlet: usize,
+    /// Bytes of the slots a refactor from a coordinate-format K keeps
+    /// (`sparse::TripletSlots`; 0 until one made them).
+    pub slots: usize,
 }
 
 /// Predicted bytes, what the counted allocations will reach.
 impl Sizes {
-    /// K, N, T and the factor.
+    /// K, N, T, the factor and the slots of the last refactor from a
+    /// coordinate-format K.
     fn base(&self) -> usize {
-        self.inputs + self.factor
+        self.inputs + self.factor + self.slots
     }
 
     /// Bytes above [`Sizes::base`] while the dual is formed in the way `how`, and

@@ -502,7 +502,8 @@ fn refactor_and_new_contacts_respect_the_handles_max_memory() {
 }
 
 /// A refactor from a coordinate-format K keeps the triplets' slots on the
-/// handle (4 bytes each): the resident and solve predictions count them,
+/// handle (4 bytes each): the resident, solve and refactor predictions
+/// count them,
 /// the solve's report predicts what ds_problem_info says, and the library's
 /// own count of the solve stays within it.
 #[test]
@@ -535,6 +536,7 @@ fn the_slots_of_a_coordinate_format_refactor_are_predicted() {
     let after = pb.info(&opts);
     assert_eq!(after.resident_bytes, before.resident_bytes + slots);
     assert_eq!(after.solve_bytes, before.solve_bytes + slots);
+    assert_eq!(after.refactor_bytes, before.refactor_bytes + slots);
     let p = vec![0.3; sc.m()];
     let sol = pb
         .solve(&sc.f, &sc.g, Friction::Tresca(&p), &opts)

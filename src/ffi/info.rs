@@ -60,9 +60,10 @@ pub struct DsInfo {
     /// case; the slots of resident_bytes included).
     pub solve_bytes: u64,
     /// Predicted peak bytes of ds_problem_refactor (the old and the new factor
-    /// are held at once; max_memory must allow for it), before the slots of
-    /// a coordinate-format K's triplets (4 bytes per triplet, 8 where one
-    /// triangle is given; see ds_problem_refactor), which the check adds.
+    /// are held at once; max_memory must allow for it), with the slots of
+    /// resident_bytes; a refactor from a coordinate-format K makes its slots
+    /// first (4 bytes per triplet, 8 where one triangle is given; see
+    /// ds_problem_refactor) and checks them with the rest.
     pub refactor_bytes: u64,
     /// The memory limit the predictions are checked against, bytes
     /// (DsOptions.max_memory, else this process's address-space limit or the

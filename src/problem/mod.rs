@@ -566,11 +566,7 @@ impl ContactProblem {
                 plan::host_info(self.d, k.as_ref(), &self.n, &self.sizes, opts, limit)
             }
         };
-        // The slots of a coordinate-format K's last refactor stay held.
-        let slots = self.coo_slots.held_bytes();
         Info {
-            resident_bytes: base.resident_bytes.saturating_add(slots),
-            solve_bytes: base.solve_bytes.saturating_add(slots),
             compliant_contacts: self.compliant_contacts(),
             power_law_contacts: self.compliance.nonlinear().len(),
             blocks_age: self.kept_blocks.as_ref().map_or(0, |b| b.refactors),
@@ -602,8 +598,10 @@ impl ContactProblem {
         let factor = factor.clone();
         // A host's COO tangent on the pattern the handle holds is placed
         // triplet by triplet; anything else is converted in full.
-        let slots_bytes = TripletSlots::bytes(k);
-        let k = match old_k.refill_symmetric(k, &mut self.coo_slots, factor.ledger()) {
+        let refilled = old_k.refill_symmetric(k, &mut self.coo_slots, factor.ledger());
+        // The slots the refill made or kept stay held, whatever follows.
+        self.sizes.slots = self.coo_slots.held_bytes();
+        let k = match refilled {
             Some(k) => k,
             None => Csc::symmetric_from_view(k, "K")?,
         };
@@ -614,9 +612,7 @@ impl ContactProblem {
             );
         }
         memory::check(
-            self.sizes
-                .refactor(self.dual.condensation, k.bytes())
-                .saturating_add(slots_bytes),
+            self.sizes.refactor(self.dual.condensation, k.bytes()),
             memory::limit(self.max_memory),
             self.max_memory,
             "refactoring K (the old and the new factor are held at once)",

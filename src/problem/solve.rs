@@ -94,17 +94,13 @@ impl ContactProblem {
         let next = plan::solve_condensation(now, trailing, opts);
         let free = Condensation::MatrixFree;
         let (m, c) = (self.n_contacts(), self.dual.c);
-        // The slots of a coordinate-format K's last refactor stay held.
-        let slots = self.coo_slots.held_bytes();
         let need = self
             .sizes
-            .solve(now, next, opts.method.workspace(m, c, next == free))
-            .saturating_add(slots);
+            .solve(now, next, opts.method.workspace(m, c, next == free));
         let hint = if next != free {
             let free_need = self
                 .sizes
-                .solve(now, free, Method::Newton.workspace(m, c, true))
-                .saturating_add(slots);
+                .solve(now, free, Method::Newton.workspace(m, c, true));
             format!(
                 "the matrix-free dual (dual_form auto or matrix-free, method auto, \
                  newton or mprgp) would need about {}",

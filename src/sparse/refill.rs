@@ -29,20 +29,8 @@ pub(crate) struct TripletSlots {
 }
 
 impl TripletSlots {
-    /// Bytes the slots of `view` take (4 per triplet, twice that where one
-    /// triangle is given); 0 for a view that is not COO.
-    pub(crate) fn bytes(view: &MatrixView<'_>) -> usize {
-        if view.format != Format::Coo {
-            return 0;
-        }
-        let passes = if view.storage == Storage::Full { 1 } else { 2 };
-        view.i
-            .len()
-            .saturating_mul(passes * std::mem::size_of::<u32>())
-    }
-
-    /// Bytes the slots held now take (kept between refactors: a solve's
-    /// memory need counts them).
+    /// Bytes the slots take: 4 per triplet, twice that where one triangle
+    /// is given (kept between refactors: `Sizes::slots`).
     pub(crate) fn held_bytes(&self) -> usize {
         self.slots.len() * std::mem::size_of::<u32>()
     }
@@ -277,7 +265,9 @@ mod tests {
                         bits(&want.values),
                         "{storage:?}, base {base}"
                     );
-                    assert_eq!(ledger.live(), TripletSlots::bytes(&view));
+                    let passes = if storage == Storage::Full { 1 } else { 2 };
+                    assert_eq!(slots.held_bytes(), 4 * passes * new[0].0.len());
+                    assert_eq!(ledger.live(), slots.held_bytes());
                 }
             }
         }
