@@ -26,6 +26,7 @@
 use crate::factor::Factor;
 use crate::memory::{Claim, Ledger};
 use crate::options::Ordering;
+use crate::restricted::Restricted;
 use crate::sparse::Csc;
 use crate::threads::Threads;
 use faer::MatMut;
@@ -51,6 +52,9 @@ pub(crate) struct Plan {
     /// K_II, and its analysed factor.
     k_ii: Csc,
     factor: Factor,
+    /// The lumped preconditioner restricted to Newton's reduced systems
+    /// (`restricted.rs`), analysed; None where its analysis failed.
+    restricted: Option<Restricted>,
 }
 
 impl Plan {
@@ -81,7 +85,7 @@ impl Plan {
         let budget = MAX_COST * 2.0 * l_nnz as f64;
         let plan = Self::with_layers(k, b, LAYERS, budget, threads, ledger)?;
         let (nnz, _) = plan.factor.nnz_and_flops();
-        ((plan.k_loc.nnz() + 2 * nnz) as f64 <= budget).then_some(plan)
+        ((plan.k_loc.nnz() + 2 * nnz) as f64 <= budget).then(|| plan.restricted_to(b))
     }
 
     /// The plan of LAYERS layers whatever it costs (None where they are empty).
@@ -92,7 +96,14 @@ impl Plan {
         threads: Arc<Threads>,
         ledger: Arc<Ledger>,
     ) -> Option<Plan> {
-        Self::with_layers(k, b, LAYERS, f64::INFINITY, threads, ledger)
+        Self::with_layers(k, b, LAYERS, f64::INFINITY, threads, ledger).map(|p| p.restricted_to(b))
+    }
+
+    /// The plan with the restricted preconditioner of B = `b` analysed.
+    fn restricted_to(mut self, b: &Csc) -> Plan {
+        let (threads, ledger) = (self.factor.threads().clone(), self.factor.ledger().clone());
+        self.restricted = Restricted::new(&self.k_loc, self.nf, &self.global, b, threads, ledger);
+        self
     }
 
     /// The plan of `layers` layers; None where they are empty, or hold more
@@ -181,6 +192,7 @@ impl Plan {
             k_loc,
             k_ii,
             factor,
+            restricted: None,
         })
     }
 
@@ -195,6 +207,7 @@ impl Plan {
             + self.factor.factor_scratch_bytes()
             + self.factor.solve_scratch_single().size_bytes()
             + 2 * nl * 4
+            + self.restricted.as_ref().map_or(0, Restricted::bytes)
     }
 
     /// Factors K_II and keeps what the application reads in single precision;
@@ -223,6 +236,7 @@ impl Plan {
             layer_cols,
             l_ii,
             factor: self.factor,
+            restricted: self.restricted,
             _claim: claim,
         })
     }
@@ -286,10 +300,24 @@ pub(crate) struct Dirichlet {
     /// Scratch: the local vector and K_loc times it; the solve's workspace.
     work: RefCell<(Vec<f32>, Vec<f32>)>,
     mem: RefCell<MemBuffer>,
+    restricted: Option<Restricted>,
     _claim: Claim,
 }
 
 impl Dirichlet {
+    /// The lumped preconditioner restricted to Newton's reduced systems, where
+    /// its analysis succeeded.
+    pub(crate) fn restricted(&self) -> Option<&Restricted> {
+        self.restricted.as_ref()
+    }
+
+    /// Drops the restricted preconditioner (the tests that measure what it
+    /// buys).
+    #[cfg(test)]
+    pub(crate) fn drop_restricted(&mut self) {
+        self.restricted = None;
+    }
+
     /// y := B S_l B^T x (x and y of length c), B = `b`. B's columns outside
     /// the face are empty (the face is the DOFs B touches).
     pub(crate) fn apply(&self, b: &Csc, x: &[f64], y: &mut [f64]) {

@@ -284,6 +284,44 @@ impl Factor {
         Ok(f)
     }
 
+    /// The analysis of `k` in the order `fwd` (the DOF at each position),
+    /// made elsewhere: no ordering computed. A principal submatrix analysed in
+    /// the order of its DOFs in a larger matrix's factor has no more fill than
+    /// that factor (its filled graph is a subgraph). Allocations counted as in
+    /// [`Factor::analyse`].
+    ///
+    /// Errors: `OutOfMemory` (the symbolic analysis).
+    pub(crate) fn analyse_in_order(
+        k: &Csc,
+        fwd: Vec<usize>,
+        threads: Arc<Threads>,
+        ledger: Arc<Ledger>,
+    ) -> Result<Factor> {
+        let mut inv = vec![0; fwd.len()];
+        for (new, &old) in fwd.iter().enumerate() {
+            inv[old] = new;
+        }
+        let symbolic = analyse(k, &fwd, &inv)?;
+        let mut f = Factor {
+            l_values: Vec::new(),
+            l_claim: None,
+            ledger,
+            layout: Layout::Supernodal(Arc::new(symbolic)),
+            col_ptr: k.col_ptr.clone(),
+            row_idx: k.row_idx.clone(),
+            last: Vec::new(),
+            fwd,
+            ordering: Ordering::Amd,
+            analyse_seconds: 0.0,
+            factor_seconds: 0.0,
+            threads,
+            parallel: false,
+        };
+        let (nnz, flops) = f.nnz_and_flops();
+        f.parallel = flops > PARALLEL_FLOPS_PER_ENTRY * nnz as f64;
+        Ok(f)
+    }
+
     /// The analysis of a dense K (n x n, every entry stored): no ordering beyond
     /// moving `last` to the end, no symbolic factorisation.
     fn analyse_dense(

@@ -36,6 +36,7 @@ mod ordering;
 mod plan;
 mod problem;
 mod report;
+mod restricted;
 mod sizes;
 mod sparse;
 mod threads;

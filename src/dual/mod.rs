@@ -521,6 +521,28 @@ impl Dual {
         }
     }
 
+    /// The lumped preconditioner restricted to Newton's reduced systems
+    /// (`restricted.rs`), where the dual holds the layered Dirichlet one
+    /// (analysed with it) and no compliance shift (it approximates A^-1,
+    /// not (A + D)^-1).
+    pub(crate) fn restricted(&self) -> Option<&crate::restricted::Restricted> {
+        let f = self.free.as_ref()?;
+        if !self.shift.is_empty() {
+            return None;
+        }
+        f.dirichlet.as_ref()?.restricted()
+    }
+
+    /// Drops the restricted preconditioner of Newton's reduced systems and
+    /// keeps the layered Dirichlet one (the tests that measure what the
+    /// restriction buys).
+    #[cfg(test)]
+    pub(crate) fn drop_restricted(&mut self) {
+        if let Some(d) = self.free.as_mut().and_then(|f| f.dirichlet.as_mut()) {
+            d.drop_restricted();
+        }
+    }
+
     /// Drops the layered Dirichlet preconditioner (the tests that measure what
     /// it buys against the lumped one).
     #[cfg(test)]

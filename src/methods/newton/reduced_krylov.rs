@@ -5,6 +5,8 @@
 //! allows, and mixed-precision refinement where it does not (`refine`).
 
 use super::*;
+use crate::dual::Dual;
+use crate::restricted::{Pair, Restricted};
 
 /// Most products with A in one reduced solve on a matrix-free dual.
 pub(super) const KRYLOV_MAX_IT: usize = 200;
@@ -189,7 +191,16 @@ pub(super) fn krylov_step(
             }
         })
         .collect();
+    // The lumped preconditioner restricted to the reduced unknowns, with the
+    // layered one's first-order change (`restricted.rs`), where the dual
+    // holds them and every unknown fits it.
+    let mut restricted = Restriction::of(dual, red);
     let mut pre = |x: &[f64], y: &mut [f64]| {
+        if let Some(r) = &mut restricted
+            && r.apply(dual, x, y)
+        {
+            return;
+        }
         gv.iter_mut().for_each(|e| *e = 0.0);
         for ((u, &xl), &sl) in red.iter().zip(x).zip(&scale) {
             for &(j, c) in &u.test[..u.n_test] {
@@ -237,6 +248,96 @@ pub(super) fn krylov_step(
         }
     }
     true
+}
+
+/// A reduced system's unknowns as the restricted preconditioner sees them
+/// (`restricted.rs`): prescribed components (unit test vectors) and
+/// slipping pairs, E factored for them, and the application's vectors.
+struct Restriction<'a> {
+    on: &'a Restricted,
+    prescribed: Vec<usize>,
+    pairs: Vec<Pair>,
+    /// Per reduced unknown: whether it is a pair, and its index in
+    /// `pairs` or `prescribed`.
+    slot: Vec<(bool, usize)>,
+    x: (Vec<f64>, Vec<f64>),
+    z: (Vec<f64>, Vec<f64>),
+    /// Length c: the extension nu, then (H_D - G) nu.
+    nu: Vec<f64>,
+    hd: Vec<f64>,
+    g: Vec<f64>,
+}
+
+impl<'a> Restriction<'a> {
+    /// The restriction for the reduced unknowns `red` where `dual` holds the
+    /// restricted preconditioner, every unknown is a unit one without a
+    /// diagonal term or a tangential pair (j, j + 1) with one, some
+    /// component is not prescribed, and E's factorisation succeeds; None
+    /// elsewhere (the general preconditioner serves).
+    fn of(dual: &'a Dual, red: &[Reduced]) -> Option<Restriction<'a>> {
+        let on = dual.restricted()?;
+        let (mut prescribed, mut pairs) = (Vec::new(), Vec::new());
+        let mut slot = Vec::with_capacity(red.len());
+        for u in red {
+            if u.n_test == 1 && u.diag == 0.0 {
+                slot.push((false, prescribed.len()));
+                prescribed.push(u.test[0].0);
+            } else if u.n_test == 2 && u.diag > 0.0 && u.test[1].0 == u.test[0].0 + 1 {
+                slot.push((true, pairs.len()));
+                pairs.push(Pair {
+                    j: u.test[0].0,
+                    t: [u.test[0].1, u.test[1].1],
+                    delta: u.diag,
+                });
+            } else {
+                return None;
+            }
+        }
+        // Every component prescribed: P x + X^T (H_D - G) X x is H_D's
+        // restriction, the general preconditioner's, at a higher cost.
+        if prescribed.len() == dual.c || !on.factor(&prescribed, &pairs) {
+            return None;
+        }
+        let (np, ns, c) = (prescribed.len(), pairs.len(), dual.c);
+        Some(Restriction {
+            on,
+            prescribed,
+            pairs,
+            slot,
+            x: (vec![0.0; np], vec![0.0; ns]),
+            z: (vec![0.0; np], vec![0.0; ns]),
+            nu: vec![0.0; c],
+            hd: vec![0.0; c],
+            g: vec![0.0; c],
+        })
+    }
+
+    /// y := P x + X^T (H_D - G) X x (`restricted.rs`; H_D the dual's own
+    /// approximate inverse of A, the layered Dirichlet one). False where E
+    /// was not factored.
+    fn apply(&mut self, dual: &Dual, x: &[f64], y: &mut [f64]) -> bool {
+        let ((xp, xs), (zp, zs)) = (&mut self.x, &mut self.z);
+        for (&(pair, at), &xl) in self.slot.iter().zip(x) {
+            if pair {
+                xs[at] = xl;
+            } else {
+                xp[at] = xl;
+            }
+        }
+        let on = self.on;
+        if !on.apply(&self.prescribed, xp, &self.pairs, xs, zp, zs, &mut self.nu) {
+            return false;
+        }
+        if dual.precondition(&self.nu, &mut self.hd) {
+            on.g_mul(&self.nu, &mut self.g);
+            self.hd.iter_mut().zip(&self.g).for_each(|(h, g)| *h -= g);
+            on.add_extension_t(&self.prescribed, &self.pairs, &self.hd, zp, zs);
+        }
+        for (&(pair, at), yl) in self.slot.iter().zip(y.iter_mut()) {
+            *yl = if pair { zs[at] } else { zp[at] };
+        }
+        true
+    }
 }
 
 /// Rounds of `refine` before it falls back to exact products.

@@ -550,6 +550,89 @@ fn the_layered_dirichlet_preconditioner_saves_products() {
     );
 }
 
+/// Matrix-free Newton on the thin lattice slab (anchored firmly), pressed
+/// all over and sheared 17 degrees off the T rows far past the friction
+/// bound (every contact slips), Tresca and Coulomb, with the lumped
+/// preconditioner restricted to the reduced systems (`restricted.rs`) and
+/// without it (the layered Dirichlet one, as restricted by the test
+/// vectors): both converge to dense Newton's multipliers (1e-10 relative),
+/// the restricted one with fewer products.
+#[test]
+fn the_restricted_preconditioner_saves_products_in_gross_slip() {
+    use crate::dual::{Condensation, Dual};
+    use crate::factor::Factor;
+    use crate::options::Ordering;
+    use std::sync::Arc;
+    let (nx, ny, nz) = (16, 16, 4);
+    let k = lattice(nx, ny, nz, 1.0);
+    let m = nx * ny;
+    let (nm, tm) = slab_contacts(nx, ny, k.nrows);
+    let factor =
+        Arc::new(Factor::with_last(&k, &[], Ordering::Amd, Arc::new(Threads::new(1))).unwrap());
+    // Pressed all over (more at the centre), sheared 17 degrees off the x
+    // rows.
+    let (cv, sh) = (0.1, 0.3);
+    let centre = (nx as f64 - 1.0) / 2.0;
+    let (cs, sn) = (17f64.to_radians().cos(), 17f64.to_radians().sin());
+    let b: Vec<f64> = (0..m)
+        .map(|i| {
+            let (x, y) = ((i % nx) as f64 - centre, (i / nx) as f64 - centre);
+            cv * (1.0 - 0.002 * (x * x + y * y))
+        })
+        .chain((0..2 * m).map(|r| sh * if r % 2 == 0 { cs } else { sn }))
+        .collect();
+    let p = vec![0.05; m];
+    let mu = vec![0.3; m];
+    let dense = Dual::build_with(&factor, &nm, &tm, 3, Condensation::Solves).unwrap();
+    let formed = |restricted: bool| {
+        let mut dual = Dual::build_with(&factor, &nm, &tm, 3, Condensation::MatrixFree).unwrap();
+        dual.set_lumped(&k, None);
+        assert!(dual.force_dirichlet(&k));
+        if !restricted {
+            dual.drop_restricted();
+        }
+        dual
+    };
+    let (with, without) = (formed(true), formed(false));
+    for law in [Friction::Tresca(&p), Friction::Coulomb(&mu)] {
+        let solve = |dual: &Dual| {
+            let mut lam = vec![0.0; dual.c];
+            let (out, _) = drive_newton(dual, &b, law, &mut lam, |_| {});
+            (lam, out.inner)
+        };
+        let (l_dense, _) = solve(&dense);
+        // Most closed contacts slip, at the bound.
+        let closed = (0..m).filter(|&i| l_dense[i] > 0.0).count();
+        let slipping = (0..m)
+            .filter(|&i| {
+                let bound = law.bound(i, l_dense[i]);
+                let lt = l_dense[m + 2 * i].hypot(l_dense[m + 2 * i + 1]);
+                l_dense[i] > 0.0 && lt >= bound * (1.0 - 1e-8)
+            })
+            .count();
+        assert!(
+            slipping == m && closed == m,
+            "{slipping} slip of {closed} closed"
+        );
+        let (l_with, its_with) = solve(&with);
+        let (l_without, its_without) = solve(&without);
+        let scale = norm(&l_dense);
+        for (what, l) in [("restricted", &l_with), ("general", &l_without)] {
+            let diff = max_diff(l, &l_dense);
+            assert!(diff <= 1e-10 * scale, "{what}: {diff:.2e}");
+        }
+        let name = match law {
+            Friction::Tresca(_) => "Tresca",
+            Friction::Coulomb(_) => "Coulomb",
+        };
+        println!("{name}: products restricted {its_with}, general {its_without}");
+        assert!(
+            (its_with as f64) < 0.7 * its_without as f64,
+            "products: restricted {its_with}, general {its_without}"
+        );
+    }
+}
+
 /// Matrix-free Newton on a 3D lattice slab, Coulomb, pressed in a small
 /// central patch (most contacts open, so they leave the reduced systems)
 /// and sheared so that its contacts slip: its steps' products are narrowed
