@@ -1,8 +1,10 @@
 //! The reduced system of a Newton step on a matrix-free dual: CG (symmetric)
-//! or GMRES on products with A, preconditioned by the lumped G = B K B^T (or
-//! the layered Dirichlet preconditioner) with the Jacobi part of the
-//! compliance; rough products in single precision where the forcing term
-//! allows, and mixed-precision refinement where it does not (`refine`).
+//! or GMRES on products with A, preconditioned by the lumped G restricted to
+//! the reduced unknowns (`restricted.rs`) where the dual holds it, else by
+//! the lumped G = B K B^T or the layered Dirichlet preconditioner cut by the
+//! test vectors, with the Jacobi part of the compliance; rough products in
+//! single precision where the forcing term allows, and mixed-precision
+//! refinement where it does not (`refine`).
 
 use super::*;
 use crate::dual::Dual;
@@ -84,7 +86,10 @@ pub(super) fn block_entry(problem: &DualProblem<'_>, ja: usize, jb: usize) -> f6
 /// preconditioned CG (symmetric M) or GMRES to the relative residual
 /// `krylov.eta`, each product M x one product with A (M = T^T A V + diag,
 /// T the reduced unknowns' test vectors, V their directions). The
-/// preconditioner is S V^T G T S with G the dual's approximate inverse of A
+/// preconditioner is the restricted one of `restricted.rs` (with the
+/// layered Dirichlet one's first-order change) where the dual holds it, no
+/// compliance is set and every reduced unknown fits it (a unit one, or a
+/// slipping tangential pair); else S V^T G T S with G the dual's approximate inverse of A
 /// (`Dual::precondition`: the layered Dirichlet one B S_l B^T of
 /// `dirichlet.rs` where it was formed, else the lumped G = B K B^T that FETI
 /// codes use for the same operator) and S_l = sqrt(a_l / M_ll),
