@@ -42,7 +42,9 @@ pub(crate) const LAYERS: usize = 1;
 /// with A (L's entries read twice).
 const MAX_COST: f64 = 0.2;
 
-/// The face, its layers and their matrices, analysed (no numeric factor yet).
+/// The face, its layers and their matrices, analysed (no numeric factor yet),
+/// with the restricted preconditioner of Newton's reduced systems analysed
+/// (its G and order; counted on the ledger once formed).
 pub(crate) struct Plan {
     /// Global DOF of each local one: the face DOFs first, then the layers'.
     global: Vec<usize>,
@@ -198,7 +200,8 @@ impl Plan {
 
     /// Bytes the formed preconditioner holds: K_loc's two blocks and L_II's
     /// values in single precision, L_II's own values and workspace, the
-    /// solve's workspace and two vectors.
+    /// solve's workspace and two vectors, and the restricted preconditioner
+    /// of Newton's reduced systems ([`Restricted::bytes`]).
     pub(crate) fn bytes(&self) -> usize {
         let nl = self.global.len();
         let entries = self.k_loc.nnz();
@@ -236,7 +239,10 @@ impl Plan {
             layer_cols,
             l_ii,
             factor: self.factor,
-            restricted: self.restricted,
+            restricted: self.restricted.map(|mut r| {
+                r.count();
+                r
+            }),
             _claim: claim,
         })
     }

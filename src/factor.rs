@@ -907,6 +907,12 @@ impl Factor {
         x_last.copy_from_slice(&x[first - base..]);
     }
 
+    /// Drops L's values (and their count on the ledger): refactor before use.
+    pub(crate) fn drop_values(&mut self) {
+        self.l_values = Vec::new();
+        self.l_claim = None;
+    }
+
     /// The analysis of this factor without its values (refactor it before use):
     /// the symbolic factor is shared, so a new factorisation can be formed beside
     /// this one and replace it only once everything built on it succeeded.

@@ -59,13 +59,17 @@ pub(crate) struct Restricted {
     g: Csc,
     /// Position of each component in G's fill-reducing order.
     order: Vec<usize>,
+    /// Components whose row of B is empty (G's column zero).
+    empty: Vec<bool>,
     /// Bytes of G's own factor, its factorisation's and its solve's
     /// workspace: bounds of E's.
     factor_bytes: (usize, usize, usize),
     threads: Arc<Threads>,
     ledger: Arc<Ledger>,
     step: RefCell<Step>,
-    _claim: Claim,
+    /// What it holds, counted once the preconditioner is formed
+    /// ([`Restricted::count`]).
+    claim: Option<Claim>,
 }
 
 /// What a step writes: its components, E and E's factor.
@@ -77,6 +81,9 @@ struct Step {
     u: Vec<usize>,
     e: Csc,
     factor: Option<Factor>,
+    /// Whether `u` was analysed (E's factor made, or refused: `refused`).
+    analysed: bool,
+    refused: bool,
     factored: bool,
     rhs: Vec<f64>,
     mem: MemBuffer,
@@ -195,9 +202,10 @@ impl Restricted {
             full.solve_scratch(1).size_bytes(),
         );
         let order = full.new_of_old();
-        let claim = ledger.claim(Self::held(&g, factor_bytes.2));
+        let empty = rows.iter().map(Vec::is_empty).collect();
         Some(Restricted {
             order,
+            empty,
             factor_bytes,
             step: RefCell::new(Step {
                 prescribed: vec![false; c],
@@ -211,6 +219,8 @@ impl Restricted {
                     values: Vec::new(),
                 },
                 factor: None,
+                analysed: false,
+                refused: false,
                 factored: false,
                 rhs: Vec::new(),
                 mem: MemBuffer::new(faer::dyn_stack::StackReq::EMPTY),
@@ -218,15 +228,21 @@ impl Restricted {
             g,
             threads,
             ledger,
-            _claim: claim,
+            claim: None,
         })
     }
 
     /// Bytes held between steps: G and E (at most G's entries), the order,
-    /// U's lists and the right-hand side (c each), and E's solve workspace
-    /// (at most G's).
+    /// U's lists and the right-hand side (c each), the flags, and E's solve
+    /// workspace (at most G's).
     fn held(g: &Csc, solve_scratch: usize) -> usize {
-        2 * g.bytes() + 5 * g.nrows * 8 + solve_scratch
+        2 * g.bytes() + 4 * g.nrows * 8 + 2 * g.nrows + solve_scratch
+    }
+
+    /// Counts what it holds on its ledger (when the preconditioner it
+    /// belongs to is formed; E's factors count themselves).
+    pub(crate) fn count(&mut self) {
+        self.claim = Some(self.ledger.claim(Self::held(&self.g, self.factor_bytes.2)));
     }
 
     /// Bytes held at most once a step is factored: [`Restricted::held`] and
@@ -239,34 +255,46 @@ impl Restricted {
 
     /// Factors E for a step whose prescribed components are `prescribed` and
     /// whose slipping pairs are `pairs` (every other component fixed). False
-    /// where a pair's components are not coupled in G's pattern or the
-    /// factorisation fails (the step then goes without this
-    /// preconditioner).
+    /// where a component is listed twice (prescribed twice, or in a pair
+    /// and prescribed), a pair's components are not coupled in G's pattern,
+    /// E's factor would exceed G's, or the factorisation fails (the step
+    /// then goes without this preconditioner).
     pub(crate) fn factor(&self, prescribed: &[usize], pairs: &[Pair]) -> bool {
         let mut step = self.step.borrow_mut();
         let step = &mut *step;
+        let g = &self.g;
         step.factored = false;
         step.prescribed.iter_mut().for_each(|p| *p = false);
         for &j in prescribed {
-            step.prescribed[j] = true;
+            if std::mem::replace(&mut step.prescribed[j], true) {
+                return false;
+            }
         }
-        let g = &self.g;
-        let same = step.factor.is_some()
+        let in_pair = |j: usize| j < g.ncols && !step.prescribed[j];
+        if !pairs.iter().all(|pr| in_pair(pr.j) && in_pair(pr.j + 1)) {
+            return false;
+        }
+        let same = step.analysed
             && step.u.len() + prescribed.len() == g.ncols
             && step.u.iter().all(|&j| !step.prescribed[j]);
         if !same {
             step.u.clear();
             step.u.extend((0..g.ncols).filter(|&j| !step.prescribed[j]));
-            for (j, at) in step.at.iter_mut().enumerate() {
-                *at = if step.prescribed[j] { usize::MAX } else { 0 };
-            }
+            step.at.iter_mut().for_each(|a| *a = usize::MAX);
             for (l, &j) in step.u.iter().enumerate() {
                 step.at[j] = l;
             }
+            // The old factor (if any) and its workspace go before the new
+            // ones are made.
             step.factor = None;
+            step.mem = MemBuffer::new(faer::dyn_stack::StackReq::EMPTY);
             step.rhs.resize(step.u.len(), 0.0);
+        } else if step.refused {
+            return false;
         }
-        // E = G_UU (rows ascending, as U is), then D' on the pairs.
+        // E = G_UU (rows ascending, as U is), 1 on the diagonal of a
+        // component whose row of B is empty (nu = 0 there: it couples to
+        // nothing), then D' on the pairs.
         let e = &mut step.e;
         let nu = step.u.len();
         (e.nrows, e.ncols) = (nu, nu);
@@ -276,10 +304,14 @@ impl Restricted {
         e.col_ptr.push(0);
         for &j in &step.u {
             for p in g.col_ptr[j]..g.col_ptr[j + 1] {
-                let at = step.at[g.row_idx[p]];
+                let (i, at) = (g.row_idx[p], step.at[g.row_idx[p]]);
                 if at != usize::MAX {
                     e.row_idx.push(at);
-                    e.values.push(g.values[p]);
+                    e.values.push(if i == j && self.empty[j] {
+                        1.0
+                    } else {
+                        g.values[p]
+                    });
                 }
             }
             e.col_ptr.push(e.row_idx.len());
@@ -297,40 +329,50 @@ impl Restricted {
                 }
             }
         }
-        if nu == 0 {
-            step.factored = true;
-            return true;
-        }
         if !same {
-            let mut fwd = step.u.clone();
-            fwd.sort_unstable_by_key(|&j| self.order[j]);
-            fwd.iter_mut().for_each(|j| *j = step.at[*j]);
-            let Ok(factor) =
-                Factor::analyse_in_order(e, fwd, self.threads.clone(), self.ledger.clone())
-            else {
-                return false;
-            };
-            // E's factor within the bounds the prediction counted (G's own:
-            // its filled graph is a subgraph of G's in this order, but the
-            // supernodes' padding may differ).
-            let (values, factor_scratch, solve_scratch) = self.factor_bytes;
-            if factor.values_bytes() > values
-                || factor.factor_scratch_bytes() > factor_scratch
-                || factor.solve_scratch(1).size_bytes() > solve_scratch
-            {
-                return false;
+            step.analysed = true;
+            step.refused = false;
+            if nu > 0 {
+                match self.analyse(e, &step.u, &step.at) {
+                    Some((factor, mem)) => (step.factor, step.mem) = (Some(factor), mem),
+                    None => {
+                        step.refused = true;
+                        return false;
+                    }
+                }
             }
-            let Ok(mem) = crate::memory::try_scratch(factor.solve_scratch(1), "") else {
-                return false;
-            };
-            step.mem = mem;
-            step.factor = Some(factor);
         }
-        let Some(factor) = step.factor.as_mut() else {
-            return false;
+        step.factored = match step.factor.as_mut() {
+            // E's old values go first: one factor's values held at a time.
+            Some(factor) => {
+                factor.drop_values();
+                factor.refactor(e).is_ok()
+            }
+            None => nu == 0,
         };
-        step.factored = factor.refactor(e).is_ok();
         step.factored
+    }
+
+    /// E's analysis in G's order restricted to U (`u`, `at` its inverse),
+    /// and the solve's workspace; None where it fails or where the factor
+    /// would exceed the bounds the prediction counted (G's own: its filled
+    /// graph is a subgraph of G's in this order, but the supernodes'
+    /// padding may differ).
+    fn analyse(&self, e: &Csc, u: &[usize], at: &[usize]) -> Option<(Factor, MemBuffer)> {
+        let mut fwd = u.to_vec();
+        fwd.sort_unstable_by_key(|&j| self.order[j]);
+        fwd.iter_mut().for_each(|j| *j = at[*j]);
+        let factor =
+            Factor::analyse_in_order(e, fwd, self.threads.clone(), self.ledger.clone()).ok()?;
+        let (values, factor_scratch, solve_scratch) = self.factor_bytes;
+        if factor.values_bytes() > values
+            || factor.factor_scratch_bytes() > factor_scratch
+            || factor.solve_scratch(1).size_bytes() > solve_scratch
+        {
+            return None;
+        }
+        let mem = crate::memory::try_scratch(factor.solve_scratch(1), "").ok()?;
+        Some((factor, mem))
     }
 
     /// r := E^-1 r (r of length |U|) with the step's factor.
@@ -401,7 +443,8 @@ impl Restricted {
 
     /// Adds X^T w to z (z_p on the prescribed components, z_s on the pairs,
     /// of the step last factored and applied), X the extension of
-    /// [`Restricted::apply`], w of length c: one more solve with E.
+    /// [`Restricted::apply`], w of length c: one more solve with E. Nothing
+    /// where that step's factorisation failed.
     pub(crate) fn add_extension_t(
         &self,
         prescribed: &[usize],
@@ -412,6 +455,9 @@ impl Restricted {
     ) {
         let mut step = self.step.borrow_mut();
         let step = &mut *step;
+        if !step.factored {
+            return;
+        }
         let g = &self.g;
         for (r, &j) in step.rhs.iter_mut().zip(&step.u) {
             *r = w[j];
@@ -512,8 +558,22 @@ mod tests {
         }
     }
 
-    fn made(m: usize) -> (Csc, Csc, Restricted) {
-        let (k, b) = scene(m);
+    /// The scene's K and B (the last contact's rows of B emptied where
+    /// `empty_last`: a contact that does not act) and its G analysed.
+    fn made(m: usize, empty_last: bool) -> (Csc, Csc, Restricted) {
+        let (k, mut b) = scene(m);
+        if empty_last {
+            let gone = [m - 1, 3 * m - 2, 3 * m - 1];
+            let mut t = Vec::new();
+            for j in 0..b.ncols {
+                for p in b.col_ptr[j]..b.col_ptr[j + 1] {
+                    if !gone.contains(&b.row_idx[p]) {
+                        t.push((b.row_idx[p], j, b.values[p]));
+                    }
+                }
+            }
+            b = Csc::from_triplets(b.nrows, b.ncols, &t);
+        }
         let global: Vec<usize> = (0..k.nrows).collect();
         let (threads, ledger) = (Arc::new(Threads::new(1)), Ledger::new());
         let r = Restricted::new(&k, 3 * m, &global, &b, threads, ledger).expect("analysed");
@@ -547,8 +607,20 @@ mod tests {
     /// pairs; twice, the second time on the analysis the first one kept.
     #[test]
     fn it_is_the_reduced_systems_inverse_for_the_lumped_g() {
+        check_inverse(false);
+    }
+
+    /// As above with a contact whose rows of B are empty (it does not act;
+    /// its components fixed): they decouple, and the reference takes them
+    /// out of G (a unit diagonal there).
+    #[test]
+    fn a_contact_that_does_not_act_decouples() {
+        check_inverse(true);
+    }
+
+    fn check_inverse(empty_last: bool) {
         let m = 12;
-        let (k, b, r) = made(m);
+        let (k, b, r) = made(m, empty_last);
         let c = 3 * m;
         // G = B K B^T densely (B touches the face alone).
         let (kd, bd) = (dense(&k), dense(&b));
@@ -560,6 +632,12 @@ mod tests {
                         g[i][j] += bd[i][p] * kd[p][q] * bd[j][q];
                     }
                 }
+            }
+        }
+        if empty_last {
+            for j in [m - 1, 3 * m - 2, 3 * m - 1] {
+                assert_eq!(g[j][j], 0.0);
+                g[j][j] = 1.0;
             }
         }
         let (prescribed, pairs) = steps(m);
@@ -620,7 +698,7 @@ mod tests {
     #[test]
     fn the_extensions_transpose_is_its_adjoint() {
         let m = 12;
-        let (_, _, r) = made(m);
+        let (_, _, r) = made(m, false);
         let c = 3 * m;
         let (prescribed, pairs) = steps(m);
         assert!(r.factor(&prescribed, &pairs));

@@ -34,7 +34,8 @@ pub(crate) struct Sizes {
     /// rows hold (`dual::host_rows_bytes`).
     pub own_solves: usize,
     /// Bytes of the layered Dirichlet preconditioner a matrix-free dual holds
-    /// where it pays (`dirichlet::Plan::bytes`; 0 where it does not).
+    /// where it pays, with the restricted one of Newton's reduced systems
+    /// analysed beside it (`dirichlet::Plan::bytes`; 0 where it does not).
     pub dirichlet: usize,
     /// Bytes of the slots a refactor from a coordinate-format K keeps
     /// (`sparse::TripletSlots`; 0 until one made them).

@@ -470,9 +470,10 @@ impl Dual {
 
     /// Hands K over to a matrix-free dual, which forms G = B K B^T from it (the
     /// lumped preconditioner of Newton's reduced systems) and, where it pays,
-    /// the layered Dirichlet preconditioner (`dirichlet.rs`; `layer`: its
-    /// analysis where the caller made it for the memory prediction, else
-    /// analysed here); nothing on a dense dual.
+    /// the layered Dirichlet preconditioner (`dirichlet.rs`, with the
+    /// restricted one of `restricted.rs` that serves Newton's reduced
+    /// systems first; `layer`: its analysis where the caller made it for the
+    /// memory prediction, else analysed here); nothing on a dense dual.
     pub(crate) fn set_lumped(&mut self, k: &Csc, layer: Option<crate::dirichlet::Plan>) {
         if let Some(f) = &mut self.free {
             let g = crate::sparse::congruence(k, &self.rows, &f.bt);
@@ -502,8 +503,10 @@ impl Dual {
     }
 
     /// y := P x, P the approximate inverse of A that preconditions Newton's
-    /// reduced systems on a matrix-free dual: the layered Dirichlet one
-    /// (`dirichlet.rs`) where it was formed, else the lumped G = B K B^T.
+    /// reduced systems on a matrix-free dual (cut by their test vectors, or
+    /// as the first-order change of the restricted one of `restricted.rs`):
+    /// the layered Dirichlet one (`dirichlet.rs`) where it was formed, else
+    /// the lumped G = B K B^T.
     /// False (y untouched) where the dual holds neither (a dense dual, or K
     /// not handed over).
     pub(crate) fn precondition(&self, x: &[f64], y: &mut [f64]) -> bool {

@@ -1,6 +1,7 @@
 //! The reduced system of a Newton step on a matrix-free dual: CG (symmetric)
 //! or GMRES on products with A, preconditioned by the lumped G restricted to
-//! the reduced unknowns (`restricted.rs`) where the dual holds it, else by
+//! the reduced unknowns plus the layered Dirichlet one's first-order change
+//! (`restricted.rs`) where the dual holds them, else by
 //! the lumped G = B K B^T or the layered Dirichlet preconditioner cut by the
 //! test vectors, with the Jacobi part of the compliance; rough products in
 //! single precision where the forcing term allows, and mixed-precision
@@ -88,8 +89,10 @@ pub(super) fn block_entry(problem: &DualProblem<'_>, ja: usize, jb: usize) -> f6
 /// T the reduced unknowns' test vectors, V their directions). The
 /// preconditioner is the restricted one of `restricted.rs` (with the
 /// layered Dirichlet one's first-order change) where the dual holds it, no
-/// compliance is set and every reduced unknown fits it (a unit one, or a
-/// slipping tangential pair); else S V^T G T S with G the dual's approximate inverse of A
+/// compliance is set, every reduced unknown fits it (a unit one, or a
+/// slipping tangential pair), some component is not prescribed, the
+/// reduced system holds at least MIN_REDUCED_SHARE of the components and E
+/// factors within G's bounds (`Restriction::of`); else S V^T G T S with G the dual's approximate inverse of A
 /// (`Dual::precondition`: the layered Dirichlet one B S_l B^T of
 /// `dirichlet.rs` where it was formed, else the lumped G = B K B^T that FETI
 /// codes use for the same operator) and S_l = sqrt(a_l / M_ll),
@@ -255,6 +258,15 @@ pub(super) fn krylov_step(
     true
 }
 
+/// The restricted preconditioner serves reduced systems of at least this
+/// share of the c components. Below it E's factor (about G's size whatever
+/// the reduced system's) does not pay, and on a nearly floating lattice
+/// slab with 4-12 of 256 contacts closed (anchor 1e-4; `newton::tests`'s
+/// lattice) the restricted one took more products than the general one
+/// at some loads (626 against 388): G misses the near-rigid mode of A
+/// that the closed contacts' system is dominated by.
+const MIN_REDUCED_SHARE: f64 = 0.1;
+
 /// A reduced system's unknowns as the restricted preconditioner sees them
 /// (`restricted.rs`): prescribed components (unit test vectors) and
 /// slipping pairs, E factored for them, and the application's vectors.
@@ -299,8 +311,13 @@ impl<'a> Restriction<'a> {
             }
         }
         // Every component prescribed: P x + X^T (H_D - G) X x is H_D's
-        // restriction, the general preconditioner's, at a higher cost.
-        if prescribed.len() == dual.c || !on.factor(&prescribed, &pairs) {
+        // restriction, the general preconditioner's, at a higher cost. A
+        // small reduced system (a few closed contacts) does not pay for E,
+        // whose factor is about G's whatever its size.
+        if prescribed.len() == dual.c
+            || (red.len() as f64) < MIN_REDUCED_SHARE * dual.c as f64
+            || !on.factor(&prescribed, &pairs)
+        {
             return None;
         }
         let (np, ns, c) = (prescribed.len(), pairs.len(), dual.c);
