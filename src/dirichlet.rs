@@ -87,7 +87,7 @@ impl Plan {
         let budget = MAX_COST * 2.0 * l_nnz as f64;
         let plan = Self::with_layers(k, b, LAYERS, budget, threads, ledger)?;
         let (nnz, _) = plan.factor.nnz_and_flops();
-        ((plan.k_loc.nnz() + 2 * nnz) as f64 <= budget).then(|| plan.restricted_to(b))
+        ((plan.k_loc.nnz() + 2 * nnz) as f64 <= budget).then(|| plan.restricted_to(k, b))
     }
 
     /// The plan of LAYERS layers whatever it costs (None where they are empty).
@@ -98,13 +98,15 @@ impl Plan {
         threads: Arc<Threads>,
         ledger: Arc<Ledger>,
     ) -> Option<Plan> {
-        Self::with_layers(k, b, LAYERS, f64::INFINITY, threads, ledger).map(|p| p.restricted_to(b))
+        Self::with_layers(k, b, LAYERS, f64::INFINITY, threads, ledger)
+            .map(|p| p.restricted_to(k, b))
     }
 
-    /// The plan with the restricted preconditioner of B = `b` analysed.
-    fn restricted_to(mut self, b: &Csc) -> Plan {
+    /// The plan with the restricted preconditioner of K = `k` and B = `b`
+    /// analysed.
+    fn restricted_to(mut self, k: &Csc, b: &Csc) -> Plan {
         let (threads, ledger) = (self.factor.threads().clone(), self.factor.ledger().clone());
-        self.restricted = Restricted::new(&self.k_loc, self.nf, &self.global, b, threads, ledger);
+        self.restricted = Restricted::new(k, b, threads, ledger);
         self
     }
 

@@ -263,6 +263,30 @@ impl Factor {
         }
         drop(sym);
         let analyse_seconds = start.elapsed().as_secs_f64();
+        let f = Self::unfactored(
+            k,
+            symbolic,
+            fwd,
+            (last.to_vec(), ordering_used, analyse_seconds),
+            threads,
+            ledger,
+        );
+        debug_assert_eq!(f.n(), n);
+        Ok(f)
+    }
+
+    /// The factor of `k` analysed as `symbolic` in the order `fwd`, with no
+    /// values yet: `last`, the ordering that made `fwd` and the analysis's
+    /// seconds as given, the numeric work on threads where its fronts are
+    /// large enough.
+    fn unfactored(
+        k: &Csc,
+        symbolic: SymbolicCholesky<usize>,
+        fwd: Vec<usize>,
+        (last, ordering, analyse_seconds): (Vec<usize>, Ordering, f64),
+        threads: Arc<Threads>,
+        ledger: Arc<Ledger>,
+    ) -> Factor {
         let mut f = Factor {
             l_values: Vec::new(),
             l_claim: None,
@@ -270,18 +294,23 @@ impl Factor {
             layout: Layout::Supernodal(Arc::new(symbolic)),
             col_ptr: k.col_ptr.clone(),
             row_idx: k.row_idx.clone(),
-            last: last.to_vec(),
+            last,
             fwd,
-            ordering: ordering_used,
+            ordering,
             analyse_seconds,
             factor_seconds: 0.0,
             threads,
             parallel: false,
         };
-        let (nnz, flops) = f.nnz_and_flops();
-        f.parallel = flops > PARALLEL_FLOPS_PER_ENTRY * nnz as f64;
-        debug_assert_eq!(f.n(), n);
-        Ok(f)
+        f.parallel = f.fronts_are_large();
+        f
+    }
+
+    /// Whether the numeric work pays on threads: more than
+    /// PARALLEL_FLOPS_PER_ENTRY flops per entry of L.
+    fn fronts_are_large(&self) -> bool {
+        let (nnz, flops) = self.nnz_and_flops();
+        flops > PARALLEL_FLOPS_PER_ENTRY * nnz as f64
     }
 
     /// The analysis of `k` in the order `fwd` (the DOF at each position),
@@ -302,24 +331,8 @@ impl Factor {
             inv[old] = new;
         }
         let symbolic = analyse(k, &fwd, &inv)?;
-        let mut f = Factor {
-            l_values: Vec::new(),
-            l_claim: None,
-            ledger,
-            layout: Layout::Supernodal(Arc::new(symbolic)),
-            col_ptr: k.col_ptr.clone(),
-            row_idx: k.row_idx.clone(),
-            last: Vec::new(),
-            fwd,
-            ordering: Ordering::Amd,
-            analyse_seconds: 0.0,
-            factor_seconds: 0.0,
-            threads,
-            parallel: false,
-        };
-        let (nnz, flops) = f.nnz_and_flops();
-        f.parallel = flops > PARALLEL_FLOPS_PER_ENTRY * nnz as f64;
-        Ok(f)
+        let how = (Vec::new(), Ordering::Amd, 0.0);
+        Ok(Self::unfactored(k, symbolic, fwd, how, threads, ledger))
     }
 
     /// The analysis of a dense K (n x n, every entry stored): no ordering beyond
@@ -349,8 +362,7 @@ impl Factor {
             threads,
             parallel: false,
         };
-        let (nnz, flops) = f.nnz_and_flops();
-        f.parallel = flops > PARALLEL_FLOPS_PER_ENTRY * nnz as f64;
+        f.parallel = f.fronts_are_large();
         f
     }
 

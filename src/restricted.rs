@@ -54,12 +54,12 @@ pub(crate) struct Pair {
 /// G, its fill-reducing order, and the state of the last step E was
 /// factored for.
 pub(crate) struct Restricted {
-    /// G = B K_FF B^T (c x c, both triangles, sorted rows, every diagonal
-    /// entry stored).
+    /// G = B K B^T (c x c, both triangles, sorted rows; the diagonal stored
+    /// wherever B's row is not empty, K's diagonal being stored).
     g: Csc,
     /// Position of each component in G's fill-reducing order.
     order: Vec<usize>,
-    /// Components whose row of B is empty (G's column zero).
+    /// Components whose row of B is empty (G's column holds no entry).
     empty: Vec<bool>,
     /// Bytes of G's own factor, its factorisation's and its solve's
     /// workspace: bounds of E's.
@@ -89,104 +89,20 @@ struct Step {
     mem: MemBuffer,
 }
 
-/// A sparse column accumulated densely, with the rows it touched.
-struct Column {
-    acc: Vec<f64>,
-    seen: Vec<bool>,
-    touched: Vec<usize>,
-}
-
-impl Column {
-    fn new(n: usize) -> Column {
-        Column {
-            acc: vec![0.0; n],
-            seen: vec![false; n],
-            touched: Vec::new(),
-        }
-    }
-
-    /// Adds v at row i (stored even where v is zero: a structural entry).
-    fn add(&mut self, i: usize, v: f64) {
-        if !self.seen[i] {
-            self.seen[i] = true;
-            self.touched.push(i);
-        }
-        self.acc[i] += v;
-    }
-
-    fn clear(&mut self) {
-        for &i in &self.touched {
-            self.acc[i] = 0.0;
-            self.seen[i] = false;
-        }
-        self.touched.clear();
-    }
-
-    /// Appends the column (rows sorted) to `e`, and clears it.
-    fn flush_into(&mut self, e: &mut Csc) {
-        self.touched.sort_unstable();
-        for &i in &self.touched {
-            e.row_idx.push(i);
-            e.values.push(self.acc[i]);
-        }
-        e.col_ptr.push(e.row_idx.len());
-        self.clear();
-    }
-}
-
 impl Restricted {
-    /// G for the face block of `k_loc` (K on the face and its layers, both
-    /// triangles, sorted rows; the face's `nf` DOFs first, local DOF l at
-    /// global DOF `global[l]`) and B = `b` (c x n, every DOF it touches on
-    /// the face), every diagonal entry stored (a contact's tangential pair
-    /// is coupled where its two rows of B share a DOF, as nodal rows do);
-    /// its fill-reducing order (AMD) and its factor's size; E's factors run
-    /// on `threads` and are counted on `ledger`. None where the analysis
-    /// fails.
+    /// G = B K B^T of K = `k` (n x n, both triangles) and B = `b` (c x n),
+    /// with its fill-reducing order (AMD) and its factor's size; E's factors
+    /// run on `threads` and are counted on `ledger`. None where the analysis
+    /// fails. A contact's tangential pair is coupled where its two rows of B
+    /// share a DOF, as nodal rows do, or K couples their DOFs.
     pub(crate) fn new(
-        k_loc: &Csc,
-        nf: usize,
-        global: &[usize],
+        k: &Csc,
         b: &Csc,
         threads: Arc<Threads>,
         ledger: Arc<Ledger>,
     ) -> Option<Restricted> {
-        let c = b.nrows;
-        // The rows of B (B^T's columns): local face DOF and value each.
-        let mut rows: Vec<Vec<(usize, f64)>> = vec![Vec::new(); c];
-        for (l, &g) in global[..nf].iter().enumerate() {
-            for p in b.col_ptr[g]..b.col_ptr[g + 1] {
-                rows[b.row_idx[p]].push((l, b.values[p]));
-            }
-        }
-        let mut g = Csc {
-            nrows: c,
-            ncols: c,
-            col_ptr: Vec::with_capacity(c + 1),
-            row_idx: Vec::new(),
-            values: Vec::new(),
-        };
-        g.col_ptr.push(0);
-        let (mut col, mut y) = (Column::new(c), Column::new(nf));
-        // Column a: y = K_FF B^T e_a, then B y.
-        for (a, row) in rows.iter().enumerate() {
-            for &(l, bv) in row {
-                for p in k_loc.col_ptr[l]..k_loc.col_ptr[l + 1] {
-                    if k_loc.row_idx[p] < nf {
-                        y.add(k_loc.row_idx[p], k_loc.values[p] * bv);
-                    }
-                }
-            }
-            for &i in &y.touched {
-                let gi = global[i];
-                for p in b.col_ptr[gi]..b.col_ptr[gi + 1] {
-                    col.add(b.row_idx[p], b.values[p] * y.acc[i]);
-                }
-            }
-            y.clear();
-            col.add(a, 0.0);
-            col.flush_into(&mut g);
-        }
+        let g = crate::sparse::congruence(k, b, &b.try_transpose().ok()?);
+        let c = g.ncols;
         let full = Factor::analyse(
             &g,
             &[],
@@ -202,7 +118,9 @@ impl Restricted {
             full.solve_scratch(1).size_bytes(),
         );
         let order = full.new_of_old();
-        let empty = rows.iter().map(Vec::is_empty).collect();
+        let empty = (0..g.ncols)
+            .map(|j| g.col_ptr[j] == g.col_ptr[j + 1])
+            .collect();
         Some(Restricted {
             order,
             empty,
@@ -303,15 +221,15 @@ impl Restricted {
         e.values.clear();
         e.col_ptr.push(0);
         for &j in &step.u {
+            if self.empty[j] {
+                e.row_idx.push(step.at[j]);
+                e.values.push(1.0);
+            }
             for p in g.col_ptr[j]..g.col_ptr[j + 1] {
-                let (i, at) = (g.row_idx[p], step.at[g.row_idx[p]]);
+                let at = step.at[g.row_idx[p]];
                 if at != usize::MAX {
                     e.row_idx.push(at);
-                    e.values.push(if i == j && self.empty[j] {
-                        1.0
-                    } else {
-                        g.values[p]
-                    });
+                    e.values.push(g.values[p]);
                 }
             }
             e.col_ptr.push(e.row_idx.len());
@@ -574,10 +492,31 @@ mod tests {
             }
             b = Csc::from_triplets(b.nrows, b.ncols, &t);
         }
-        let global: Vec<usize> = (0..k.nrows).collect();
         let (threads, ledger) = (Arc::new(Threads::new(1)), Ledger::new());
-        let r = Restricted::new(&k, 3 * m, &global, &b, threads, ledger).expect("analysed");
+        let r = Restricted::new(&k, &b, threads, ledger).expect("analysed");
         (k, b, r)
+    }
+
+    /// P x for the step last factored (x: the prescribed components' values,
+    /// then the pairs'), in that order, and the extension nu.
+    fn applied(
+        r: &Restricted,
+        prescribed: &[usize],
+        pairs: &[Pair],
+        x: &[f64],
+    ) -> (Vec<f64>, Vec<f64>) {
+        let (np, c) = (prescribed.len(), r.g.ncols);
+        let (mut zp, mut zs, mut nu) = (vec![0.0; np], vec![0.0; pairs.len()], vec![0.0; c]);
+        assert!(r.apply(
+            prescribed,
+            &x[..np],
+            pairs,
+            &x[np..],
+            &mut zp,
+            &mut zs,
+            &mut nu
+        ));
+        (zp.into_iter().chain(zs).collect(), nu)
     }
 
     /// Contacts 0..m sorted: even ones stick (normal and both tangential
@@ -674,18 +613,7 @@ mod tests {
             let x: Vec<f64> = (0..nk).map(|l| (0.7 * l as f64).sin() + 0.3).collect();
             let mut want = x.clone();
             solve(mat.clone(), &mut want);
-            let np = prescribed.len();
-            let (mut zp, mut zs, mut nu) = (vec![0.0; np], vec![0.0; pairs.len()], vec![0.0; c]);
-            assert!(r.apply(
-                &prescribed,
-                &x[..np],
-                &pairs,
-                &x[np..],
-                &mut zp,
-                &mut zs,
-                &mut nu
-            ));
-            let got: Vec<f64> = zp.iter().chain(&zs).copied().collect();
+            let (got, _) = applied(&r, &prescribed, &pairs, &x);
             let scale = want.iter().fold(0.0f64, |a, v| a.max(v.abs()));
             for (g, w) in got.iter().zip(&want) {
                 assert!((g - w).abs() <= 1e-11 * scale, "{g} against {w}");
@@ -705,16 +633,7 @@ mod tests {
         let (np, ns) = (prescribed.len(), pairs.len());
         let x: Vec<f64> = (0..np + ns).map(|l| (1.3 * l as f64).cos()).collect();
         let w: Vec<f64> = (0..c).map(|i| (0.4 * i as f64).sin() - 0.1).collect();
-        let (mut zp, mut zs, mut nu) = (vec![0.0; np], vec![0.0; ns], vec![0.0; c]);
-        assert!(r.apply(
-            &prescribed,
-            &x[..np],
-            &pairs,
-            &x[np..],
-            &mut zp,
-            &mut zs,
-            &mut nu
-        ));
+        let (_, nu) = applied(&r, &prescribed, &pairs, &x);
         let (mut tp, mut ts) = (vec![0.0; np], vec![0.0; ns]);
         r.add_extension_t(&prescribed, &pairs, &w, &mut tp, &mut ts);
         let lhs: f64 = nu.iter().zip(&w).map(|(a, b)| a * b).sum();
