@@ -92,6 +92,8 @@ fn main() {
         k += 2;
     }
     let steps = steps.max(2);
+    // The scenes' assembly (graded grids included) against its checks.
+    scene::check_assembly();
     if let Some(r) = slip {
         oblique = Some((r, theta));
     } else {

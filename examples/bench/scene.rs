@@ -1,6 +1,10 @@
 //! Scene generator of the benchmark: an elastic block on a rigid foundation with a
 //! curved (parabolic) gap, plane-strain Q4 elements in 2D and trilinear H8 elements in
-//! 3D on a uniform grid of unit cells.
+//! 3D on a uniform grid of unit cells, or (a name ending in `g`, `3d-64x64x6g`)
+//! on a grid graded across the contact face: the cells' horizontal sizes grow
+//! geometrically from the centre of the face to its edges by 4 x (the way a host
+//! refines its mesh where the contact zone is), with the same extent as the
+//! uniform grid and unit cells vertically.
 //!
 //! - The top face is clamped and moved by (s, -delta) (2D) or (s, 0, -delta) (3D): it
 //!   presses the block onto the foundation and shears it, so that the contact zone
@@ -10,35 +14,45 @@
 //!   T row(s) = +1 on its horizontal DOF(s). The gap of a node at horizontal
 //!   position x is g(x) = kappa |x - x_c|^2.
 //!
-//! The grid is uniform, so all elements have the same stiffness matrix: it is
-//! computed once, and K is assembled node by node from it directly in compressed
-//! columns, in O(n) time and memory, without a dense matrix or a list of element
+//! On a uniform grid all elements have the same stiffness matrix: it is
+//! computed once (on a graded grid once per column of cells), and K is assembled
+//! node by node from it directly in compressed columns, in O(n) time and memory, without a dense matrix or a list of element
 //! triplets (a list of element triplets would be 32 million entries for the 2D 1e6
 //! DOF scene, twice the size of K itself). `check_assembly` compares this with the
 //! element-by-element triplet assembly through `Csc::from_triplets` on small grids.
 
 use dualsplit::Csc;
 
-/// The size of a scene: cells per direction (nz = 0 in 2D).
+/// The size of a scene: cells per direction (nz = 0 in 2D), and whether the
+/// grid is graded across the contact face.
 #[derive(Copy, Clone, Debug)]
 pub struct Spec {
     pub dim: usize,
     pub nx: usize,
     pub ny: usize,
     pub nz: usize,
+    pub graded: bool,
 }
+
+/// Largest over smallest cell size across a graded face.
+pub const GRADING: f64 = 4.0;
 
 impl Spec {
     pub fn name(&self) -> String {
+        let g = if self.graded { "g" } else { "" };
         if self.dim == 2 {
-            format!("2d-{}x{}", self.nx, self.ny)
+            format!("2d-{}x{}{g}", self.nx, self.ny)
         } else {
-            format!("3d-{}x{}x{}", self.nx, self.ny, self.nz)
+            format!("3d-{}x{}x{}{g}", self.nx, self.ny, self.nz)
         }
     }
 
     /// Parses a name as returned by [`Spec::name`].
     pub fn parse(s: &str) -> Option<Spec> {
+        let (s, graded) = match s.strip_suffix('g') {
+            Some(r) => (r, true),
+            None => (s, false),
+        };
         let (dim, rest) = if let Some(r) = s.strip_prefix("2d-") {
             (2, r)
         } else if let Some(r) = s.strip_prefix("3d-") {
@@ -51,8 +65,20 @@ impl Spec {
             .map(|t| t.parse().ok())
             .collect::<Option<_>>()?;
         match (dim, v.as_slice()) {
-            (2, &[nx, ny]) if nx > 0 && ny > 0 => Some(Spec { dim, nx, ny, nz: 0 }),
-            (3, &[nx, ny, nz]) if nx > 0 && ny > 0 && nz > 0 => Some(Spec { dim, nx, ny, nz }),
+            (2, &[nx, ny]) if nx > 0 && ny > 0 => Some(Spec {
+                dim,
+                nx,
+                ny,
+                nz: 0,
+                graded,
+            }),
+            (3, &[nx, ny, nz]) if nx > 0 && ny > 0 && nz > 0 => Some(Spec {
+                dim,
+                nx,
+                ny,
+                nz,
+                graded,
+            }),
             _ => None,
         }
     }
@@ -81,6 +107,88 @@ impl Spec {
     /// Number of contacts (the nodes of the bottom face).
     pub fn n_contacts(&self) -> usize {
         self.layer()
+    }
+
+    /// The cells' sizes along each axis (x, y, z; the vertical axis, y in 2D
+    /// and z in 3D, uniform; the unused third axis one cell of size 1 in 2D).
+    fn cell_sizes(&self) -> [Vec<f64>; 3] {
+        let horizontal = |n: usize| cell_sizes(n, self.graded);
+        if self.dim == 2 {
+            [horizontal(self.nx), vec![1.0; self.ny], vec![1.0]]
+        } else {
+            [horizontal(self.nx), horizontal(self.ny), vec![1.0; self.nz]]
+        }
+    }
+}
+
+/// The sizes of `n` cells along a horizontal axis, summing to n: all 1, or
+/// graded (cell i's size proportional to GRADING^u, u = |i + 1/2 - n/2| / (n/2)
+/// its distance from the centre: fine where the contact zone is, GRADING
+/// times coarser at the edges).
+fn cell_sizes(n: usize, graded: bool) -> Vec<f64> {
+    if !graded {
+        return vec![1.0; n];
+    }
+    let half = 0.5 * n as f64;
+    let raw: Vec<f64> = (0..n)
+        .map(|i| GRADING.powf((i as f64 + 0.5 - half).abs() / half))
+        .collect();
+    let scale = n as f64 / raw.iter().sum::<f64>();
+    raw.iter().map(|h| h * scale).collect()
+}
+
+/// Node positions along an axis from its cells' sizes (n + 1 values from 0).
+fn positions(sizes: &[f64]) -> Vec<f64> {
+    let mut x = vec![0.0];
+    for h in sizes {
+        x.push(x.last().unwrap() + h);
+    }
+    x
+}
+
+/// The element stiffness matrices of a grid: one on a uniform grid, one per
+/// column of cells (all cells of a column have the same size) on a graded one.
+struct Stiffness {
+    per_column: Vec<Vec<f64>>,
+    nx: usize,
+    graded: bool,
+}
+
+impl Stiffness {
+    fn of(spec: &Spec) -> Stiffness {
+        let [hx, hy, hz] = spec.cell_sizes();
+        let dim = spec.dim;
+        let per_column = if spec.graded {
+            let rows = if dim == 2 { 1 } else { hy.len() };
+            (0..rows)
+                .flat_map(|ey| {
+                    let (hx, hy, hz) = (&hx, &hy, &hz);
+                    (0..hx.len()).map(move |ex| {
+                        if dim == 2 {
+                            element_stiffness(2, [hx[ex], 1.0, 1.0])
+                        } else {
+                            element_stiffness(3, [hx[ex], hy[ey], hz[0]])
+                        }
+                    })
+                })
+                .collect()
+        } else {
+            vec![element_stiffness(dim, [1.0; 3])]
+        };
+        Stiffness {
+            per_column,
+            nx: spec.nx,
+            graded: spec.graded,
+        }
+    }
+
+    /// The stiffness of the cell with lower corner e (cell indices).
+    fn of_cell(&self, dim: usize, e: [usize; 3]) -> &[f64] {
+        if !self.graded {
+            return &self.per_column[0];
+        }
+        let row = if dim == 2 { 0 } else { e[1] };
+        &self.per_column[row * self.nx + e[0]]
     }
 }
 
@@ -124,7 +232,17 @@ impl Scene {
         let mut top = vec![0.0; dim];
         top[0] = shift;
         top[dim - 1] = -delta;
-        let (k, f) = assemble(&spec, &element_stiffness(dim), &top);
+        let (k, f) = assemble(&spec, &Stiffness::of(&spec), &top);
+        let [hx, hy, _] = spec.cell_sizes();
+        let (xs, ys) = (positions(&hx), positions(&hy));
+        // A node's share of the face: half of each cell beside it, per axis
+        // (1 on the uniform grid, at the edges too, as before grading).
+        let share = |h: &[f64], i: usize| match (i.checked_sub(1).map(|p| h[p]), h.get(i)) {
+            (Some(a), Some(&b)) => 0.5 * (a + b),
+            (Some(a), None) => a,
+            (None, Some(&b)) => b,
+            (None, None) => 1.0,
+        };
         // Contacts: the bottom layer, node q of the layer has index q.
         let m = spec.layer();
         let vert = dim - 1;
@@ -135,23 +253,25 @@ impl Scene {
         // compression of the block).
         let reach = 0.25 * lx.max(if dim == 3 { ly } else { 0.0 });
         let kappa = delta / (reach * reach);
+        let mut area = Vec::with_capacity(m);
         for q in 0..m {
             nt.push((q, dim * q + vert, -1.0));
             for s in 0..dim - 1 {
                 tt.push(((dim - 1) * q + s, dim * q + s, 1.0));
             }
             let (i, j) = (q % nn[0], q / nn[0]);
-            let x = i as f64 - 0.5 * lx;
-            let y = if dim == 3 { j as f64 - 0.5 * ly } else { 0.0 };
+            let x = xs[i] - 0.5 * lx;
+            let y = if dim == 3 { ys[j] - 0.5 * ly } else { 0.0 };
             g.push(kappa * (x * x + y * y));
+            area.push(share(&hx, i) * if dim == 3 { share(&hy, j) } else { 1.0 });
         }
         let ndof = spec.n_dofs();
         let n = Csc::from_triplets(m, ndof, &nt);
         let t = Csc::from_triplets((dim - 1) * m, ndof, &tt);
         // Tresca bound: mu times the mean pressure (E delta / h) on the node's
-        // tributary area (1 cell, a unit length in 2D).
+        // tributary area (1 cell on the uniform grid, a unit length in 2D).
         let pressure = YOUNG * delta / height;
-        let p = vec![MU * pressure; m];
+        let p = area.iter().map(|a| MU * pressure * a).collect();
         let mu = vec![MU; m];
         Scene {
             spec,
@@ -209,7 +329,7 @@ impl Scene {
     /// The load f = -K_fp u_p of the top moved by `top` (one value per
     /// component).
     fn load_of_top(&self, top: &[f64]) -> Vec<f64> {
-        assemble(&self.spec, &element_stiffness(self.d), top).1
+        assemble(&self.spec, &Stiffness::of(&self.spec), top).1
     }
 
     /// The load vector of the same scene with the top motion scaled by `s` (f is
@@ -219,12 +339,13 @@ impl Scene {
     }
 }
 
-/// The element stiffness of the scenes' meshes: Q4 in 2D, H8 in 3D.
-fn element_stiffness(dim: usize) -> Vec<f64> {
+/// The element stiffness of a cell of sizes h (x, y, z; h[2] unused in 2D):
+/// Q4 in 2D, H8 in 3D.
+fn element_stiffness(dim: usize, h: [f64; 3]) -> Vec<f64> {
     if dim == 2 {
-        q4_stiffness(YOUNG, POISSON)
+        q4_stiffness(YOUNG, POISSON, [h[0], h[1]])
     } else {
-        h8_stiffness(YOUNG, POISSON)
+        h8_stiffness(YOUNG, POISSON, h)
     }
 }
 
@@ -242,7 +363,7 @@ fn local_offsets(dim: usize) -> Vec<[usize; 3]> {
 
 /// K (free block, both triangles, compressed columns built directly) and
 /// f = -K_fp u_p for the top motion `top` of every top node.
-fn assemble(spec: &Spec, ke: &[f64], top: &[f64]) -> (Csc, Vec<f64>) {
+fn assemble(spec: &Spec, ke: &Stiffness, top: &[f64]) -> (Csc, Vec<f64>) {
     let dim = spec.dim;
     let nn = spec.nodes();
     let ne = [spec.nx, spec.ny, spec.nz.max(1)];
@@ -288,6 +409,7 @@ fn assemble(spec: &Spec, ke: &[f64], top: &[f64]) -> (Csc, Vec<f64>) {
             if (0..dim).any(|ax| pa[ax] < oa[ax] || pa[ax] - oa[ax] >= ne[ax]) {
                 continue;
             }
+            let ke = ke.of_cell(dim, [pa[0] - oa[0], pa[1] - oa[1], pa[2] - oa[2]]);
             for (lb, ob) in offs.iter().enumerate() {
                 let mut rel = [0i64; 3];
                 for ax in 0..dim {
@@ -337,7 +459,7 @@ fn assemble(spec: &Spec, ke: &[f64], top: &[f64]) -> (Csc, Vec<f64>) {
 }
 
 /// Element by element assembly through `Csc::from_triplets` (for the check).
-fn assemble_triplets(spec: &Spec, ke: &[f64], top: &[f64]) -> (Csc, Vec<f64>) {
+fn assemble_triplets(spec: &Spec, ke: &Stiffness, top: &[f64]) -> (Csc, Vec<f64>) {
     let dim = spec.dim;
     let nn = spec.nodes();
     let ne = [spec.nx, spec.ny, spec.nz.max(1)];
@@ -351,6 +473,7 @@ fn assemble_triplets(spec: &Spec, ke: &[f64], top: &[f64]) -> (Csc, Vec<f64>) {
     for ez in 0..ne[2] {
         for ey in 0..ne[1] {
             for ex in 0..ne[0] {
+                let ke = ke.of_cell(dim, [ex, ey, ez]);
                 let nodes: Vec<usize> = offs
                     .iter()
                     .map(|o| node_id([ex + o[0], ey + o[1], ez + o[2]]))
@@ -376,8 +499,10 @@ fn assemble_triplets(spec: &Spec, ke: &[f64], top: &[f64]) -> (Csc, Vec<f64>) {
     (Csc::from_triplets(ndof, ndof, &trip), f)
 }
 
-/// Checks the direct assembly against the triplet assembly on small grids; panics
-/// on a mismatch.
+/// Checks the direct assembly against the triplet assembly on small grids,
+/// uniform and graded, and the element matrices by the patch test (a linear
+/// displacement field leaves no force on a node inside the grid, whatever the
+/// cells' sizes); panics on a mismatch.
 pub fn check_assembly() {
     for spec in [
         Spec {
@@ -385,15 +510,32 @@ pub fn check_assembly() {
             nx: 5,
             ny: 3,
             nz: 0,
+            graded: false,
         },
         Spec {
             dim: 3,
             nx: 3,
             ny: 4,
             nz: 2,
+            graded: false,
+        },
+        Spec {
+            dim: 2,
+            nx: 6,
+            ny: 3,
+            nz: 0,
+            graded: true,
+        },
+        Spec {
+            dim: 3,
+            nx: 5,
+            ny: 4,
+            nz: 2,
+            graded: true,
         },
     ] {
-        let ke = element_stiffness(spec.dim);
+        let ke = Stiffness::of(&spec);
+        check_patch(&spec, &ke);
         let top: Vec<f64> = (0..spec.dim).map(|c| 0.1 + c as f64).collect();
         let (k1, f1) = assemble(&spec, &ke, &top);
         let (k2, f2) = assemble_triplets(&spec, &ke, &top);
@@ -405,6 +547,63 @@ pub fn check_assembly() {
         }
         for (x, y) in f1.iter().zip(&f2) {
             assert!((x - y).abs() <= 1e-12 * scale, "{}: f", spec.name());
+        }
+    }
+}
+
+/// The patch test of the element matrices of `spec`: the nodal forces of the
+/// field u_c = sum_ax (c + 1 + ax / 2) x_ax / 10 summed over the cells vanish
+/// (to rounding) at every node off the grid's boundary.
+fn check_patch(spec: &Spec, ke: &Stiffness) {
+    let dim = spec.dim;
+    let nn = spec.nodes();
+    let sizes = spec.cell_sizes();
+    let pos: Vec<Vec<f64>> = sizes.iter().map(|h| positions(h)).collect();
+    let ne = [spec.nx, spec.ny, spec.nz.max(1)];
+    let offs = local_offsets(dim);
+    let nd = dim * offs.len();
+    let node_id = |p: [usize; 3]| (p[2] * nn[1] + p[1]) * nn[0] + p[0];
+    let mut force = vec![0.0; dim * nn[0] * nn[1] * nn[2]];
+    let mut scale = 0.0f64;
+    for ez in 0..ne[2] {
+        for ey in 0..ne[1] {
+            for ex in 0..ne[0] {
+                let ke = ke.of_cell(dim, [ex, ey, ez]);
+                let corners: Vec<[usize; 3]> = offs
+                    .iter()
+                    .map(|o| [ex + o[0], ey + o[1], ez + o[2]])
+                    .collect();
+                let mut ue = vec![0.0; nd];
+                for (l, p) in corners.iter().enumerate() {
+                    for c in 0..dim {
+                        ue[dim * l + c] = (0..dim)
+                            .map(|ax| (c as f64 + 1.0 + ax as f64 / 2.0) * pos[ax][p[ax]] / 10.0)
+                            .sum();
+                    }
+                }
+                for (l, p) in corners.iter().enumerate() {
+                    for c in 0..dim {
+                        let row = dim * l + c;
+                        let fe: f64 = (0..nd).map(|b| ke[row * nd + b] * ue[b]).sum();
+                        scale = scale.max(fe.abs());
+                        force[dim * node_id(*p) + c] += fe;
+                    }
+                }
+            }
+        }
+    }
+    for z in 0..nn[2] {
+        for y in 0..nn[1] {
+            for x in 0..nn[0] {
+                let p = [x, y, z];
+                if (0..dim).any(|ax| p[ax] == 0 || p[ax] == nn[ax] - 1) {
+                    continue;
+                }
+                for c in 0..dim {
+                    let r = force[dim * node_id(p) + c];
+                    assert!(r.abs() <= 1e-12 * scale, "{}: patch test", spec.name());
+                }
+            }
         }
     }
 }
@@ -443,33 +642,34 @@ fn accumulate_btdb(ke: &mut [f64], bm: &[f64], dm: &[f64], ns: usize, nd: usize,
     }
 }
 
-/// Stiffness of the unit square Q4 element (plane strain, 2 x 2 Gauss), 8 x 8.
-fn q4_stiffness(e: f64, nu: f64) -> Vec<f64> {
+/// Stiffness of the rectangular Q4 element of sides h (plane strain, 2 x 2
+/// Gauss), 8 x 8.
+fn q4_stiffness(e: f64, nu: f64, h: [f64; 2]) -> Vec<f64> {
     const XI: [f64; 4] = [-1.0, 1.0, 1.0, -1.0];
     const ETA: [f64; 4] = [-1.0, -1.0, 1.0, 1.0];
     let dm = elasticity(2, e, nu);
     let gp = 1.0 / 3.0f64.sqrt();
     let mut ke = vec![0.0; 64];
-    // Unit square: x = (1 + xi) / 2, so d/dx = 2 d/dxi, det J = 1/4.
+    // x = h_x (1 + xi) / 2, so d/dx = (2 / h_x) d/dxi, det J = h_x h_y / 4.
     for &xi in &[-gp, gp] {
         for &eta in &[-gp, gp] {
             let mut bm = vec![0.0; 3 * 8];
             for a in 0..4 {
-                let dx = 2.0 * 0.25 * XI[a] * (1.0 + ETA[a] * eta);
-                let dy = 2.0 * 0.25 * ETA[a] * (1.0 + XI[a] * xi);
+                let dx = 2.0 / h[0] * 0.25 * XI[a] * (1.0 + ETA[a] * eta);
+                let dy = 2.0 / h[1] * 0.25 * ETA[a] * (1.0 + XI[a] * xi);
                 bm[2 * a] = dx;
                 bm[8 + 2 * a + 1] = dy;
                 bm[16 + 2 * a] = dy;
                 bm[16 + 2 * a + 1] = dx;
             }
-            accumulate_btdb(&mut ke, &bm, &dm, 3, 8, 0.25);
+            accumulate_btdb(&mut ke, &bm, &dm, 3, 8, h[0] * h[1] / 4.0);
         }
     }
     ke
 }
 
-/// Stiffness of the unit cube H8 element (2 x 2 x 2 Gauss), 24 x 24.
-fn h8_stiffness(e: f64, nu: f64) -> Vec<f64> {
+/// Stiffness of the box H8 element of sides h (2 x 2 x 2 Gauss), 24 x 24.
+fn h8_stiffness(e: f64, nu: f64, h: [f64; 3]) -> Vec<f64> {
     const XI: [f64; 8] = [-1.0, 1.0, 1.0, -1.0, -1.0, 1.0, 1.0, -1.0];
     const ETA: [f64; 8] = [-1.0, -1.0, 1.0, 1.0, -1.0, -1.0, 1.0, 1.0];
     const ZETA: [f64; 8] = [-1.0, -1.0, -1.0, -1.0, 1.0, 1.0, 1.0, 1.0];
@@ -482,9 +682,9 @@ fn h8_stiffness(e: f64, nu: f64) -> Vec<f64> {
                 let mut bm = vec![0.0; 6 * 24];
                 for a in 0..8 {
                     let g = [
-                        2.0 * 0.125 * XI[a] * (1.0 + ETA[a] * eta) * (1.0 + ZETA[a] * zeta),
-                        2.0 * 0.125 * ETA[a] * (1.0 + XI[a] * xi) * (1.0 + ZETA[a] * zeta),
-                        2.0 * 0.125 * ZETA[a] * (1.0 + XI[a] * xi) * (1.0 + ETA[a] * eta),
+                        2.0 / h[0] * 0.125 * XI[a] * (1.0 + ETA[a] * eta) * (1.0 + ZETA[a] * zeta),
+                        2.0 / h[1] * 0.125 * ETA[a] * (1.0 + XI[a] * xi) * (1.0 + ZETA[a] * zeta),
+                        2.0 / h[2] * 0.125 * ZETA[a] * (1.0 + XI[a] * xi) * (1.0 + ETA[a] * eta),
                     ];
                     let col = 3 * a;
                     bm[col] = g[0];
@@ -497,7 +697,7 @@ fn h8_stiffness(e: f64, nu: f64) -> Vec<f64> {
                     bm[120 + col] = g[2];
                     bm[120 + col + 2] = g[0];
                 }
-                accumulate_btdb(&mut ke, &bm, &dm, 6, 24, 0.125);
+                accumulate_btdb(&mut ke, &bm, &dm, 6, 24, h[0] * h[1] * h[2] / 8.0);
             }
         }
     }
