@@ -89,9 +89,10 @@ pub fn best_method<'a>(
 }
 
 /// Whether a scene belongs to the scaling family of its dimension: 2D blocks with
-/// nx = 8 ny, 3D blocks with nx = ny = 2 nz.
+/// nx = 8 ny, 3D blocks with nx = ny = 2 nz, on uniform grids.
 pub fn in_family(scene: &str) -> bool {
     match Spec::parse(scene) {
+        Some(s) if s.graded => false,
         Some(s) if s.dim == 2 => s.nx == 8 * s.ny,
         Some(s) => s.nx == s.ny && s.nx == 2 * s.nz,
         None => false,
