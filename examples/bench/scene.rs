@@ -16,10 +16,11 @@
 //!   position x is g(x) = kappa |x - x_c|^2.
 //!
 //! On a uniform grid all elements have the same stiffness matrix: it is
-//! computed once (on a graded grid once per column of cells), and K is assembled
-//! node by node from it directly in compressed columns, in O(n) time and memory, without a dense matrix or a list of element
-//! triplets (a list of element triplets would be 32 million entries for the 2D 1e6
-//! DOF scene, twice the size of K itself). `check_assembly` compares this with the
+//! computed once (on a graded grid once per column of cells), and K is
+//! assembled node by node from it directly in compressed columns, in O(n) time
+//! and memory, without a dense matrix or a list of element triplets (a list of
+//! element triplets would be 32 million entries for the 2D 1e6 DOF scene,
+//! twice the size of K itself). `check_assembly` compares this with the
 //! element-by-element triplet assembly through `Csc::from_triplets` on small grids.
 
 use dualsplit::Csc;
