@@ -217,6 +217,9 @@ pub struct Scene {
     pub p: Vec<f64>,
     /// Coulomb coefficient per contact.
     pub mu: Vec<f64>,
+    /// The element matrices K and the loads of the top's motions are
+    /// assembled from.
+    stiffness: Stiffness,
 }
 
 /// The top displacement (vertical press delta, horizontal shift s) for a block of
@@ -237,7 +240,8 @@ impl Scene {
         let mut top = vec![0.0; dim];
         top[0] = shift;
         top[dim - 1] = -delta;
-        let (k, f) = assemble(&spec, &Stiffness::of(&spec), &top);
+        let stiffness = Stiffness::of(&spec);
+        let (k, f) = assemble(&spec, &stiffness, &top);
         let [hx, hy, _] = spec.cell_sizes();
         let (xs, ys) = (positions(&hx), positions(&hy));
         // A node's share of the face, per axis: half of each cell beside
@@ -290,6 +294,7 @@ impl Scene {
             g,
             p,
             mu,
+            stiffness,
         }
     }
 
@@ -336,7 +341,7 @@ impl Scene {
     /// The load f = -K_fp u_p of the top moved by `top` (one value per
     /// component).
     fn load_of_top(&self, top: &[f64]) -> Vec<f64> {
-        assemble(&self.spec, &Stiffness::of(&self.spec), top).1
+        assemble(&self.spec, &self.stiffness, top).1
     }
 
     /// The load vector of the same scene with the top motion scaled by `s` (f is
