@@ -853,7 +853,8 @@ typedef struct DsInfo {
    Predicted peak bytes of ds_problem_refactor (the old and the new factor
    are held at once; max_memory must allow for it), with the slots of
    resident_bytes; a refactor from a coordinate-format K makes its slots
-   first (4 bytes per triplet, 8 where one triangle is given; see
+   first (4 bytes per triplet, 8 where one triangle is given, and in
+   full storage 4 bytes per entry of K off the diagonal; see
    ds_problem_refactor) and checks them with the rest.
    */
   uint64_t refactor_bytes;
@@ -1317,8 +1318,10 @@ void ds_problem_free(struct DsProblem *problem);
  bit): at the slot where the triplet of the same number fell at the last
  refactor where it still lies there (a host that assembles in a fixed
  order), else by a binary search in its column. The handle keeps those
- slots: 4 bytes per triplet (8 where one triangle is given), counted from
- then on in DsInfo.resident_bytes and the predictions made on it.
+ slots: 4 bytes per triplet (8 where one triangle is given), and where K
+ comes in full storage the places of its pattern's mirror pairs for the
+ symmetry check (4 bytes per entry off the diagonal), counted from then on
+ in DsInfo.resident_bytes and the predictions made on it.
 
  Returns DS_STATUS_OK, or the errors of ds_problem_new for K, and
  DS_STATUS_BAD_ARGUMENT if the pattern differs.

@@ -44,7 +44,8 @@ pub struct Info {
     /// with new values of K (the old and the new factor at once). Held between
     /// calls, during a solve and during a refactorisation include the slots
     /// that a refactor from a coordinate-format K keeps (4 bytes per triplet,
-    /// 8 where one triangle is given).
+    /// 8 where one triangle is given; in full storage also 4 bytes per entry
+    /// of K off the diagonal, the mirror places of its symmetry check).
     pub setup_bytes: usize,
     pub resident_bytes: usize,
     pub solve_bytes: usize,

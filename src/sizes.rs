@@ -37,8 +37,9 @@ pub(crate) struct Sizes {
     /// where it pays, with the restricted one of Newton's reduced systems
     /// analysed beside it (`dirichlet::Plan::bytes`; 0 where it does not).
     pub dirichlet: usize,
-    /// Bytes of the slots a refactor from a coordinate-format K keeps
-    /// (`sparse::TripletSlots`; 0 until one made them).
+    /// Bytes of the slots a refactor from a coordinate-format K keeps, with
+    /// the mirror places of its symmetry check (`sparse::TripletSlots`; 0
+    /// until one made them).
     pub slots: usize,
 }
 

@@ -502,8 +502,9 @@ fn refactor_and_new_contacts_respect_the_handles_max_memory() {
 }
 
 /// A refactor from a coordinate-format K keeps the triplets' slots on the
-/// handle (4 bytes each): the resident, solve and refactor predictions
-/// count them,
+/// handle (4 bytes each) and, K given in full, its pattern's mirror places
+/// (4 bytes per entry off the diagonal): the resident, solve and refactor
+/// predictions count them,
 /// the solve's report predicts what ds_problem_info says, and the library's
 /// own count of the solve stays within it.
 #[test]
@@ -532,7 +533,16 @@ fn the_slots_of_a_coordinate_format_refactor_are_predicted() {
         x: &k.values,
     };
     pb.refactor(&coo).expect("refactor");
-    let slots = 4 * k.values.len();
+    // The block's pattern is symmetric: every entry off the diagonal has
+    // its mirror stored.
+    let off_diagonal = (0..k.ncols)
+        .map(|c| {
+            (k.col_ptr[c]..k.col_ptr[c + 1])
+                .filter(|&q| k.row_idx[q] != c)
+                .count()
+        })
+        .sum::<usize>();
+    let slots = 4 * k.values.len() + 4 * off_diagonal;
     let after = pb.info(&opts);
     assert_eq!(after.resident_bytes, before.resident_bytes + slots);
     assert_eq!(after.solve_bytes, before.solve_bytes + slots);

@@ -62,7 +62,8 @@ pub struct DsInfo {
     /// Predicted peak bytes of ds_problem_refactor (the old and the new factor
     /// are held at once; max_memory must allow for it), with the slots of
     /// resident_bytes; a refactor from a coordinate-format K makes its slots
-    /// first (4 bytes per triplet, 8 where one triangle is given; see
+    /// first (4 bytes per triplet, 8 where one triangle is given, and in
+    /// full storage 4 bytes per entry of K off the diagonal; see
     /// ds_problem_refactor) and checks them with the rest.
     pub refactor_bytes: u64,
     /// The memory limit the predictions are checked against, bytes

@@ -278,8 +278,10 @@ pub unsafe extern "C" fn ds_problem_free(problem: *mut DsProblem) {
 /// bit): at the slot where the triplet of the same number fell at the last
 /// refactor where it still lies there (a host that assembles in a fixed
 /// order), else by a binary search in its column. The handle keeps those
-/// slots: 4 bytes per triplet (8 where one triangle is given), counted from
-/// then on in DsInfo.resident_bytes and the predictions made on it.
+/// slots: 4 bytes per triplet (8 where one triangle is given), and where K
+/// comes in full storage the places of its pattern's mirror pairs for the
+/// symmetry check (4 bytes per entry off the diagonal), counted from then on
+/// in DsInfo.resident_bytes and the predictions made on it.
 ///
 /// Returns DS_STATUS_OK, or the errors of ds_problem_new for K, and
 /// DS_STATUS_BAD_ARGUMENT if the pattern differs.

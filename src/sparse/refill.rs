@@ -4,10 +4,13 @@
 //! millions of triplets (on a 3D H8 mesh of 34,000 DOFs, 6.2 million: about
 //! half a factorisation); on a known pattern each triplet is placed by a
 //! binary search in its column, or, where the host sends its triplets in the
-//! order of its last refill, at the slot it fell on then ([`TripletSlots`]).
+//! order of its last refill, at the slot it fell on then ([`TripletSlots`]),
+//! each triplet then checked against its slot alone; a K in full storage is
+//! checked for symmetry pair by pair at the mirror places of the pattern,
+//! found once.
 
 use super::validate::{check_base, check_symmetric, index0};
-use super::{Csc, Format, MatrixView, Storage};
+use super::{Csc, Format, Indices, MatrixView, Storage};
 use crate::memory::{Claim, Ledger};
 use std::sync::Arc;
 
@@ -26,6 +29,67 @@ pub(crate) struct TripletSlots {
     /// pattern: triplets that all land on them cover it again.
     complete: bool,
     _claim: Option<Claim>,
+    /// The held pattern's mirror places, for the symmetry check of a refill
+    /// in full storage (made at the first one; a function of the pattern
+    /// alone, which a handle keeps).
+    mirrors: Option<Mirrors>,
+}
+
+/// The mirror places of a square pattern (sorted rows, [`Csc::mirror_pairs`]),
+/// as positions in its values: each pair (r, c), r < c, stored on both
+/// sides, and each entry off the diagonal whose mirror is not stored. The
+/// symmetry check of a refill then reads the values pair by pair, with no
+/// search of the pattern.
+#[derive(Debug)]
+struct Mirrors {
+    pairs: Vec<[u32; 2]>,
+    alone: Vec<u32>,
+    _claim: Claim,
+}
+
+impl Mirrors {
+    /// The mirror places of `a` (counted on `ledger`); None where its
+    /// positions do not fit in u32 or the memory is refused.
+    fn of(a: &Csc, ledger: &Arc<Ledger>) -> Option<Mirrors> {
+        if a.values.len() >= u32::MAX as usize {
+            return None;
+        }
+        let (mut pairs, mut alone) = (Vec::new(), Vec::new());
+        let off_diagonal = a.values.len() - a.ncols.min(a.values.len());
+        pairs.try_reserve_exact(off_diagonal / 2).ok()?;
+        // q < nnz < u32::MAX (checked above).
+        a.mirror_pairs(|_, _, upper, lower| {
+            match (upper, lower) {
+                (Some(u), Some(l)) => pairs.push([u as u32, l as u32]),
+                (Some(q), None) | (None, Some(q)) => alone.push(q as u32),
+                (None, None) => {}
+            }
+            true
+        })
+        .ok()?;
+        let bytes = (pairs.capacity() * 2 + alone.capacity()) * std::mem::size_of::<u32>();
+        Some(Mirrors {
+            pairs,
+            alone,
+            _claim: ledger.claim(bytes),
+        })
+    }
+
+    fn bytes(&self) -> usize {
+        (self.pairs.len() * 2 + self.alone.len()) * std::mem::size_of::<u32>()
+    }
+
+    /// Whether `values` (on the pattern these places are of) are symmetric
+    /// as [`check_symmetric`] asks: |A_ij - A_ji| <= SYMMETRY_TOL max|A|
+    /// for every pair, a missing entry counting as 0.
+    fn symmetric(&self, values: &[f64]) -> bool {
+        let max_abs = values.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+        let tol = super::SYMMETRY_TOL * max_abs;
+        self.pairs
+            .iter()
+            .all(|&[u, l]| (values[u as usize] - values[l as usize]).abs() <= tol)
+            && self.alone.iter().all(|&q| values[q as usize].abs() <= tol)
+    }
 }
 
 impl TripletSlots {
@@ -33,6 +97,7 @@ impl TripletSlots {
     /// is given (kept between refactors: `Sizes::slots`).
     pub(crate) fn held_bytes(&self) -> usize {
         self.slots.len() * std::mem::size_of::<u32>()
+            + self.mirrors.as_ref().map_or(0, Mirrors::bytes)
     }
 
     /// Slots for `count` placements, reused where they have that length,
@@ -44,7 +109,7 @@ impl TripletSlots {
             return None;
         }
         if self.slots.len() != count {
-            *self = TripletSlots::default();
+            (self.slots, self.complete, self._claim) = (Vec::new(), false, None);
             let mut slots = Vec::new();
             slots.try_reserve_exact(count).ok()?;
             slots.resize(count, u32::MAX);
@@ -98,11 +163,26 @@ impl Csc {
         let usable = guesses.is_some();
         // The entries met, where the slots cannot vouch for them: made at the
         // first triplet off its slot (those before it marked from theirs).
+        // Full storage on slots that vouch for every entry: each triplet
+        // checked against its slot alone, the general placement below only
+        // where one is off it.
+        let fast = match (usable && complete && !(upper || lower), view.i, view.p) {
+            (true, Indices::I32(i), Indices::I32(p)) => {
+                self.place_on_slots((i, p), view.x, base, guesses.as_deref(), &mut values)
+            }
+            (true, Indices::I64(i), Indices::I64(p)) => {
+                self.place_on_slots((i, p), view.x, base, guesses.as_deref(), &mut values)
+            }
+            _ => false,
+        };
+        if !fast && usable && complete {
+            values.iter_mut().for_each(|v| *v = -0.0);
+        }
         let mut met = (!(usable && complete)).then(|| vec![false; nnz]);
         // The stored triplets, then (one triangle given) their mirrors: the
         // order in which the full conversion sums them.
         for mirror in [false, true] {
-            if mirror && !(upper || lower) {
+            if fast || (mirror && !(upper || lower)) {
                 break;
             }
             let offset = if mirror { len } else { 0 };
@@ -165,11 +245,56 @@ impl Csc {
             values,
         };
         if !(upper || lower) {
-            check_symmetric(&a, "K", base).ok()?;
+            if slots.mirrors.is_none() {
+                slots.mirrors = Mirrors::of(self, ledger);
+            }
+            match &slots.mirrors {
+                Some(mirrors) if !mirrors.symmetric(&a.values) => return None,
+                Some(_) => {}
+                None => check_symmetric(&a, "K", base).ok()?,
+            }
         }
         // Every entry met, by these slots' triplets.
         slots.complete = usable;
         Some(a)
+    }
+}
+
+impl Csc {
+    /// Adds the triplets (`rows`, `cols`, `x`; full storage, index base
+    /// `base`) at `slots`, the places they fell on at the last refill, into
+    /// `values` (on `self`'s pattern): true where every triplet's slot lies
+    /// in its column and holds its row. False at the first that does not,
+    /// or where an index is out of range or there are no slots (`values`
+    /// then partly summed: the caller starts over). A value that is not
+    /// finite leaves its entry's sum not finite, which the caller checks.
+    fn place_on_slots<I: Copy + Into<i64>>(
+        &self,
+        (rows, cols): (&[I], &[I]),
+        x: &[f64],
+        base: usize,
+        slots: Option<&[u32]>,
+        values: &mut [f64],
+    ) -> bool {
+        let n = self.ncols;
+        let Some(slots) = slots else { return false };
+        if slots.len() != x.len() || rows.len() != x.len() || cols.len() != x.len() {
+            return false;
+        }
+        for (k, &q) in slots.iter().enumerate() {
+            let (Some(r), Some(c)) = (
+                index0(rows[k].into(), base, n),
+                index0(cols[k].into(), base, n),
+            ) else {
+                return false;
+            };
+            let q = q as usize;
+            if q < self.col_ptr[c] || q >= self.col_ptr[c + 1] || self.row_idx[q] != r {
+                return false;
+            }
+            values[q] += x[k];
+        }
+        true
     }
 }
 
@@ -250,9 +375,21 @@ mod tests {
                 // order (every guess wrong, as many triplets).
                 let mut reversed = triplets(0.9);
                 reversed.reverse();
-                for t in [triplets(1.7), triplets(2.3), reversed] {
+                // The third and fourth in 32-bit indices (each width's
+                // placement on the slots).
+                for (r, t) in [triplets(1.7), triplets(2.3), triplets(2.9), reversed]
+                    .into_iter()
+                    .enumerate()
+                {
                     let new = [arrays(&t, storage, base as i64)];
-                    let view = coo(&new, storage, base);
+                    let narrow: Vec<Vec<i32>> = [&new[0].0, &new[0].1]
+                        .iter()
+                        .map(|v| v.iter().map(|&x| x as i32).collect())
+                        .collect();
+                    let mut view = coo(&new, storage, base);
+                    if r >= 2 {
+                        (view.i, view.p) = (Indices::I32(&narrow[0]), Indices::I32(&narrow[1]));
+                    }
                     let want = Csc::symmetric_from_view(&view, "K").unwrap();
                     let got = k0
                         .refill_symmetric(&view, &mut slots, &ledger)
@@ -266,10 +403,47 @@ mod tests {
                         "{storage:?}, base {base}"
                     );
                     let passes = if storage == Storage::Full { 1 } else { 2 };
-                    assert_eq!(slots.held_bytes(), 4 * passes * new[0].0.len());
+                    // A refill in full storage keeps the pattern's six
+                    // mirror pairs (the chain's five links and the long one)
+                    // for its symmetry check, two positions each.
+                    let mirrors = if storage == Storage::Full {
+                        4 * 2 * 6
+                    } else {
+                        0
+                    };
+                    assert_eq!(slots.held_bytes(), 4 * passes * new[0].0.len() + mirrors);
                     assert_eq!(ledger.live(), slots.held_bytes());
                 }
             }
+        }
+    }
+
+    /// The kept mirror places judge symmetry as the full check does, on a
+    /// pattern with an entry whose mirror is not stored (its value counts
+    /// against 0) and pairs off by just under and just over the tolerance.
+    #[test]
+    fn the_kept_mirrors_judge_symmetry_as_the_full_check() {
+        let mut t = triplets(1.0);
+        t.push((2, 5, 0.0));
+        let arrs = [arrays(&t, Storage::Full, 0)];
+        let mut a = Csc::symmetric_from_view(&coo(&arrs, Storage::Full, 0), "K").unwrap();
+        let mirrors = Mirrors::of(&a, &Ledger::new()).expect("mirror places");
+        assert_eq!((mirrors.pairs.len(), mirrors.alone.len()), (6, 1));
+        let alone = mirrors.alone[0] as usize;
+        let pair = mirrors.pairs[2];
+        let tol = crate::sparse::SYMMETRY_TOL * a.values.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+        for (at, by) in [
+            (pair[0] as usize, 0.9 * tol),
+            (pair[0] as usize, 1.1 * tol),
+            (alone, 0.9 * tol),
+            (alone, 1.1 * tol),
+        ] {
+            let kept = a.values[at];
+            a.values[at] += by;
+            let full = check_symmetric(&a, "K", 0).is_ok();
+            assert_eq!(mirrors.symmetric(&a.values), full, "{at} {by:e}");
+            assert_eq!(full, by < tol, "{at} {by:e}");
+            a.values[at] = kept;
         }
     }
 
