@@ -200,6 +200,12 @@ impl Plan {
         })
     }
 
+    /// G = B K B^T of the restricted preconditioner, where its analysis
+    /// succeeded: the lumped preconditioner of the dual the plan is for.
+    pub(crate) fn lumped(&self) -> Option<&Csc> {
+        self.restricted.as_ref().map(Restricted::g)
+    }
+
     /// Bytes the formed preconditioner holds: K_loc's two blocks and L_II's
     /// values in single precision, L_II's own values and workspace, the
     /// solve's workspace and two vectors, and the restricted preconditioner
@@ -443,6 +449,28 @@ mod tests {
         assert!(own.is_some(), "the preconditioner pays on this grid");
         assert_eq!(host.map(|p| p.bytes()), own.map(|p| p.bytes()));
         assert!(lower.is_none(), "K's lower triangle alone refuses it");
+    }
+
+    /// A matrix-free dual whose layered preconditioner pays takes its lumped
+    /// G from the restricted preconditioner's analysis: the same matrix as
+    /// B K B^T formed directly, bit for bit.
+    #[test]
+    fn the_lumped_g_taken_from_the_plan_is_b_k_bt() {
+        let (nx, ny) = (60, 30);
+        let (k, b, factor, _) = scene(nx, ny);
+        let empty = Csc::from_triplets(0, nx * ny, &[]);
+        let mut dual = Dual::build_with(&factor, &b, &empty, 1, Condensation::MatrixFree).unwrap();
+        dual.set_lumped(&k, None);
+        assert!(dual.restricted().is_some(), "the layer pays on this grid");
+        let direct = crate::sparse::congruence(&k, &b, &b.transpose());
+        let g = dual.lumped().expect("a lumped G");
+        assert_eq!((&g.col_ptr, &g.row_idx), (&direct.col_ptr, &direct.row_idx));
+        let bits = |v: &[f64]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+        assert_eq!(bits(&g.values), bits(&direct.values));
+        assert_eq!(
+            bits(&dual.restricted().unwrap().g().values),
+            bits(&direct.values)
+        );
     }
 
     #[test]

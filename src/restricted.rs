@@ -394,6 +394,11 @@ impl Restricted {
         }
     }
 
+    /// G = B K B^T (c x c, both triangles).
+    pub(crate) fn g(&self) -> &Csc {
+        &self.g
+    }
+
     /// y := G x (x, y of length c).
     pub(crate) fn g_mul(&self, x: &[f64], y: &mut [f64]) {
         self.g.mul_vec(x, y);

@@ -475,31 +475,31 @@ impl Dual {
     /// systems first; `layer`: its analysis where the caller made it for the
     /// memory prediction, else analysed here); nothing on a dense dual.
     pub(crate) fn set_lumped(&mut self, k: &Csc, layer: Option<crate::dirichlet::Plan>) {
-        if let Some(f) = &mut self.free {
-            let g = crate::sparse::congruence(k, &self.rows, &f.bt);
-            let claim = self.ledger.claim(g.bytes());
-            f.lumped = Some((g, claim));
-            // The layered Dirichlet preconditioner is weighed against the
-            // cost of a product with K's factor.
-            let Some(factor) = f.factor() else {
-                // On the host's solves: the caller's plan (`host_layer`, made
-                // for the memory prediction), else made here the same way.
-                let plan = layer
-                    .or_else(|| host_layer(k, &self.rows, self.d, &self.threads, &self.ledger));
-                f.dirichlet = plan.and_then(|p| p.form(&self.ledger));
-                return;
-            };
-            let plan = layer.or_else(|| {
-                crate::dirichlet::Plan::of(
-                    k,
-                    &self.rows,
-                    factor,
-                    factor.threads().clone(),
-                    self.ledger.clone(),
-                )
-            });
-            f.dirichlet = plan.and_then(|p| p.form(&self.ledger));
-        }
+        let Some(f) = &mut self.free else { return };
+        // The layered Dirichlet preconditioner: the caller's plan, else
+        // weighed here against the cost of a product with K's factor (on the
+        // host's solves made as `host_layer` makes it for the memory
+        // prediction).
+        let plan = match (layer, f.factor()) {
+            (Some(plan), _) => Some(plan),
+            (None, None) => host_layer(k, &self.rows, self.d, &self.threads, &self.ledger),
+            (None, Some(factor)) => crate::dirichlet::Plan::of(
+                k,
+                &self.rows,
+                factor,
+                factor.threads().clone(),
+                self.ledger.clone(),
+            ),
+        };
+        // G = B K B^T: formed once, by the plan's restricted preconditioner
+        // where there is one (its copy, the same matrix), else here.
+        let g = match plan.as_ref().and_then(|p| p.lumped()) {
+            Some(g) => g.clone(),
+            None => crate::sparse::congruence(k, &self.rows, &f.bt),
+        };
+        let claim = self.ledger.claim(g.bytes());
+        f.lumped = Some((g, claim));
+        f.dirichlet = plan.and_then(|p| p.form(&self.ledger));
     }
 
     /// y := P x, P the approximate inverse of A that preconditions Newton's
