@@ -1301,6 +1301,8 @@ void ds_problem_free(struct DsProblem *problem);
  given to ds_problem_new (e.g. after a geometric or material update); rebuilds the
  condensed dual. The history of ds_step and the multipliers the next
  ds_solve_iteration starts from are kept. On error the handle is unchanged.
+ What depends on K's pattern alone is not recomputed: K's analysis, and a
+ matrix-free dual's layered preconditioner's layers and analyses.
 
  A matrix-free dual keeps the contacts' diagonal blocks of the K they were
  computed on (they cost 0.7-1.4 factorisations to compute afresh) where a

@@ -140,55 +140,8 @@ impl Plan {
             }
             frontier = next;
         }
-        let (nf, nl) = (face.len(), global.len());
-        // The application's blocks index rows in 32 bits.
-        if nl == nf || u32::try_from(nl).is_err() {
-            return None;
-        }
-        // K_loc column by column (K's column restricted to local rows, sorted
-        // by local index), and K_II as its trailing block.
-        let mut k_loc = Csc {
-            nrows: nl,
-            ncols: nl,
-            col_ptr: Vec::with_capacity(nl + 1),
-            row_idx: Vec::new(),
-            values: Vec::new(),
-        };
-        let mut col: Vec<(usize, f64)> = Vec::new();
-        k_loc.col_ptr.push(0);
-        for &j in &global {
-            col.clear();
-            for p in k.col_ptr[j]..k.col_ptr[j + 1] {
-                let li = local[k.row_idx[p]];
-                if li != usize::MAX {
-                    col.push((li, k.values[p]));
-                }
-            }
-            col.sort_unstable_by_key(|e| e.0);
-            k_loc.row_idx.extend(col.iter().map(|e| e.0));
-            k_loc.values.extend(col.iter().map(|e| e.1));
-            k_loc.col_ptr.push(k_loc.row_idx.len());
-            if k_loc.row_idx.len() as f64 > budget {
-                return None;
-            }
-        }
-        let mut k_ii = Csc {
-            nrows: nl - nf,
-            ncols: nl - nf,
-            col_ptr: Vec::with_capacity(nl - nf + 1),
-            row_idx: Vec::new(),
-            values: Vec::new(),
-        };
-        k_ii.col_ptr.push(0);
-        for j in nf..nl {
-            for p in k_loc.col_ptr[j]..k_loc.col_ptr[j + 1] {
-                if k_loc.row_idx[p] >= nf {
-                    k_ii.row_idx.push(k_loc.row_idx[p] - nf);
-                    k_ii.values.push(k_loc.values[p]);
-                }
-            }
-            k_ii.col_ptr.push(k_ii.row_idx.len());
-        }
+        let nf = face.len();
+        let (k_loc, k_ii) = gather(k, &global, nf, budget)?;
         let factor = Factor::analyse(&k_ii, &[], Ordering::Amd, false, threads, ledger).ok()?;
         Some(Plan {
             global,
@@ -241,8 +194,8 @@ impl Plan {
                 crate::memory::try_scratch(self.factor.solve_scratch_single(), "").ok()?,
             ),
             work: RefCell::new((vec![0.0; nl], vec![0.0; nl])),
-            face: self.global[..nf].to_vec(),
-            nl,
+            global: self.global,
+            nf,
             face_cols,
             layer_cols,
             l_ii,
@@ -254,6 +207,68 @@ impl Plan {
             _claim: claim,
         })
     }
+}
+
+/// K on the face and its layers (`global`: the face's `nf` DOFs first, then
+/// the layers'), local indices, both triangles, and K_II its trailing block;
+/// None where the layers are empty, their order does not fit the
+/// application's 32-bit row indices, or K_loc holds more entries than
+/// `budget`.
+fn gather(k: &Csc, global: &[usize], nf: usize, budget: f64) -> Option<(Csc, Csc)> {
+    let nl = global.len();
+    // The application's blocks index rows in 32 bits.
+    if nl == nf || u32::try_from(nl).is_err() {
+        return None;
+    }
+    let mut local = vec![usize::MAX; k.nrows];
+    for (l, &j) in global.iter().enumerate() {
+        local[j] = l;
+    }
+    // K_loc column by column (K's column restricted to local rows, sorted
+    // by local index), and K_II as its trailing block.
+    let mut k_loc = Csc {
+        nrows: nl,
+        ncols: nl,
+        col_ptr: Vec::with_capacity(nl + 1),
+        row_idx: Vec::new(),
+        values: Vec::new(),
+    };
+    let mut col: Vec<(usize, f64)> = Vec::new();
+    k_loc.col_ptr.push(0);
+    for &j in global {
+        col.clear();
+        for p in k.col_ptr[j]..k.col_ptr[j + 1] {
+            let li = local[k.row_idx[p]];
+            if li != usize::MAX {
+                col.push((li, k.values[p]));
+            }
+        }
+        col.sort_unstable_by_key(|e| e.0);
+        k_loc.row_idx.extend(col.iter().map(|e| e.0));
+        k_loc.values.extend(col.iter().map(|e| e.1));
+        k_loc.col_ptr.push(k_loc.row_idx.len());
+        if k_loc.row_idx.len() as f64 > budget {
+            return None;
+        }
+    }
+    let mut k_ii = Csc {
+        nrows: nl - nf,
+        ncols: nl - nf,
+        col_ptr: Vec::with_capacity(nl - nf + 1),
+        row_idx: Vec::new(),
+        values: Vec::new(),
+    };
+    k_ii.col_ptr.push(0);
+    for j in nf..nl {
+        for p in k_loc.col_ptr[j]..k_loc.col_ptr[j + 1] {
+            if k_loc.row_idx[p] >= nf {
+                k_ii.row_idx.push(k_loc.row_idx[p] - nf);
+                k_ii.values.push(k_loc.values[p]);
+            }
+        }
+        k_ii.col_ptr.push(k_ii.row_idx.len());
+    }
+    Some((k_loc, k_ii))
 }
 
 /// Columns of K_loc cut to rows below `rows`, in single precision with
@@ -302,10 +317,10 @@ pub(crate) fn layer_of(k: &Csc, b: &Csc, of_k: &Factor) -> Option<Plan> {
 /// precision (a preconditioner: its rounding, about 1e-7 relative, is far
 /// below what it approximates).
 pub(crate) struct Dirichlet {
-    /// Global DOF of each face DOF (local index = position).
-    face: Vec<usize>,
-    /// Face and layer DOFs.
-    nl: usize,
+    /// Global DOF of each local one: the face's `nf` DOFs first, then the
+    /// layers' (kept for a refactor on K's pattern: [`Dirichlet::renewed`]).
+    global: Vec<usize>,
+    nf: usize,
     face_cols: Block,
     layer_cols: Block,
     /// L_II's values in single precision, on `factor`'s pattern.
@@ -325,6 +340,33 @@ impl Dirichlet {
         self.restricted.as_ref()
     }
 
+    /// The plan of this preconditioner for K = `k` of the pattern of the K
+    /// it was formed on, and the same B = `b` (`bt` its transpose): the
+    /// same face and layers, K_II's analysis and G's order kept (the
+    /// values gathered from `k`, G formed afresh), for a refactor. None
+    /// where K_II's or G's pattern differs (the caller then analyses anew).
+    pub(crate) fn renewed(&self, k: &Csc, b: &Csc, bt: &Csc) -> Option<Plan> {
+        let (k_loc, k_ii) = gather(k, &self.global, self.nf, f64::INFINITY)?;
+        let factor = self.factor.unfactored_copy();
+        if !factor.same_pattern(&k_ii) {
+            return None;
+        }
+        let restricted = match &self.restricted {
+            Some(r) => r.renewed(k, b, bt).or_else(|| {
+                Restricted::new(k, b, factor.threads().clone(), factor.ledger().clone())
+            }),
+            None => None,
+        };
+        Some(Plan {
+            global: self.global.clone(),
+            nf: self.nf,
+            k_loc,
+            k_ii,
+            factor,
+            restricted,
+        })
+    }
+
     /// Drops the restricted preconditioner (the tests that measure what it
     /// buys).
     #[cfg(test)]
@@ -337,9 +379,9 @@ impl Dirichlet {
     pub(crate) fn apply(&self, b: &Csc, x: &[f64], y: &mut [f64]) {
         let mut work = self.work.borrow_mut();
         let (v, kv) = &mut *work;
-        let (nf, nl) = (self.face.len(), self.nl);
+        let (nf, nl) = (self.nf, self.global.len());
         // v_F = B^T x on the face.
-        for (l, &j) in self.face.iter().enumerate() {
+        for (l, &j) in self.global[..nf].iter().enumerate() {
             v[l] = (b.col_ptr[j]..b.col_ptr[j + 1])
                 .map(|p| b.values[p] * x[b.row_idx[p]])
                 .sum::<f64>() as f32;
@@ -370,7 +412,7 @@ impl Dirichlet {
         }
         // y = B (S_l v_F).
         y.iter_mut().for_each(|e| *e = 0.0);
-        for (l, &j) in self.face.iter().enumerate() {
+        for (l, &j) in self.global[..nf].iter().enumerate() {
             let val = f64::from(kv[l]);
             if val != 0.0 {
                 for p in b.col_ptr[j]..b.col_ptr[j + 1] {
@@ -471,6 +513,61 @@ mod tests {
             bits(&dual.restricted().unwrap().g().values),
             bits(&direct.values)
         );
+    }
+
+    /// A refactor's plan, renewed from the preconditioner of the old K,
+    /// is the plan analysed afresh on the new K (the same pattern, values
+    /// D K D with D varying): the same application and the same G, bit for
+    /// bit.
+    #[test]
+    fn a_renewed_plan_is_the_plan_made_afresh() {
+        let (nx, ny) = (60, 30);
+        let (k, b, factor, _) = scene(nx, ny);
+        let d: Vec<f64> = (0..k.nrows)
+            .map(|i| 1.0 + 0.05 * (i as f64 * 0.37).sin())
+            .collect();
+        let mut k2 = k.clone();
+        for j in 0..k2.ncols {
+            for p in k2.col_ptr[j]..k2.col_ptr[j + 1] {
+                k2.values[p] *= d[k2.row_idx[p]] * d[j];
+            }
+        }
+        let (threads, ledger) = (Arc::new(Threads::new(1)), Ledger::new());
+        let plan = |k: &Csc| Plan::of(k, &b, &factor, threads.clone(), ledger.clone());
+        let old = plan(&k).expect("it pays").form(&ledger).expect("formed");
+        let renewed = old
+            .renewed(&k2, &b, &b.transpose())
+            .expect("the same pattern");
+        let afresh = plan(&k2).expect("it pays");
+        let bits = |v: &[f64]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+        let (g_renewed, g_afresh) = (renewed.lumped().unwrap(), afresh.lumped().unwrap());
+        assert_eq!(bits(&g_renewed.values), bits(&g_afresh.values));
+        let (renewed, afresh) = (
+            renewed.form(&ledger).unwrap(),
+            afresh.form(&ledger).unwrap(),
+        );
+        let x: Vec<f64> = (0..nx).map(|i| (i as f64 * 0.7).sin() + 0.2).collect();
+        let (mut yr, mut ya, mut yo) = (vec![0.0; nx], vec![0.0; nx], vec![0.0; nx]);
+        renewed.apply(&b, &x, &mut yr);
+        afresh.apply(&b, &x, &mut ya);
+        old.apply(&b, &x, &mut yo);
+        assert_eq!(bits(&yr), bits(&ya));
+        assert_ne!(
+            bits(&yr),
+            bits(&yo),
+            "the new K's preconditioner, not the old one's"
+        );
+        // Another pattern: K with one more coupling inside the layer (two
+        // DOFs of the grid's second row) is not renewed.
+        let mut t = Vec::new();
+        for j in 0..k.ncols {
+            for p in k.col_ptr[j]..k.col_ptr[j + 1] {
+                t.push((k.row_idx[p], j, k.values[p]));
+            }
+        }
+        t.extend([(nx + 1, nx + 9, 1e-3), (nx + 9, nx + 1, 1e-3)]);
+        let k3 = Csc::from_triplets(k.nrows, k.ncols, &t);
+        assert!(old.renewed(&k3, &b, &b.transpose()).is_none());
     }
 
     #[test]

@@ -89,6 +89,30 @@ struct Step {
     mem: MemBuffer,
 }
 
+impl Step {
+    /// No step yet, for c components.
+    fn none(c: usize) -> Step {
+        Step {
+            prescribed: vec![false; c],
+            at: vec![usize::MAX; c],
+            u: Vec::new(),
+            e: Csc {
+                nrows: 0,
+                ncols: 0,
+                col_ptr: vec![0],
+                row_idx: Vec::new(),
+                values: Vec::new(),
+            },
+            factor: None,
+            analysed: false,
+            refused: false,
+            factored: false,
+            rhs: Vec::new(),
+            mem: MemBuffer::new(faer::dyn_stack::StackReq::EMPTY),
+        }
+    }
+}
+
 impl Restricted {
     /// G = B K B^T of K = `k` (n x n, both triangles) and B = `b` (c x n),
     /// with its fill-reducing order (AMD) and its factor's size; E's factors
@@ -125,27 +149,31 @@ impl Restricted {
             order,
             empty,
             factor_bytes,
-            step: RefCell::new(Step {
-                prescribed: vec![false; c],
-                at: vec![usize::MAX; c],
-                u: Vec::new(),
-                e: Csc {
-                    nrows: 0,
-                    ncols: 0,
-                    col_ptr: vec![0],
-                    row_idx: Vec::new(),
-                    values: Vec::new(),
-                },
-                factor: None,
-                analysed: false,
-                refused: false,
-                factored: false,
-                rhs: Vec::new(),
-                mem: MemBuffer::new(faer::dyn_stack::StackReq::EMPTY),
-            }),
+            step: RefCell::new(Step::none(c)),
             g,
             threads,
             ledger,
+            claim: None,
+        })
+    }
+
+    /// The preconditioner of K = `k` of the pattern of the K it was made
+    /// for, and the same B = `b` (`bt` its transpose): G formed afresh, its
+    /// order and bounds kept (functions of G's pattern alone), no step
+    /// factored yet. None where G's pattern differs.
+    pub(crate) fn renewed(&self, k: &Csc, b: &Csc, bt: &Csc) -> Option<Restricted> {
+        let g = crate::sparse::congruence(k, b, bt);
+        if g.col_ptr != self.g.col_ptr || g.row_idx != self.g.row_idx {
+            return None;
+        }
+        Some(Restricted {
+            order: self.order.clone(),
+            empty: self.empty.clone(),
+            factor_bytes: self.factor_bytes,
+            step: RefCell::new(Step::none(g.ncols)),
+            g,
+            threads: self.threads.clone(),
+            ledger: self.ledger.clone(),
             claim: None,
         })
     }

@@ -502,6 +502,15 @@ impl Dual {
         f.dirichlet = plan.and_then(|p| p.form(&self.ledger));
     }
 
+    /// The plan of this dual's layered Dirichlet preconditioner for K = `k`
+    /// of the pattern of the K it was formed on (a refactor: B unchanged),
+    /// its analyses kept ([`crate::dirichlet::Dirichlet::renewed`]); None
+    /// where the dual holds none, or the patterns differ.
+    pub(crate) fn renewed_layer(&self, k: &Csc) -> Option<crate::dirichlet::Plan> {
+        let f = self.free.as_ref()?;
+        f.dirichlet.as_ref()?.renewed(k, &self.rows, &f.bt)
+    }
+
     /// y := P x, P the approximate inverse of A that preconditions Newton's
     /// reduced systems on a matrix-free dual (cut by their test vectors, or
     /// as the first-order change of the restricted one of `restricted.rs`):

@@ -643,6 +643,12 @@ impl ContactProblem {
             Some((blocks, drift)) => (Some(blocks), Some(drift)),
             None => (None, None),
         };
+        // The layered preconditioner's face, layers and analyses serve the
+        // new K as they are (the same pattern, the same B).
+        let layer = match how {
+            Condensation::MatrixFree => self.dual.renewed_layer(&k),
+            _ => None,
+        };
         let mut dual = form_dual(
             &fresh,
             &k,
@@ -650,7 +656,7 @@ impl ContactProblem {
             self.d,
             (how, Made { blocks, single }),
             &shift,
-            None,
+            layer,
         )?;
         self.last_refactor = RefactorCost {
             factor_seconds: (factored - start).as_secs_f64(),
