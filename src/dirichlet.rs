@@ -344,7 +344,8 @@ impl Dirichlet {
     /// it was formed on, and the same B = `b` (`bt` its transpose): the
     /// same face and layers, K_II's analysis and G's order kept (the
     /// values gathered from `k`, G formed afresh), for a refactor. None
-    /// where K_II's or G's pattern differs (the caller then analyses anew).
+    /// where K_II's pattern differs (the caller then analyses anew); where
+    /// G's differs, the restricted preconditioner is analysed anew here.
     pub(crate) fn renewed(&self, k: &Csc, b: &Csc, bt: &Csc) -> Option<Plan> {
         let (k_loc, k_ii) = gather(k, &self.global, self.nf, f64::INFINITY)?;
         let factor = self.factor.unfactored_copy();

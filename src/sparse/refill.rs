@@ -48,8 +48,9 @@ struct Mirrors {
 }
 
 impl Mirrors {
-    /// The mirror places of `a` (counted on `ledger`); None where its
-    /// positions do not fit in u32 or the memory is refused.
+    /// The mirror places of `a` (counted on `ledger`, exactly as
+    /// [`Mirrors::bytes`] reports them); None where its positions do not
+    /// fit in u32 or the memory is refused.
     fn of(a: &Csc, ledger: &Arc<Ledger>) -> Option<Mirrors> {
         if a.values.len() >= u32::MAX as usize {
             return None;
@@ -67,7 +68,10 @@ impl Mirrors {
             true
         })
         .ok()?;
-        let bytes = (pairs.capacity() * 2 + alone.capacity()) * std::mem::size_of::<u32>();
+        // Held as long as they are: what is counted is what is reported.
+        pairs.shrink_to_fit();
+        alone.shrink_to_fit();
+        let bytes = (pairs.len() * 2 + alone.len()) * std::mem::size_of::<u32>();
         Some(Mirrors {
             pairs,
             alone,
@@ -94,7 +98,9 @@ impl Mirrors {
 
 impl TripletSlots {
     /// Bytes the slots take: 4 per triplet, twice that where one triangle
-    /// is given (kept between refactors: `Sizes::slots`).
+    /// is given, and the mirror places of a refill in full storage, 4 per
+    /// entry off the diagonal, held from the first such refill on (kept
+    /// between refactors: `Sizes::slots`).
     pub(crate) fn held_bytes(&self) -> usize {
         self.slots.len() * std::mem::size_of::<u32>()
             + self.mirrors.as_ref().map_or(0, Mirrors::bytes)
@@ -161,11 +167,9 @@ impl Csc {
         let complete = std::mem::take(&mut slots.complete);
         let mut guesses = slots.ready(passes * len, nnz, ledger);
         let usable = guesses.is_some();
-        // The entries met, where the slots cannot vouch for them: made at the
-        // first triplet off its slot (those before it marked from theirs).
         // Full storage on slots that vouch for every entry: each triplet
         // checked against its slot alone, the general placement below only
-        // where one is off it.
+        // where one is off it (from the start again: `values` reset).
         let fast = match (usable && complete && !(upper || lower), view.i, view.p) {
             (true, Indices::I32(i), Indices::I32(p)) => {
                 self.place_on_slots((i, p), view.x, base, guesses.as_deref(), &mut values)
@@ -178,6 +182,8 @@ impl Csc {
         if !fast && usable && complete {
             values.iter_mut().for_each(|v| *v = -0.0);
         }
+        // The entries met, where the slots cannot vouch for them: made at the
+        // first triplet off its slot (those before it marked from theirs).
         let mut met = (!(usable && complete)).then(|| vec![false; nnz]);
         // The stored triplets, then (one triangle given) their mirrors: the
         // order in which the full conversion sums them.
@@ -445,6 +451,36 @@ mod tests {
             assert_eq!(full, by < tol, "{at} {by:e}");
             a.values[at] = kept;
         }
+    }
+
+    /// A refill whose triplets leave their slots near the end (two swapped)
+    /// starts over from nothing: the triplets placed before are not summed
+    /// twice. And the mirror places of a pattern with entries whose mirror
+    /// is not stored are counted on the ledger as they are reported.
+    #[test]
+    fn a_placement_that_leaves_its_slots_late_starts_over() {
+        let mut t = triplets(1.0);
+        t.extend([(0, 2, 0.0), (1, 3, 0.0), (2, 4, 0.0)]);
+        let old = [arrays(&t, Storage::Full, 0)];
+        let k0 = Csc::symmetric_from_view(&coo(&old, Storage::Full, 0), "K").unwrap();
+        let (mut slots, ledger) = (TripletSlots::default(), Ledger::new());
+        for _ in 0..2 {
+            let got = k0.refill_symmetric(&coo(&old, Storage::Full, 0), &mut slots, &ledger);
+            assert!(got.is_some());
+        }
+        assert_eq!(ledger.live(), slots.held_bytes());
+        let mut late = t.clone();
+        let n = late.len();
+        late.swap(n - 5, n - 6);
+        let new = [arrays(&late, Storage::Full, 0)];
+        let view = coo(&new, Storage::Full, 0);
+        let want = Csc::symmetric_from_view(&view, "K").unwrap();
+        let got = k0
+            .refill_symmetric(&view, &mut slots, &ledger)
+            .expect("the same pattern");
+        let bits = |v: &[f64]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+        assert_eq!(bits(&got.values), bits(&want.values));
+        assert_eq!(ledger.live(), slots.held_bytes());
     }
 
     #[test]
