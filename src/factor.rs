@@ -729,10 +729,22 @@ impl Factor {
     ///
     /// Errors: `OutOfMemory` when the copy cannot be allocated.
     pub fn single_values(&self) -> Result<Vec<f32>> {
-        let mut v: Vec<f32> = crate::memory::try_zeros(
-            self.l_values.len(),
-            "the single-precision copy of the factor",
-        )?;
+        self.single_values_in(Vec::new())
+    }
+
+    /// [`Factor::single_values`] written into `buffer` where it has their
+    /// length (a copy of an earlier factor with this analysis: its pages are
+    /// already mapped), else into a new allocation.
+    pub(crate) fn single_values_in(&self, buffer: Vec<f32>) -> Result<Vec<f32>> {
+        let mut v = if buffer.len() == self.l_values.len() {
+            buffer
+        } else {
+            drop(buffer);
+            crate::memory::try_zeros(
+                self.l_values.len(),
+                "the single-precision copy of the factor",
+            )?
+        };
         for (s, &d) in v.iter_mut().zip(&self.l_values) {
             *s = d as f32;
         }

@@ -781,10 +781,16 @@ fn a_refactor_keeps_the_contact_blocks_while_they_drift_little() {
         .expect("a valid problem");
     let info = pb.info(&o);
     assert_eq!((info.blocks_age, info.err_factor), (0, 1.0));
+    let (at, _) = pb.dual().single_copy().expect("a copy in single precision");
     pb.refactor(&Owned::of(&sc.k).view())
         .expect("refactor onto K");
     let cost = pb.last_refactor();
     assert!(cost.blocks_kept && cost.drift_solves == 1, "{cost:?}");
+    // The refactor wrote the new factor's single-precision values into the
+    // old dual's copy, not into a new allocation.
+    let (at_now, values) = pb.dual().single_copy().expect("a copy in single precision");
+    assert_eq!(at_now, at, "the copy was allocated anew");
+    assert_eq!(values, pb.factor().single_values().unwrap());
     let info = pb.info(&o);
     assert_eq!(info.blocks_age, 1);
     assert!((info.err_factor - 1.2).abs() < 1e-6, "{}", info.err_factor);
@@ -842,10 +848,13 @@ fn a_refactor_keeps_the_contact_blocks_while_they_drift_little() {
     pb.refactor(&scaled(&sc.k, 4.9).view())
         .expect("refactor onto 4.9 K");
     assert_eq!(pb.info(&o).blocks_age, 1);
+    let (at, values) = pb.dual().single_copy().expect("a copy in single precision");
     pb.set_contacts(&Owned::of(&sc.n).view(), &Owned::of(&sc.t).view())
         .expect("the same contacts");
     let info = pb.info(&o);
     assert_eq!((info.blocks_age, info.err_factor), (0, 1.0));
+    // New contacts on the same factor take its copy as it is.
+    assert_eq!(pb.dual().single_copy(), Some((at, values)));
 }
 
 /// A linear host that ramps its load proportionally, one iteration per

@@ -354,6 +354,36 @@ impl Dual {
         Some(&f.blocks)
     }
 
+    /// Takes out the single-precision copy of K's factor that the products
+    /// of a matrix-free dual on the library's own factor hold, for a dual
+    /// formed next to take instead of allocating one (a refactor fills it
+    /// with the new factor's values, `set_contacts` takes it as it is): a
+    /// fresh copy's page faults cost more than the copy itself. This dual
+    /// stays whole: where it is kept after all (the new one failed), its
+    /// next rough product makes the copy again. None on any other dual.
+    pub(crate) fn lend_single(&mut self) -> Option<Vec<f32>> {
+        match &mut self.free.as_mut()?.solves {
+            operator::Solves::Factor(fs) => Some(fs.lend_single()),
+            operator::Solves::Host(_) => None,
+        }
+    }
+
+    /// The single-precision copy of K's factor that the products of a
+    /// matrix-free dual on the library's own factor hold (empty where it was
+    /// lent away), with the address of its values (feature `internals`:
+    /// the tests of [`Dual::lend_single`]).
+    #[cfg(any(test, feature = "internals"))]
+    #[doc(hidden)]
+    pub fn single_copy(&self) -> Option<(usize, Vec<f32>)> {
+        match &self.free.as_ref()?.solves {
+            operator::Solves::Factor(fs) => {
+                let single = fs.single.borrow();
+                Some((single.as_ptr() as usize, single.clone()))
+            }
+            operator::Solves::Host(_) => None,
+        }
+    }
+
     /// Sets the factor err is multiplied by (see the field): `factor` >= 1.
     pub(crate) fn set_err_factor(&mut self, factor: f64) {
         debug_assert!(factor >= 1.0);

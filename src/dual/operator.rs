@@ -29,13 +29,14 @@ pub(super) struct Operator {
     pub(super) solves: Solves,
 }
 
-/// What a refactor made before the matrix-free dual is formed, for it to
-/// take instead of making it again.
+/// What a refactor (or `set_contacts`) made or lent before the matrix-free
+/// dual is formed, for it to take instead of making it again.
 #[derive(Default)]
 pub(crate) struct Made {
     /// The contacts' d x d diagonal blocks (an earlier K's, kept).
     pub(crate) blocks: Option<Vec<f64>>,
-    /// The factor's values in single precision ([`Factor::single_values`]).
+    /// The factor's values in single precision ([`Factor::single_values`]);
+    /// taken only where its length is theirs.
     pub(crate) single: Option<Vec<f32>>,
 }
 
@@ -108,8 +109,11 @@ pub(super) struct FactorSolves {
     /// Workspace of one product: the n-vector and the solve's scratch.
     pub(super) work: std::cell::RefCell<(Vec<f64>, MemBuffer)>,
     /// L's values in single precision, for the rough products of
-    /// [`Dual::apply_rough`], with their workspace; and their bytes on the ledger.
-    pub(super) single: Vec<f32>,
+    /// [`Dual::apply_rough`], with their workspace; and their bytes on the
+    /// ledger. Empty where a refactor or `set_contacts` lent them to the dual
+    /// it formed and then failed ([`Dual::lend_single`]): made again from the
+    /// factor at the next rough product ([`FactorSolves::single`]).
+    pub(super) single: std::cell::RefCell<Vec<f32>>,
     pub(super) work_single: std::cell::RefCell<(Vec<f32>, MemBuffer)>,
     pub(super) _single_claim: Claim,
     /// The products' own solves (see [`OwnSolves`]); None on a dense
@@ -118,6 +122,25 @@ pub(super) struct FactorSolves {
     /// The narrowed products of Newton's reduced solves (see
     /// [`Dual::narrow_to`]).
     pub(super) narrow: std::cell::RefCell<Narrow>,
+}
+
+impl FactorSolves {
+    /// L's values in single precision, made again from the factor where they
+    /// were lent away (see the field); None where the allocator refuses
+    /// them: the products then solve in double precision.
+    fn single(&self) -> Option<std::cell::Ref<'_, Vec<f32>>> {
+        let held = self.single.borrow().len() == self.factor.values().len();
+        if !held {
+            let made = self.factor.single_values().ok()?;
+            *self.single.borrow_mut() = made;
+        }
+        Some(self.single.borrow())
+    }
+
+    /// Takes L's values in single precision out (see the field).
+    pub(super) fn lend_single(&mut self) -> Vec<f32> {
+        std::mem::take(self.single.get_mut())
+    }
 }
 
 /// Products narrowed to a set of dual rows: x vanishes outside them and y is
@@ -237,7 +260,7 @@ impl Operator {
                 _single_claim: single_claim,
                 own,
                 narrow: std::cell::RefCell::new(Narrow::default()),
-                single,
+                single: std::cell::RefCell::new(single),
                 work_single: std::cell::RefCell::new((
                     try_zeros(factor.n(), what)?,
                     try_scratch(factor.solve_scratch_single(), what)?,
@@ -342,10 +365,9 @@ impl Operator {
                 gather(bt, z, 0..y.len(), y);
             }};
         }
-        if rough {
-            whole!(fs.work_single, f32, &fs.single, work_single, solve_single);
-        } else {
-            whole!(fs.work, f64, factor.values(), work, solve);
+        match rough.then(|| fs.single()).flatten() {
+            Some(single) => whole!(fs.work_single, f32, &single, work_single, solve_single),
+            None => whole!(fs.work, f64, factor.values(), work, solve),
         }
     }
 }
@@ -458,9 +480,9 @@ impl Operator {
                 gather(bt, z, rows.iter().copied(), y);
             }};
         }
-        if rough {
+        if let Some(single) = rough.then(|| fs.single()).flatten() {
             let mut w = fs.work_single.borrow_mut();
-            narrowed!(&mut w.0, solve_single, &fs.single, &mut work.single);
+            narrowed!(&mut w.0, solve_single, &single, &mut work.single);
         } else {
             let mut w = fs.work.borrow_mut();
             narrowed!(&mut w.0, solve, factor.values(), &mut work.double);

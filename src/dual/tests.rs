@@ -354,3 +354,54 @@ fn an_empty_shift_restores_a_bitwise() {
     assert_eq!(dual.rho, rho);
     assert!(dual.shift().is_empty());
 }
+
+#[test]
+fn a_dual_whose_single_copy_was_lent_gives_the_same_products() {
+    // A refactor or set_contacts that failed after taking the old dual's
+    // single-precision copy leaves that dual without it: its rough
+    // products (whole and narrowed) make it again, bit for bit.
+    let (nx, ny) = (300, 12);
+    let k = grid(nx, ny);
+    let (n, t) = contacts_at(&(0..nx).collect::<Vec<_>>(), nx * ny);
+    let f = metis_factor(&k, 1);
+    let mut dual = Dual::build(&f, &n, &t, 2, DualForm::MatrixFree).unwrap();
+    let c = dual.c;
+    let x: Vec<f64> = (0..c).map(|r| (r as f64 * 0.37).sin()).collect();
+    let mut rows: Vec<usize> = (40..90).chain(nx + 40..nx + 90).collect();
+    rows.sort_unstable();
+    let mut xr = vec![0.0; c];
+    rows.iter().for_each(|&r| xr[r] = x[r]);
+    let products = |dual: &Dual| {
+        let (mut whole, mut exact, mut narrow) = (vec![0.0; c], vec![0.0; c], vec![0.0; c]);
+        dual.apply_rough(&x, &mut whole);
+        dual.apply(&x, &mut exact);
+        assert!(dual.narrow_to(&rows));
+        dual.apply_narrow(&xr, &mut narrow, true);
+        dual.widen();
+        (whole, exact, narrow)
+    };
+    let before = products(&dual);
+    // The rough product differs from the exact one: it reads the copy.
+    assert_ne!(before.0, before.1);
+    let lent = dual
+        .lend_single()
+        .expect("a matrix-free dual on the factor");
+    assert_eq!(lent.len(), f.values().len());
+    assert_eq!(lent, f.single_values().unwrap());
+    assert_eq!(products(&dual), before);
+    // Lent twice: the second time the copy made again.
+    assert_eq!(dual.lend_single().unwrap(), lent);
+    // A new dual takes a lent copy of the right length as it is, and one
+    // of another length not at all.
+    for (single, same) in [(lent.clone(), true), (vec![0.5f32; 3], false)] {
+        let made = Made {
+            single: Some(single),
+            blocks: None,
+        };
+        let other = Dual::build_keeping(&f, &n, &t, 2, Condensation::MatrixFree, made).unwrap();
+        assert_eq!(products(&other), before, "lent copy taken: {same}");
+    }
+    // A dense dual lends nothing.
+    let mut dense = Dual::build(&f, &n, &t, 2, DualForm::Dense).unwrap();
+    assert!(dense.lend_single().is_none());
+}

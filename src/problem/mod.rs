@@ -629,9 +629,14 @@ impl ContactProblem {
         let how = Dual::condensation_for(&fresh, &self.n, &self.t, self.d, self.current_form());
         let shift = self.compliance.shift(self.d);
         // A matrix-free dual's single-precision copy of the factor, made
-        // first: the drift's solves run on it.
+        // first: the drift's solves run on it. It is written into the old
+        // dual's copy where that has its length (see `Dual::lend_single`:
+        // the old dual stays whole if what follows fails).
         let single = match how {
-            Condensation::MatrixFree if !fresh.is_dense() => Some(fresh.single_values()?),
+            Condensation::MatrixFree if !fresh.is_dense() => {
+                let lent = self.dual.lend_single().unwrap_or_default();
+                Some(fresh.single_values_in(lent)?)
+            }
             _ => None,
         };
         let copied = Instant::now();
@@ -792,7 +797,19 @@ impl ContactProblem {
             Stiffness::Host { .. } => {
                 host_dual(&self.stiff, (&n, &t), self.d, &shift, layer, by_factor)?
             }
-            Stiffness::Own { .. } => self.new_dual((&n, &t), how, &shift, layer)?,
+            Stiffness::Own { k, factor } => {
+                // The factor's single-precision copy serves the new dual as
+                // it is (see `Dual::lend_single`).
+                let single = match how {
+                    Condensation::MatrixFree => self.dual.lend_single(),
+                    _ => None,
+                };
+                let made = Made {
+                    single,
+                    blocks: None,
+                };
+                form_dual(factor, k, (&n, &t), self.d, (how, made), &shift, layer)?
+            }
         };
         self.history.new_contacts(dual.c);
         if self.iteration_start.len() != dual.c {
