@@ -356,16 +356,29 @@ impl Dual {
 
     /// Takes out the single-precision copy of K's factor that the products
     /// of a matrix-free dual on the library's own factor hold, for a dual
-    /// formed next to take instead of allocating one (a refactor fills it
-    /// with the new factor's values, `set_contacts` takes it as it is): a
-    /// fresh copy's page faults cost more than the copy itself. This dual
-    /// stays whole: where it is kept after all (the new one failed), its
-    /// next rough product makes the copy again. None on any other dual.
+    /// formed next to take instead of allocating one: a fresh copy's page
+    /// faults cost more than the copy itself. A refactor writes the new
+    /// factor's values into it; `set_contacts` takes it as it is, through
+    /// [`Dual::lend_single_of`]. This dual stays whole: where it is kept
+    /// after all (the new one failed), its next product in single precision
+    /// makes the copy again (see `FactorSolves::single`). None on any other
+    /// dual.
     pub(crate) fn lend_single(&mut self) -> Option<Vec<f32>> {
         match &mut self.free.as_mut()?.solves {
             operator::Solves::Factor(fs) => Some(fs.lend_single()),
             operator::Solves::Host(_) => None,
         }
+    }
+
+    /// [`Dual::lend_single`] where this dual's products solve with `factor`
+    /// itself (the copy then holds its values); None otherwise.
+    pub(crate) fn lend_single_of(&mut self, factor: &Arc<Factor>) -> Option<Vec<f32>> {
+        let same = self
+            .free
+            .as_ref()
+            .and_then(|f| f.factor())
+            .is_some_and(|own| Arc::ptr_eq(own, factor));
+        if same { self.lend_single() } else { None }
     }
 
     /// The single-precision copy of K's factor that the products of a
@@ -671,7 +684,9 @@ impl Dual {
     /// y ~= A x for an inexact inner solve: on a matrix-free dual the solve with
     /// K's factor runs in single precision (relative error about 1e-7 times the
     /// factor's conditioning, half the memory traffic); exactly [`Dual::apply`]
-    /// on a dense one.
+    /// on a dense one, and on a matrix-free one whose single-precision copy
+    /// was lent away and cannot be made again (the allocator refuses it; see
+    /// `FactorSolves::single`).
     pub(crate) fn apply_rough(&self, x: &[f64], y: &mut [f64]) {
         match &self.free {
             Some(f) => {

@@ -36,7 +36,8 @@ pub(crate) struct Made {
     /// The contacts' d x d diagonal blocks (an earlier K's, kept).
     pub(crate) blocks: Option<Vec<f64>>,
     /// The factor's values in single precision ([`Factor::single_values`]);
-    /// taken only where its length is theirs.
+    /// taken where its length is theirs. Only the length is checked: the
+    /// caller vouches for the values (`Dual::lend_single_of`).
     pub(crate) single: Option<Vec<f32>>,
 }
 
@@ -112,7 +113,9 @@ pub(super) struct FactorSolves {
     /// [`Dual::apply_rough`], with their workspace; and their bytes on the
     /// ledger. Empty where a refactor or `set_contacts` lent them to the dual
     /// it formed and then failed ([`Dual::lend_single`]): made again from the
-    /// factor at the next rough product ([`FactorSolves::single`]).
+    /// factor at the next rough product ([`FactorSolves::single_copy`]).
+    /// The claim stays while they are lent (the ledger then counts the copy
+    /// twice while the new dual is formed, as `Sizes::refactor` predicts).
     pub(super) single: std::cell::RefCell<Vec<f32>>,
     pub(super) work_single: std::cell::RefCell<(Vec<f32>, MemBuffer)>,
     pub(super) _single_claim: Claim,
@@ -127,8 +130,9 @@ pub(super) struct FactorSolves {
 impl FactorSolves {
     /// L's values in single precision, made again from the factor where they
     /// were lent away (see the field); None where the allocator refuses
-    /// them: the products then solve in double precision.
-    fn single(&self) -> Option<std::cell::Ref<'_, Vec<f32>>> {
+    /// them: the products then solve in double precision (and the next one
+    /// tries again).
+    fn single_copy(&self) -> Option<std::cell::Ref<'_, Vec<f32>>> {
         let held = self.single.borrow().len() == self.factor.values().len();
         if !held {
             let made = self.factor.single_values().ok()?;
@@ -224,7 +228,8 @@ impl Operator {
     /// single-precision copy of the factor.
     /// `made`: the contacts' diagonal blocks where the caller has them (an
     /// earlier K's, see [`Dual::build_keeping`]) and the factor's
-    /// single-precision values where it made them; else computed here.
+    /// single-precision values where it made or lent them (`Dual::lend_single`),
+    /// taken where their length is the factor's; else computed here.
     pub(super) fn new(
         factor: &Arc<Factor>,
         b: &Csc,
@@ -365,7 +370,7 @@ impl Operator {
                 gather(bt, z, 0..y.len(), y);
             }};
         }
-        match rough.then(|| fs.single()).flatten() {
+        match rough.then(|| fs.single_copy()).flatten() {
             Some(single) => whole!(fs.work_single, f32, &single, work_single, solve_single),
             None => whole!(fs.work, f64, factor.values(), work, solve),
         }
@@ -480,7 +485,7 @@ impl Operator {
                 gather(bt, z, rows.iter().copied(), y);
             }};
         }
-        if let Some(single) = rough.then(|| fs.single()).flatten() {
+        if let Some(single) = rough.then(|| fs.single_copy()).flatten() {
             let mut w = fs.work_single.borrow_mut();
             narrowed!(&mut w.0, solve_single, &single, &mut work.single);
         } else {

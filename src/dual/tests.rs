@@ -389,18 +389,32 @@ fn a_dual_whose_single_copy_was_lent_gives_the_same_products() {
     assert_eq!(lent.len(), f.values().len());
     assert_eq!(lent, f.single_values().unwrap());
     assert_eq!(products(&dual), before);
-    // Lent twice: the second time the copy made again.
+    // Lent twice: the second time the copy made again; then the narrowed
+    // product first makes it.
     assert_eq!(dual.lend_single().unwrap(), lent);
+    assert!(dual.single_copy().unwrap().1.is_empty());
+    let mut narrow = vec![0.0; c];
+    assert!(dual.narrow_to(&rows));
+    dual.apply_narrow(&xr, &mut narrow, true);
+    dual.widen();
+    assert_eq!(narrow, before.2);
+    assert_eq!(dual.single_copy().unwrap().1, lent);
     // A new dual takes a lent copy of the right length as it is, and one
     // of another length not at all.
     for (single, same) in [(lent.clone(), true), (vec![0.5f32; 3], false)] {
+        let at = single.as_ptr() as usize;
         let made = Made {
             single: Some(single),
             blocks: None,
         };
         let other = Dual::build_keeping(&f, &n, &t, 2, Condensation::MatrixFree, made).unwrap();
+        assert_eq!(other.single_copy().unwrap().0 == at, same);
         assert_eq!(products(&other), before, "lent copy taken: {same}");
     }
+    // Only to a dual on the same factor: lend_single_of checks it.
+    let refactored = metis_factor(&k, 1);
+    assert!(dual.lend_single_of(&refactored).is_none());
+    assert_eq!(dual.lend_single_of(&f).unwrap(), lent);
     // A dense dual lends nothing.
     let mut dense = Dual::build(&f, &n, &t, 2, DualForm::Dense).unwrap();
     assert!(dense.lend_single().is_none());

@@ -801,7 +801,7 @@ impl ContactProblem {
                 // The factor's single-precision copy serves the new dual as
                 // it is (see `Dual::lend_single`).
                 let single = match how {
-                    Condensation::MatrixFree => self.dual.lend_single(),
+                    Condensation::MatrixFree => self.dual.lend_single_of(factor),
                     _ => None,
                 };
                 let made = Made {
