@@ -361,7 +361,7 @@ impl Dual {
     /// factor's values into it; `set_contacts` takes it as it is, through
     /// [`Dual::lend_single_of`]. This dual stays whole: where it is kept
     /// after all (the new one failed), its next product in single precision
-    /// makes the copy again (see `FactorSolves::single`). None on any other
+    /// makes the copy again (see `FactorSolves::single_copy`). None on any other
     /// dual.
     pub(crate) fn lend_single(&mut self) -> Option<Vec<f32>> {
         match &mut self.free.as_mut()?.solves {
@@ -686,7 +686,7 @@ impl Dual {
     /// factor's conditioning, half the memory traffic); exactly [`Dual::apply`]
     /// on a dense one, and on a matrix-free one whose single-precision copy
     /// was lent away and cannot be made again (the allocator refuses it; see
-    /// `FactorSolves::single`).
+    /// `FactorSolves::single_copy`).
     pub(crate) fn apply_rough(&self, x: &[f64], y: &mut [f64]) {
         match &self.free {
             Some(f) => {
