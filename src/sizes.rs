@@ -56,13 +56,17 @@ impl Sizes {
     fn forming(&self, how: Condensation) -> (usize, usize) {
         let a = self.c * self.c * F64;
         let lcc = self.nc * self.nc * F64;
+        // Held beside a dense A once a solve made it: the single-precision
+        // factor of the last Newton step's reduced system (k <= c unknowns;
+        // `Dual::with_kept_factor`).
+        let kept = self.c * self.c * std::mem::size_of::<f32>();
         match how {
             // A, then L_CC and X = S_CC^-1 (L_CC dropped once X is formed).
-            Condensation::TrailingBlock => (a + 2 * lcc, a),
+            Condensation::TrailingBlock => (a + 2 * lcc, a + kept),
             // A and one block of right-hand sides with the solve's workspace.
             Condensation::Solves => (
                 a + crate::dual::BLOCK * self.n * F64 + self.solve_scratch,
-                a,
+                a + kept,
             ),
             // The contacts' diagonal blocks (d c doubles at most) and, while
             // they are formed, what their selected inversion or forward solves
@@ -92,7 +96,8 @@ impl Sizes {
         (self.base() + self.factor_scratch).max(self.base() + self.forming(how).0)
     }
 
-    /// What the problem holds between calls: with the dual, the last two
+    /// What the problem holds between calls: with the dual (a dense one with
+    /// the kept factor of its last Newton step), the last two
     /// loads solved for and their solutions (`load_span`, 4 n doubles) and
     /// the forward half of K u_k (`History::lu`, n).
     pub fn resident(&self, how: Condensation) -> usize {

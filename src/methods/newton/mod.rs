@@ -19,10 +19,20 @@
 //! double from order MIXED_MIN on; where it is not (Coulomb), by GMRES on the
 //! single-precision factor of its symmetric part from that order on, else
 //! by LU (`solve_reduced`). The single-precision factor is kept for the next
-//! step: where that step has the same reduced unknowns, or a few more or
-//! fewer (the active set settling, slip directions turning; `Reused`), CG or
-//! GMRES preconditioned by it (bordered for the unknowns that came and went,
-//! `dense::kept`) solves the next system without a new factorisation.
+//! step, and on the dual for the next solve's first step
+//! (`Dual::with_kept_factor`): where that step has the same reduced
+//! unknowns, or a few more or fewer (the active set settling, slip
+//! directions turning; `Reused`), CG or GMRES preconditioned by it (bordered
+//! for the unknowns that came and went, `dense::kept`) solves the next
+//! system without a new factorisation. GMRES stops at the step's forcing
+//! term (see `forcing`): the Coulomb steps' slip directions turn from step
+//! to step, so an exact direction buys little (measured on the 3d-24x24x12
+//! blocks' Coulomb histories: 1-4 GMRES iterations per step in place of
+//! 7-22, and 27-30 Newton steps over nine warm steps in place of 19-27).
+//! The symmetric solves go on to the backward error of a solve in double:
+//! refinement and CG get there in 1-3 rounds, and a Tresca step whose sort
+//! is right then ends the solve (an inexact one doubled the Tresca warm
+//! steps' Newton steps, 9 -> 18).
 //!
 //! A numerically singular reduced system (A singular: redundant or dependent
 //! contact rows) is solved in the least-squares sense with the minimum norm
@@ -193,8 +203,6 @@ pub(super) struct Newton {
     wt: Vec<f64>,
     /// The reduced solves' Krylov state on a matrix-free dual.
     krylov: Krylov,
-    /// The last dense reduced system's factor (see [`Reused`]).
-    reused: Option<Reused>,
     /// A's columns in single precision for the warm-up and fallback sweeps on
     /// a large assembled dual (made at their first use; see sweeps::ROUGH_MIN_C).
     rough_a: Option<sweeps::Rough>,
@@ -229,7 +237,6 @@ impl Newton {
             trial: vec![0.0; c],
             wt: vec![0.0; c],
             krylov: Krylov::new(c),
-            reused: None,
             rough_a: None,
             fallback: None,
             radii: Vec::new(),
@@ -255,6 +262,11 @@ impl OuterStep for Newton {
     ) -> Flow {
         let (m, c) = (problem.dual.m, problem.dual.c);
         self.warm = lam.iter().any(|&x| x != 0.0);
+        if !self.warm {
+            // A cold start's first sorts have nothing in common with the
+            // last solve's: its factor would only cost failed iterations.
+            problem.dual.with_kept_factor(|kept| *kept = None);
+        }
         // The error's scratch: `f` and `ae0` are overwritten by every step.
         let (p, v) = (&mut self.f[..m], &mut self.ae0[..c]);
         let mut swept = 0;
@@ -335,17 +347,21 @@ impl OuterStep for Newton {
                 break;
             }
             let before = self.krylov.its;
-            let solved = newton_step(
-                problem,
-                lam,
-                w,
-                step,
-                &mut self.f,
-                &mut self.ae0,
-                cscale,
-                &mut self.krylov,
-                &mut self.reused,
-            );
+            // The last dense reduced system's factor (see [`Reused`]) is
+            // kept on the dual, from step to step and from solve to solve.
+            let solved = problem.dual.with_kept_factor(|reused| {
+                newton_step(
+                    problem,
+                    lam,
+                    w,
+                    step,
+                    &mut self.f,
+                    &mut self.ae0,
+                    cscale,
+                    &mut self.krylov,
+                    reused,
+                )
+            });
             *inner += self.krylov.its - before;
             if !solved {
                 continue;
@@ -506,7 +522,8 @@ struct LastStep {
 const POOR: f64 = 0.5;
 const LOOSE: f64 = 0.5;
 
-/// The forcing term of an inexact Newton step on a matrix-free dual: the
+/// The forcing term of an inexact Newton step on a matrix-free dual, and of
+/// GMRES on a dense dual's non-symmetric (Coulomb) reduced system: the
 /// relative residual its reduced system is solved to.
 ///
 /// - By default eta = |F| / |F_0|, capped at 0.1: superlinear convergence.

@@ -32,19 +32,7 @@ pub(super) const REUSE_MAX_IT: usize = 20;
 /// factor of an earlier symmetric part, two steps of changes away from M.
 pub(super) const REUSE_GMRES_MAX_IT: usize = 30;
 
-/// The single-precision factor of the last dense reduced system, with the
-/// unknowns it was formed on (`key`: each unknown's first test index and
-/// kind), held for the next Newton step: where that step has the same
-/// unknowns, or a few more or fewer (see `positions`), its matrix differs
-/// in a few directions (the slipping contacts' turned directions and the
-/// curvature terms), and CG (`dense::pcg`) or GMRES (`dense::gmres`)
-/// preconditioned by this factor, bordered for the unknowns that came and
-/// went (`dense::kept`), solves it in a few iterations.
-pub(super) struct Reused {
-    pub(super) key: Vec<usize>,
-    pub(super) llt: dense::LltF32,
-    pub(super) _claim: crate::memory::Claim,
-}
+pub(super) use crate::dense::Reused;
 
 impl Reused {
     /// Each of `key`'s unknowns' position in the kept factor (None for a new
@@ -78,10 +66,13 @@ pub(super) const REUSE_MAX_CHANGED: usize = 8;
 pub(super) const REUSE_CHANGED_DIV: usize = 16;
 
 /// How `solve_reduced` may solve: M's symmetric part where M is not
-/// symmetric (its lower entries (i, j), i >= j), the unknowns' key, and the
-/// factor kept from the last step (replaced by this step's).
+/// symmetric (its lower entries (i, j), i >= j), the relative residual the
+/// iterative solves may stop at (the Newton step's forcing term; 0: to the
+/// backward error of a solve in double), the unknowns' key, and the factor
+/// kept from the last step (replaced by this step's).
 pub(super) struct Reduce<'a> {
     pub(super) sym_part: Option<&'a (dyn Fn(usize, usize) -> f64 + Sync)>,
+    pub(super) eta: f64,
     pub(super) key: Vec<usize>,
     pub(super) reused: &'a mut Option<Reused>,
 }
@@ -109,6 +100,7 @@ pub(super) fn solve_reduced(
 ) -> Option<Mat<f64>> {
     let Reduce {
         sym_part,
+        eta,
         key,
         reused,
     } = how;
@@ -150,7 +142,7 @@ pub(super) fn solve_reduced(
         if let Some(z) = threads.run(big, |par| {
             let pos = (!pos.is_empty()).then_some(&pos[..]);
             match sym_part {
-                None => dense::pcg(m, &old.llt, pos, &rv, MIXED_RTOL, REUSE_MAX_IT, par),
+                None => dense::pcg(m, &old.llt, pos, &rv, MIXED_RTOL, eta, REUSE_MAX_IT, par),
                 Some(s) => dense::gmres(
                     m,
                     s,
@@ -158,6 +150,7 @@ pub(super) fn solve_reduced(
                     pos,
                     &rv,
                     MIXED_RTOL,
+                    eta,
                     REUSE_GMRES_MAX_IT,
                     par,
                 ),
@@ -180,8 +173,8 @@ pub(super) fn solve_reduced(
         };
         let _basis = ledger.claim_f64(basis);
         let solve = |llt: &dense::LltF32, par| match sym_part {
-            None => dense::refine(m, llt, &rv, MIXED_RTOL, par),
-            Some(s) => dense::gmres(m, s, llt, None, &rv, MIXED_RTOL, GMRES_MAX_IT, par),
+            None => dense::refine(m, llt, &rv, MIXED_RTOL, eta, par),
+            Some(s) => dense::gmres(m, s, llt, None, &rv, MIXED_RTOL, eta, GMRES_MAX_IT, par),
         };
         if let Some(llt) = threads.run(big, factor)
             && let Some(z) = threads.run(big, |par| solve(&llt, par))

@@ -269,6 +269,9 @@ pub(super) fn newton_step(
     let key: Vec<usize> = red.iter().map(|u| 4 * u.test[0].0 + u.n_test).collect();
     let how = Reduce {
         sym_part: (!symmetric).then_some(&sym_entry as &(dyn Fn(usize, usize) -> f64 + Sync)),
+        // The forcing term where GMRES solves (module docs); a symmetric
+        // system to the backward error of a solve in double.
+        eta: if symmetric { 0.0 } else { krylov.eta },
         key,
         reused,
     };

@@ -221,6 +221,7 @@ fn the_reduced_solve_takes_cholesky_lu_or_least_squares_as_the_matrix_allows() {
     fn fresh(none: &mut Option<Reused>) -> Reduce<'_> {
         Reduce {
             sym_part: None,
+            eta: 0.0,
             key: Vec::new(),
             reused: none,
         }
@@ -274,6 +275,7 @@ fn a_reduced_solve_with_the_same_unknowns_reuses_the_last_factor() {
     fn how<'a>(key: &[usize], reused: &'a mut Option<Reused>) -> Reduce<'a> {
         Reduce {
             sym_part: None,
+            eta: 0.0,
             key: key.to_vec(),
             reused,
         }
@@ -352,6 +354,7 @@ fn a_reduced_system_that_is_not_symmetric_is_solved_on_its_symmetric_part() {
     let how = |reused: &mut Option<Reused>| -> Option<Mat<f64>> {
         let r = Reduce {
             sym_part: Some(&sym),
+            eta: 0.0,
             key: key.clone(),
             reused,
         };
@@ -373,6 +376,7 @@ fn a_reduced_system_that_is_not_symmetric_is_solved_on_its_symmetric_part() {
         &rhs,
         Reduce {
             sym_part: Some(&sym1),
+            eta: 0.0,
             key: key.clone(),
             reused: &mut reused,
         },
@@ -683,6 +687,55 @@ fn coulomb_steps_narrow_their_products_to_the_contact_zone() {
     );
     let diff = max_diff(&l_free, &l_dense);
     assert!(diff <= 1e-10 * norm(&l_dense), "{diff:.2e}");
+}
+
+/// The single-precision factor of a dense dual's last Newton step stays on
+/// the dual: a history step from the last step's multipliers solves on it
+/// (no new factor: the kept one's first entry is unchanged) to the same
+/// multipliers a cold solve finds; a new compliance shift drops it.
+#[test]
+fn the_kept_factor_serves_the_next_solve_on_the_same_dual() {
+    use crate::dual::{Condensation, Dual};
+    use crate::factor::Factor;
+    use crate::options::Ordering;
+    use std::sync::Arc;
+    let (nx, ny, nz) = (20, 20, 3);
+    let k = lattice(nx, ny, nz, 0.05);
+    let m = nx * ny;
+    let (nm, tm) = slab_contacts(nx, ny, k.nrows);
+    let factor =
+        Arc::new(Factor::with_last(&k, &[], Ordering::Metis, Arc::new(Threads::new(1))).unwrap());
+    let mut dense = Dual::build_with(&factor, &nm, &tm, 3, Condensation::Solves).unwrap();
+    let mu = vec![0.3; m];
+    let b1 = patch_load(nx, ny, 0.0008, 0.004);
+    let mut lam = vec![0.0; dense.c];
+    drive_newton(&dense, &b1, Friction::Coulomb(&mu), &mut lam, |_| {});
+    let first =
+        |d: &Dual| d.with_kept_factor(|f| f.as_ref().map(|f| (f.llt.first_entry(), f.key.len())));
+    let (l00, k1) = first(&dense).expect("a factor kept after the solve");
+    assert!(
+        k1 >= MIXED_MIN,
+        "{k1} reduced unknowns: no single-precision factor"
+    );
+    dense.with_kept_factor(|f| f.as_mut().expect("kept").llt.scale(2.0));
+    // The next step: the load 0.1 % larger.
+    let b2: Vec<f64> = b1.iter().map(|v| 1.001 * v).collect();
+    let (out, _) = drive_newton(&dense, &b2, Friction::Coulomb(&mu), &mut lam, |_| {});
+    assert_eq!(
+        first(&dense).map(|f| f.0),
+        Some(2.0 * l00),
+        "solved on the kept factor"
+    );
+    let mut cold = vec![0.0; dense.c];
+    drive_newton(&dense, &b2, Friction::Coulomb(&mu), &mut cold, |_| {});
+    let diff = max_diff(&lam, &cold);
+    println!(
+        "{k1} reduced unknowns; the warm solve took {} Newton steps",
+        out.outer
+    );
+    assert!(diff <= 1e-9 * norm(&cold), "{diff:.2e}");
+    dense.set_shift(&vec![1e-3; dense.c]);
+    assert!(first(&dense).is_none(), "a new shift drops the factor");
 }
 
 /// Matrix-free Newton on a grid's bottom row (d = 2: normal on the row's
