@@ -452,6 +452,7 @@ impl Dual {
             Err(TryLockError::Poisoned(poisoned)) => {
                 let mut slot = poisoned.into_inner();
                 *slot = None;
+                self.kept_factor.clear_poison();
                 f(&mut slot)
             }
             Err(TryLockError::WouldBlock) => f(&mut None),
@@ -469,6 +470,7 @@ impl Dual {
             .kept_factor
             .get_mut()
             .unwrap_or_else(|poisoned| poisoned.into_inner()) = None;
+        self.kept_factor.clear_poison();
         if self.free.is_none() && !self.a.is_empty() {
             let c = self.c;
             if self.rigid_diag.is_empty() {

@@ -419,3 +419,39 @@ fn a_dual_whose_single_copy_was_lent_gives_the_same_products() {
     let mut dense = Dual::build(&f, &n, &t, 2, DualForm::Dense).unwrap();
     assert!(dense.lend_single().is_none());
 }
+
+/// A panic inside the kept factor's slot (a Newton step that panicked while
+/// it held it) leaves the slot empty, and it keeps a factor again after.
+#[test]
+fn a_panic_in_the_kept_factor_slot_leaves_it_empty_and_usable() {
+    let (nx, ny) = (6, 3);
+    let k = grid(nx, ny);
+    let n = Csc::from_triplets(2, nx * ny, &[(0, 0, 1.0), (1, 1, 1.0)]);
+    let t = Csc::from_triplets(2, nx * ny, &[(0, 6, 1.0), (1, 7, 1.0)]);
+    let f = Factor::new(&k).unwrap();
+    let dual = Dual::build(&f, &n, &t, 2, DualForm::Dense).unwrap();
+    let keep = |dual: &Dual| {
+        let eye = faer::Mat::<f64>::identity(2, 2);
+        let llt = crate::dense::LltF32::of(eye.as_ref(), faer::Par::Seq).unwrap();
+        let claim = dual.ledger.claim(16);
+        dual.with_kept_factor(|slot| {
+            *slot = Some(crate::dense::Reused {
+                key: vec![0, 1],
+                llt,
+                _claim: claim,
+            })
+        });
+    };
+    keep(&dual);
+    assert!(dual.with_kept_factor(|slot| slot.is_some()));
+    let hit = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
+        dual.with_kept_factor(|_| panic!("a step that panicked"))
+    }));
+    assert!(hit.is_err());
+    assert!(dual.with_kept_factor(|slot| slot.is_none()), "emptied");
+    keep(&dual);
+    assert!(
+        dual.with_kept_factor(|slot| slot.is_some()),
+        "and kept again"
+    );
+}
