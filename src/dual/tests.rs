@@ -442,13 +442,16 @@ fn a_panic_in_the_kept_factor_slot_leaves_it_empty_and_usable() {
             })
         });
     };
+    let before = dual.ledger.live();
     keep(&dual);
     assert!(dual.with_kept_factor(|slot| slot.is_some()));
+    assert_eq!(dual.ledger.live(), before + 16, "claimed while kept");
     let hit = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
         dual.with_kept_factor(|_| panic!("a step that panicked"))
     }));
     assert!(hit.is_err());
     assert!(dual.with_kept_factor(|slot| slot.is_none()), "emptied");
+    assert_eq!(dual.ledger.live(), before, "and its claim released");
     keep(&dual);
     assert!(
         dual.with_kept_factor(|slot| slot.is_some()),

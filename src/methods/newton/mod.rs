@@ -28,7 +28,9 @@
 //! term (see `forcing`): the Coulomb steps' slip directions turn from step
 //! to step, so an exact direction buys little (measured on the 3d-24x24x12
 //! blocks' Coulomb histories: 1-4 GMRES iterations per step in place of
-//! 7-22, and 27-30 Newton steps over nine warm steps in place of 19-27).
+//! 7-22 in a traced run, and 27-30 Newton steps over nine warm steps in
+//! place of 19-27); a step from such a solve that the backtracking rejects
+//! is solved again exactly before the fallback.
 //! The symmetric solves go on to the backward error of a solve in double:
 //! refinement and CG get there in 1-3 rounds, and a Tresca step whose sort
 //! is right then ends the solve (an inexact one doubled the Tresca warm
@@ -339,10 +341,16 @@ impl OuterStep for Newton {
         self.krylov.eta = forcing(self.res, self.res0, self.target, norm(lam), self.last);
         // A step from rough (single-precision) products that the backtracking
         // rejects is solved again with exact ones before any fallback: on an
-        // ill-conditioned K the rough products can be too rough.
+        // ill-conditioned K the rough products can be too rough. So is a
+        // dense step whose GMRES stopped at the forcing term.
+        self.krylov.inexact_dense = false;
         for exact in [false, true] {
+            let rough = if problem.dual.is_matrix_free() {
+                self.krylov.eta >= ROUGH_ETA
+            } else {
+                self.krylov.inexact_dense
+            };
             self.krylov.exact = exact;
-            let rough = problem.dual.is_matrix_free() && self.krylov.eta >= ROUGH_ETA;
             if exact && !rough {
                 break;
             }

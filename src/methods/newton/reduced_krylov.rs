@@ -41,6 +41,10 @@ pub(super) struct Krylov {
     pub(super) rows: Vec<usize>,
     /// Steps whose products were narrowed.
     pub narrowed: usize,
+    /// Whether the last dense reduced solve stopped at the forcing term
+    /// (GMRES on a system that is not symmetric, `exact` off): a step from
+    /// it that the backtracking rejects is solved again exactly.
+    pub(super) inexact_dense: bool,
 }
 
 impl Krylov {
@@ -60,6 +64,7 @@ impl Krylov {
             av: vec![0.0; c],
             rows: Vec::with_capacity(c),
             narrowed: 0,
+            inexact_dense: false,
         }
     }
 }

@@ -267,11 +267,18 @@ pub(super) fn newton_step(
         }
     };
     let key: Vec<usize> = red.iter().map(|u| 4 * u.test[0].0 + u.n_test).collect();
+    // The forcing term where GMRES solves (module docs); a symmetric
+    // system, or a step solved again exactly, to the backward error of a
+    // solve in double.
+    let eta = if symmetric || krylov.exact {
+        0.0
+    } else {
+        krylov.eta
+    };
+    krylov.inexact_dense = eta > 0.0;
     let how = Reduce {
         sym_part: (!symmetric).then_some(&sym_entry as &(dyn Fn(usize, usize) -> f64 + Sync)),
-        // The forcing term where GMRES solves (module docs); a symmetric
-        // system to the backward error of a solve in double.
-        eta: if symmetric { 0.0 } else { krylov.eta },
+        eta,
         key,
         reused,
     };
