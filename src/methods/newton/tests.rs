@@ -691,8 +691,10 @@ fn coulomb_steps_narrow_their_products_to_the_contact_zone() {
 
 /// The single-precision factor of a dense dual's last Newton step stays on
 /// the dual: a history step from the last step's multipliers solves on it
-/// (no new factor: the kept one's first entry is unchanged) to the same
-/// multipliers a cold solve finds; a new compliance shift drops it.
+/// (marked by a scaling, which leaves it as good a preconditioner: a new
+/// factor would not carry the mark) to the same multipliers a cold solve
+/// finds, its GMRES stopping at the forcing terms; a new compliance shift
+/// drops it.
 #[test]
 fn the_kept_factor_serves_the_next_solve_on_the_same_dual() {
     use crate::dual::{Condensation, Dual};
