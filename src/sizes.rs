@@ -56,10 +56,11 @@ impl Sizes {
     fn forming(&self, how: Condensation) -> (usize, usize) {
         let a = self.c * self.c * F64;
         let lcc = self.nc * self.nc * F64;
-        // Held beside a dense A once a solve made it: the single-precision
+        // Held beside a dense A once a solve made them: the single-precision
         // factor of the last Newton step's reduced system (k <= c unknowns;
-        // `Dual::with_kept_factor`).
-        let kept = self.c * self.c * std::mem::size_of::<f32>();
+        // `Dual::with_kept_factor`) and A^-1 in single precision (c x c;
+        // `Dual::inverse`, made by a warm 3D Newton solve).
+        let kept = 2 * self.c * self.c * std::mem::size_of::<f32>();
         match how {
             // A, then L_CC and X = S_CC^-1 (L_CC dropped once X is formed).
             Condensation::TrailingBlock => (a + 2 * lcc, a + kept),
@@ -97,7 +98,7 @@ impl Sizes {
     }
 
     /// What the problem holds between calls: with the dual (a dense one with
-    /// the kept factor of its last Newton step), the last two
+    /// the kept factor of its last Newton step and A^-1), the last two
     /// loads solved for and their solutions (`load_span`, 4 n doubles) and
     /// the forward half of K u_k (`History::lu`, n).
     pub fn resident(&self, how: Condensation) -> usize {

@@ -188,6 +188,43 @@ fn the_prediction_matches_the_counted_allocations_in_3d() {
     check_scene("3d block", &block3d());
 }
 
+/// A Newton history on the 3D block (its warm steps make A^-1 and keep it
+/// with the last reduced system's factor): every step's counted peak, on top
+/// of what the problem held before the history, and the library's own count
+/// stay within the solve's prediction.
+#[test]
+fn a_newton_history_stays_within_its_prediction() {
+    let _serial = SERIAL.lock().unwrap_or_else(|e| e.into_inner());
+    warm_up();
+    let sc = block3d();
+    let opts = Options {
+        method: Method::Newton,
+        ..one_thread()
+    };
+    let mut pb =
+        ContactProblem::from_csc_with(sc.d, sc.k.clone(), sc.n.clone(), sc.t.clone(), &opts)
+            .expect("setup");
+    let before = pb.info(&opts);
+    assert_eq!(before.solve_form, DualForm::Dense);
+    let mu = vec![0.3; sc.m()];
+    for s in 1..=5 {
+        let f: Vec<f64> = sc.f.iter().map(|v| v * s as f64 / 5.0).collect();
+        let (sol, extra) = peak_of(|| pb.step(&f, &sc.g, Friction::Coulomb(&mu), &opts).unwrap());
+        let r = &sol.report;
+        let counted = before.resident_bytes + extra;
+        eprintln!(
+            "step {s}: {counted} bytes counted, {} by the library, {} predicted",
+            r.memory_peak, r.memory_predicted
+        );
+        assert!(r.memory_peak <= r.memory_predicted, "step {s}: {r:?}");
+        assert!(
+            counted <= r.memory_predicted,
+            "step {s}: {counted} bytes counted, {} predicted",
+            r.memory_predicted
+        );
+    }
+}
+
 /// A `max_memory` below the setup's prediction: ds_problem_new_opts refuses with
 /// DS_STATUS_OUT_OF_MEMORY, a message that names the need, no handle, and no
 /// numeric work (the counted peak of the call stays below the factor's values);

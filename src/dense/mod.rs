@@ -6,8 +6,10 @@
 //! positive definite) and the caller takes its fallback.
 
 use crate::memory::{try_mat, try_scratch};
+pub(crate) use inverse::{Complement, InverseF32, Unknown};
 use kept::Bordered;
 
+mod inverse;
 mod kept;
 use faer::dyn_stack::{MemBuffer, MemStack};
 use faer::linalg::cholesky::llt;
@@ -322,10 +324,44 @@ pub(crate) fn pcg(
     max_it: usize,
     par: Par,
 ) -> Option<Vec<f64>> {
-    let n = m.nrows();
-    let mut pre = Bordered::new(l, pos, n, &|i, j| m[(i, j)], par)?;
+    let mut pre = Bordered::new(l, pos, m.nrows(), &|i, j| m[(i, j)], par)?;
+    let m_inf = scales(m, r).0;
+    let mut op = |x: &[f64], y: &mut [f64]| symmetric_times_into(m, x, y, par);
+    pcg_with(&mut op, m_inf, &mut pre, r, rtol, rel, max_it)
+}
+
+/// A preconditioner of [`pcg_with`] and [`gmres_with`]: out := P res.
+pub(crate) trait Precondition {
+    fn apply(&mut self, res: &[f64], out: &mut [f64]);
+}
+
+impl Precondition for Bordered<'_> {
+    fn apply(&mut self, res: &[f64], out: &mut [f64]) {
+        Bordered::apply(self, res, out);
+    }
+}
+
+impl Precondition for Complement<'_> {
+    fn apply(&mut self, res: &[f64], out: &mut [f64]) {
+        Complement::apply(self, res, out);
+    }
+}
+
+/// [`pcg`] on the operator y := M x `op` (M symmetric positive definite,
+/// of order r.len(), |M|_inf = `m_inf`) with the preconditioner `pre`
+/// (symmetric positive definite).
+pub(crate) fn pcg_with(
+    op: &mut dyn FnMut(&[f64], &mut [f64]),
+    m_inf: f64,
+    pre: &mut dyn Precondition,
+    r: &[f64],
+    rtol: f64,
+    rel: f64,
+    max_it: usize,
+) -> Option<Vec<f64>> {
+    let n = r.len();
     let mut precondition = |res: &[f64], z: &mut [f64]| pre.apply(res, z);
-    let (m_inf, r_max) = scales(m, r);
+    let r_max = inf_norm(r);
     let rel_stop = rel * norm2(r);
     let met = |res: &[f64], x: &[f64]| {
         inf_norm(res) <= rtol * (m_inf * inf_norm(x) + r_max) || norm2(res) <= rel_stop
@@ -338,7 +374,7 @@ pub(crate) fn pcg(
     let (mut q, mut mx) = (vec![0.0; n], vec![0.0; n]);
     let mut rz: f64 = res.iter().zip(&z).map(|(a, b)| a * b).sum();
     for _ in 0..max_it {
-        symmetric_times_into(m, &p, &mut q, par);
+        op(&p, &mut q);
         let pq: f64 = p.iter().zip(&q).map(|(a, b)| a * b).sum();
         if !(pq > 0.0 && rz.is_finite()) {
             return None;
@@ -350,7 +386,7 @@ pub(crate) fn pcg(
         }
         if met(&res, &x) {
             // Confirmed on the true residual (the recurrence drifts by rounding).
-            symmetric_times_into(m, &x, &mut mx, par);
+            op(&x, &mut mx);
             for ((ri, &rv), mv) in res.iter_mut().zip(r).zip(&mx) {
                 *ri = rv - mv;
             }
@@ -402,16 +438,36 @@ pub(crate) fn gmres(
     max_it: usize,
     par: Par,
 ) -> Option<Vec<f64>> {
+    let mut pre = Bordered::new(l, pos, m.nrows(), sym, par)?;
     let n = m.nrows();
-    let mut pre = Bordered::new(l, pos, n, sym, par)?;
-    let rel_stop = rel * norm2(r);
     let mut rows = vec![0.0f64; n];
     for j in 0..n {
         for (i, row) in rows.iter_mut().enumerate() {
             *row += m[(i, j)].abs();
         }
     }
-    let (m_inf, r_max) = (inf_norm(&rows), inf_norm(r));
+    let mut op = |x: &[f64], y: &mut [f64]| {
+        let mut ym = faer::MatMut::from_column_major_slice_mut(y, n, 1);
+        let xm = MatRef::from_column_major_slice(x, n, 1);
+        faer::linalg::matmul::matmul(ym.as_mut(), faer::Accum::Replace, m, xm, 1.0, par);
+    };
+    gmres_with(&mut op, inf_norm(&rows), &mut pre, r, rtol, rel, max_it)
+}
+
+/// [`gmres`] on the operator y := M x `op` (M square of order r.len(),
+/// |M|_inf = `m_inf`) with the preconditioner `pre`.
+pub(crate) fn gmres_with(
+    op: &mut dyn FnMut(&[f64], &mut [f64]),
+    m_inf: f64,
+    pre: &mut dyn Precondition,
+    r: &[f64],
+    rtol: f64,
+    rel: f64,
+    max_it: usize,
+) -> Option<Vec<f64>> {
+    let n = r.len();
+    let rel_stop = rel * norm2(r);
+    let r_max = inf_norm(r);
     let restart = GMRES_RESTART.min(n.max(1));
     // The Arnoldi basis V (n x (restart + 1)), the preconditioned vectors Z
     // (n x restart), the Hessenberg matrix after its Givens rotations, and
@@ -464,15 +520,8 @@ pub(crate) fn gmres(
                 pre.apply(vj.as_slice(), zj.as_slice_mut());
             }
             {
-                let mut wm = faer::MatMut::from_column_major_slice_mut(&mut w, n, 1);
-                faer::linalg::matmul::matmul(
-                    wm.as_mut(),
-                    faer::Accum::Replace,
-                    m,
-                    z.col(j).as_mat(),
-                    1.0,
-                    par,
-                );
+                let zj = z.col(j).try_as_col_major().expect("contiguous");
+                op(zj.as_slice(), &mut w);
             }
             its += 1;
             // Modified Gram-Schmidt against V's columns 0..=j.
@@ -531,11 +580,7 @@ pub(crate) fn gmres(
             }
         }
         // The true residual, in double precision.
-        {
-            let mut wm = faer::MatMut::from_column_major_slice_mut(&mut w, n, 1);
-            let xm = MatRef::from_column_major_slice(&x, n, 1);
-            faer::linalg::matmul::matmul(wm.as_mut(), faer::Accum::Replace, m, xm, 1.0, par);
-        }
+        op(&x, &mut w);
         for ((ri, &rv), &mv) in res.iter_mut().zip(r).zip(&w) {
             *ri = rv - mv;
         }

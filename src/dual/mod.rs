@@ -72,6 +72,11 @@ pub struct Dual {
     /// instead of a new one (at most 4 c^2 bytes, on the ledger while
     /// held); cleared with the shift.
     kept_factor: std::sync::Mutex<Option<crate::dense::Reused>>,
+    /// A^-1 in single precision (dense form only; `dense::InverseF32`),
+    /// made by the first warm 3D Newton step whose reduced system it
+    /// preconditions for less than the system's own factor: c^2 single
+    /// precision entries, on the ledger while held; cleared with the shift.
+    kept_inverse: std::sync::Mutex<Option<Arc<crate::dense::InverseF32>>>,
     /// The factor err is multiplied by (>= 1): 1 where the contact blocks
     /// are those of this K, more where they are an earlier K's and rho with
     /// them (`drift.rs`), so that err bounds the err on this K's blocks.
@@ -263,6 +268,7 @@ impl Dual {
             rigid_diag: Vec::new(),
             whole_norm: Default::default(),
             kept_factor: Default::default(),
+            kept_inverse: Default::default(),
             err_factor: 1.0,
         })
     }
@@ -350,6 +356,7 @@ impl Dual {
             rigid_diag: Vec::new(),
             whole_norm: Default::default(),
             kept_factor: Default::default(),
+            kept_inverse: Default::default(),
             err_factor: 1.0,
         }
     }
@@ -459,6 +466,34 @@ impl Dual {
         }
     }
 
+    /// A^-1 in single precision (see the field `kept_inverse`): the one
+    /// kept, else, where `make` is set and A is dense, a new one (kept for
+    /// the later calls). None on a matrix-free dual, where `make` is off
+    /// and none is kept, or where A is not positive definite in single
+    /// precision or its inverse cannot be allocated.
+    pub(crate) fn inverse(&self, make: bool) -> Option<Arc<crate::dense::InverseF32>> {
+        let mut slot = match self.kept_inverse.lock() {
+            Ok(slot) => slot,
+            Err(poisoned) => {
+                let mut slot = poisoned.into_inner();
+                *slot = None;
+                self.kept_inverse.clear_poison();
+                slot
+            }
+        };
+        if slot.is_none() && make && self.free.is_none() && !self.a.is_empty() {
+            let (c, a, ledger) = (self.c, &self.a[..], &self.ledger);
+            let big = c * c >= PARALLEL_MIN_ENTRIES;
+            *slot = self
+                .threads
+                .run(big, |par| {
+                    crate::dense::InverseF32::of(c, |j| &a[j * c..(j + 1) * c], ledger, par)
+                })
+                .map(Arc::new);
+        }
+        slot.clone()
+    }
+
     /// Makes the operator A + D for the compliance diagonal `shift` (length c;
     /// empty: A itself, every contact rigid), replacing the last one, and
     /// recomputes rho from the new diagonal. Exact: A's own diagonal is kept
@@ -471,6 +506,11 @@ impl Dual {
             .get_mut()
             .unwrap_or_else(|poisoned| poisoned.into_inner()) = None;
         self.kept_factor.clear_poison();
+        *self
+            .kept_inverse
+            .get_mut()
+            .unwrap_or_else(|poisoned| poisoned.into_inner()) = None;
+        self.kept_inverse.clear_poison();
         if self.free.is_none() && !self.a.is_empty() {
             let c = self.c;
             if self.rigid_diag.is_empty() {

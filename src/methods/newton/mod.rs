@@ -198,6 +198,10 @@ pub(super) struct Newton {
     /// Whether a cold start on a matrix-free dual begins at the lumped estimate
     /// (`Newton::lumped_start`); off only in the test that measures what it buys.
     lumped_start_on: bool,
+    /// Whether a warm 3D solve on a dense dual may precondition its reduced
+    /// systems with A's inverse (`dense::Complement`); off only in the
+    /// test of the kept factor.
+    inverse_on: bool,
     step: Vec<f64>,
     f: Vec<f64>,
     ae0: Vec<f64>,
@@ -233,6 +237,7 @@ impl Newton {
             presweeps: PRESWEEPS,
             warm_sort: true,
             lumped_start_on: true,
+            inverse_on: true,
             step: vec![0.0; c],
             f: vec![0.0; c],
             ae0: vec![0.0; c],
@@ -338,6 +343,7 @@ impl OuterStep for Newton {
             1.0
         };
         let (step, trial, wt) = (&mut self.step, &mut self.trial, &mut self.wt);
+        self.krylov.inverse = self.inverse_on && self.warm && problem.dual.d == 3;
         self.krylov.eta = forcing(self.res, self.res0, self.target, norm(lam), self.last);
         // A step from rough (single-precision) products that the backtracking
         // rejects is solved again with exact ones before any fallback: on an

@@ -219,3 +219,92 @@ pub(super) fn solve_reduced(
     }
     z.as_ref().is_all_finite().then_some(z)
 }
+
+/// Solves the reduced system M z = rhs of the unknowns `red` (M = T^T A V +
+/// diag, never assembled: each product is one with A) by CG where M is
+/// symmetric, else GMRES, preconditioned by A's inverse through the
+/// components the unknowns leave out (`dense::Complement`), with
+/// [`solve_reduced`]'s stopping tests (`eta` the relative residual, 0 for
+/// the backward error of a solve in double). None where the preconditioner
+/// does not apply (more than k / 2 columns in its bordered system) or the
+/// iteration fails: the caller assembles M and solves it so.
+pub(super) fn solve_on_inverse(
+    dual: &crate::dual::Dual,
+    inv: &dense::InverseF32,
+    red: &[Reduced],
+    rhs: &[f64],
+    symmetric: bool,
+    eta: f64,
+) -> Option<Vec<f64>> {
+    let (c, k) = (dual.c, red.len());
+    let unknowns: Vec<dense::Unknown> = red
+        .iter()
+        .map(|u| dense::Unknown {
+            test: u.test,
+            n_test: u.n_test,
+            diag: u.diag,
+        })
+        .collect();
+    // |M|_inf from above: a row's test entries times their rows of |A|,
+    // times the largest direction norm, plus its diagonal term.
+    let rows = inv.abs_row_sums();
+    let dir_max = red
+        .iter()
+        .map(|u| u.dir[..u.n_dir].iter().map(|&(_, v)| v.abs()).sum::<f64>())
+        .fold(0.0f64, f64::max);
+    let m_inf = red
+        .iter()
+        .map(|u| {
+            u.test[..u.n_test]
+                .iter()
+                .map(|&(j, v)| v.abs() * rows[j])
+                .sum::<f64>()
+                * dir_max
+                + u.diag
+        })
+        .fold(0.0f64, f64::max);
+    let q = k / 2;
+    let ledger = &dual.ledger;
+    let basis = if symmetric {
+        0
+    } else {
+        (2 * dense::GMRES_RESTART + 1) * k
+    };
+    let _work = ledger.claim(c * q * std::mem::size_of::<f32>() + (q * q + 2 * c + basis) * F64);
+    let (mut v, mut av) = (vec![0.0; c], vec![0.0; c]);
+    let (a, threads, m, d) = (&dual.a[..], &*dual.threads, dual.m, dual.d);
+    let mut op = |x: &[f64], y: &mut [f64]| {
+        v.iter_mut().for_each(|e| *e = 0.0);
+        for (u, &xl) in red.iter().zip(x) {
+            for &(j, cf) in &u.dir[..u.n_dir] {
+                v[j] += cf * xl;
+            }
+        }
+        crate::dual::leading_block_apply(a, c, &v, &mut av, threads);
+        for ((u, &xl), yl) in red.iter().zip(x).zip(y.iter_mut()) {
+            *yl = u.diag * xl
+                + u.test[..u.n_test]
+                    .iter()
+                    .map(|&(j, cf)| cf * av[j])
+                    .sum::<f64>();
+        }
+    };
+    let big = c * c >= PARALLEL_MIN_ENTRIES;
+    let z = threads.run(big, |par| {
+        let mut pre = dense::Complement::new(inv, &unknowns, m, d, q, par)?;
+        if symmetric {
+            dense::pcg_with(&mut op, m_inf, &mut pre, rhs, MIXED_RTOL, eta, REUSE_MAX_IT)
+        } else {
+            dense::gmres_with(
+                &mut op,
+                m_inf,
+                &mut pre,
+                rhs,
+                MIXED_RTOL,
+                eta,
+                REUSE_GMRES_MAX_IT,
+            )
+        }
+    })?;
+    z.iter().all(|v| v.is_finite()).then_some(z)
+}

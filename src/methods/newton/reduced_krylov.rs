@@ -45,6 +45,12 @@ pub(super) struct Krylov {
     /// (GMRES on a system that is not symmetric, `exact` off): a step from
     /// it that the backtracking rejects is solved again exactly.
     pub(super) inexact_dense: bool,
+    /// Whether a dense step may make A's inverse (`Dual::inverse`) and
+    /// precondition its reduced system with it (`dense::Complement`): on
+    /// the warm solves of a 3D dual, a history's steps.
+    pub(super) inverse: bool,
+    /// Dense steps whose reduced system was solved on A's inverse.
+    pub(super) on_inverse: usize,
 }
 
 impl Krylov {
@@ -65,6 +71,8 @@ impl Krylov {
             rows: Vec::with_capacity(c),
             narrowed: 0,
             inexact_dense: false,
+            inverse: false,
+            on_inverse: 0,
         }
     }
 }

@@ -203,6 +203,51 @@ pub(super) fn newton_step(
         return solved;
     }
     dual.apply(step, ae0);
+    // Test and direction vectors equal (every unknown but a Coulomb normal that
+    // drags its slip force): M is symmetric, positive definite unless A is singular.
+    let coupled: Vec<bool> = red.iter().map(|u| u.n_dir > u.n_test).collect();
+    let symmetric = !coupled.iter().any(|&b| b);
+    // The forcing term where GMRES solves (module docs); a symmetric
+    // system, or a step solved again exactly, to the backward error of a
+    // solve in double.
+    let eta = if symmetric || krylov.exact {
+        0.0
+    } else {
+        krylov.eta
+    };
+    krylov.inexact_dense = eta > 0.0;
+    // A's inverse preconditions the reduced system through Z of order
+    // q = (c - k) + s (`dense::Complement`) where that is at most half of
+    // k: Z's factor then costs at most an eighth of the system's own, and
+    // M is never assembled (each product is one with A). It is made once
+    // per A, before any k x k work space is held.
+    let slipping = red.iter().filter(|u| u.diag > 0.0).count();
+    let q = dual.c - k + slipping;
+    if krylov.inverse
+        && k >= MIXED_MIN
+        && 2 * q <= k
+        && let Some(inv) = dual.inverse(true)
+    {
+        let rhs: Vec<f64> = red
+            .iter()
+            .map(|u| {
+                u.rhs
+                    - u.test[..u.n_test]
+                        .iter()
+                        .map(|&(j, coef)| coef * ae0[j])
+                        .sum::<f64>()
+            })
+            .collect();
+        if let Some(z) = solve_on_inverse(dual, &inv, &red, &rhs, symmetric, eta) {
+            krylov.on_inverse += 1;
+            for (u, &zl) in red.iter().zip(&z) {
+                for &(j, coef) in &u.dir[..u.n_dir] {
+                    step[j] += coef * zl;
+                }
+            }
+            return true;
+        }
+    }
     // M = T^T A V + diag, column by column: column l is the sum over the entries of
     // dir_l of coef times T^T A[:, j], gathered from one column of A.
     let _mat_claim = dual.ledger.claim_f64(k * k);
@@ -237,11 +282,7 @@ pub(super) fn newton_step(
         }
         rhs[(l, 0)] = g;
     }
-    // Test and direction vectors equal (every unknown but a Coulomb normal that
-    // drags its slip force): M is symmetric, positive definite unless A is singular.
-    let coupled: Vec<bool> = red.iter().map(|u| u.n_dir > u.n_test).collect();
-    let symmetric = !coupled.iter().any(|&b| b);
-    // Else M's symmetric part S = W^T A W + diag (each direction cut to its
+    // Where M is not symmetric, M's symmetric part S = W^T A W + diag (each direction cut to its
     // test vector), positive definite as M is where every unknown is
     // symmetric: its lower entries for the preconditioner of M's solve. A
     // column without a coupling is S's column; a coupled column's row that
@@ -267,15 +308,6 @@ pub(super) fn newton_step(
         }
     };
     let key: Vec<usize> = red.iter().map(|u| 4 * u.test[0].0 + u.n_test).collect();
-    // The forcing term where GMRES solves (module docs); a symmetric
-    // system, or a step solved again exactly, to the backward error of a
-    // solve in double.
-    let eta = if symmetric || krylov.exact {
-        0.0
-    } else {
-        krylov.eta
-    };
-    krylov.inexact_dense = eta > 0.0;
     let how = Reduce {
         sym_part: (!symmetric).then_some(&sym_entry as &(dyn Fn(usize, usize) -> f64 + Sync)),
         eta,

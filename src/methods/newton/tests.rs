@@ -722,7 +722,10 @@ fn the_kept_factor_serves_the_next_solve_on_the_same_dual() {
     dense.with_kept_factor(|f| f.as_mut().expect("kept").llt.scale(2.0));
     // The next step: the load 0.1 % larger.
     let b2: Vec<f64> = b1.iter().map(|v| 1.001 * v).collect();
-    let (out, newton) = drive_newton(&dense, &b2, Friction::Coulomb(&mu), &mut lam, |_| {});
+    // A's inverse would precondition this warm step without the factor.
+    let (out, newton) = drive_newton(&dense, &b2, Friction::Coulomb(&mu), &mut lam, |n| {
+        n.inverse_on = false
+    });
     assert!(
         out.outer > 0,
         "no Newton step: nothing solved on the factor"
@@ -745,6 +748,70 @@ fn the_kept_factor_serves_the_next_solve_on_the_same_dual() {
     assert!(diff <= 1e-9 * norm(&cold), "{diff:.2e}");
     dense.set_shift(&vec![1e-3; dense.c]);
     assert!(first(&dense).is_none(), "a new shift drops the factor");
+}
+
+/// A warm 3D solve on a dense dual whose face is closed solves its reduced
+/// systems on A's inverse (`dense::Complement`), made by its first step and
+/// kept on the dual (a cold solve makes none), to the multipliers a cold
+/// solve finds: Coulomb (GMRES, not symmetric) and Tresca (CG). A new
+/// compliance shift drops the inverse.
+#[test]
+fn a_warm_3d_solve_runs_on_the_inverse_of_a() {
+    use crate::dual::{Condensation, Dual};
+    use crate::factor::Factor;
+    use crate::options::Ordering;
+    use std::sync::Arc;
+    let (nx, ny, nz) = (20, 20, 3);
+    let k = lattice(nx, ny, nz, 0.05);
+    let m = nx * ny;
+    let (nm, tm) = slab_contacts(nx, ny, k.nrows);
+    let factor =
+        Arc::new(Factor::with_last(&k, &[], Ordering::Metis, Arc::new(Threads::new(1))).unwrap());
+    let mut dense = Dual::build_with(&factor, &nm, &tm, 3, Condensation::Solves).unwrap();
+    // Tresca's bound largest at the centre, so that the edge slips.
+    let centre = (nx as f64 - 1.0) / 2.0;
+    let p: Vec<f64> = (0..m)
+        .map(|i| {
+            let (x, y) = ((i % nx) as f64 - centre, (i / nx) as f64 - centre);
+            0.002 + 0.02 * (-(x * x + y * y) / 50.0).exp()
+        })
+        .collect();
+    let mu = vec![0.3; m];
+    // Pressed over the whole face, sheared so that its edge slips.
+    let b1 = patch_load(nx, ny, 0.0002, 0.02);
+    let b2: Vec<f64> = b1.iter().map(|v| 1.02 * v).collect();
+    for law in [Friction::Coulomb(&mu), Friction::Tresca(&p)] {
+        let mut lam = vec![0.0; dense.c];
+        let (_, cold) = drive_newton(&dense, &b1, law, &mut lam, |_| {});
+        assert_eq!(cold.krylov.on_inverse, 0, "a cold solve used the inverse");
+        assert!(
+            dense.inverse(false).is_none(),
+            "a cold solve made the inverse"
+        );
+        let (out, warm) = drive_newton(&dense, &b2, law, &mut lam, |_| {});
+        let slipping = (0..m)
+            .filter(|&i| {
+                let t = (lam[m + 2 * i].powi(2) + lam[m + 2 * i + 1].powi(2)).sqrt();
+                t > 0.0 && t >= (1.0 - 1e-9) * law.bound(i, lam[i])
+            })
+            .count();
+        println!(
+            "{} Newton steps, {} on the inverse; {slipping} of {m} contacts slip",
+            out.outer, warm.krylov.on_inverse
+        );
+        assert!(slipping > 0 && slipping < m / 2, "{slipping} slipping");
+        assert!(warm.krylov.on_inverse > 0, "no step on the inverse");
+        assert!(dense.inverse(false).is_some(), "the inverse is kept");
+        let mut fresh = vec![0.0; dense.c];
+        drive_newton(&dense, &b2, law, &mut fresh, |_| {});
+        let diff = max_diff(&lam, &fresh);
+        assert!(diff <= 1e-9 * norm(&fresh), "{diff:.2e}");
+        dense.set_shift(&[]);
+        assert!(
+            dense.inverse(false).is_none(),
+            "a new shift drops the inverse"
+        );
+    }
 }
 
 /// Matrix-free Newton on a grid's bottom row (d = 2: normal on the row's
