@@ -843,9 +843,9 @@ typedef struct DsInfo {
    Predicted bytes the handle holds between calls (with the slots a
    refactor from a coordinate-format K keeps, once it has made them, and
    on a dense dual the single-precision factor of the last Newton step's
-   reduced system, at most 4 c^2 bytes, once a solve has made it, and A^-1
-   in single precision, 4 c^2 bytes, once a warm 3D Newton solve has made
-   it).
+   reduced system, at most 4 c^2 bytes, once a solve has made it, and in
+   3D A^-1 in single precision, 4 c^2 bytes, once a warm Newton solve has
+   made it; both are counted from creation on).
    */
   uint64_t resident_bytes;
   /*

@@ -154,6 +154,7 @@ pub(crate) fn sizes_and_layer(
     let sizes = Sizes {
         n: k.nrows,
         c: d * n.nrows,
+        d,
         nc: factor.last().len(),
         inputs: k.bytes() + n.bytes() + t.bytes(),
         factor: factor.values_bytes(),
@@ -416,6 +417,7 @@ pub(crate) fn host_sizes(k: Option<&Csc>, n: &Csc, t: &Csc, d: usize) -> Sizes {
     Sizes {
         n: n.ncols,
         c: d * n.nrows,
+        d,
         inputs: k.map_or(0, |k| k.bytes()) + n.bytes() + t.bytes(),
         blocks_work: BLOCK.min(b.nrows) * n.ncols * F64,
         lumped: k.map_or(0, |k| {

@@ -13,6 +13,8 @@ pub(crate) struct Sizes {
     pub n: usize,
     /// Dual unknowns (c = d m).
     pub c: usize,
+    /// The dimension d (2 or 3; 0 where unknown).
+    pub d: usize,
     /// DOFs that N and T touch (the trailing DOFs of the factor).
     pub nc: usize,
     /// Bytes of K, N and T as the problem stores them.
@@ -58,9 +60,10 @@ impl Sizes {
         let lcc = self.nc * self.nc * F64;
         // Held beside a dense A once a solve made them: the single-precision
         // factor of the last Newton step's reduced system (k <= c unknowns;
-        // `Dual::with_kept_factor`) and A^-1 in single precision (c x c;
-        // `Dual::inverse`, made by a warm 3D Newton solve).
-        let kept = 2 * self.c * self.c * std::mem::size_of::<f32>();
+        // `Dual::with_kept_factor`) and, in 3D, A^-1 in single precision
+        // (c x c; `Dual::inverse`, made by a warm Newton solve).
+        let copies = if self.d == 3 { 2 } else { 1 };
+        let kept = copies * self.c * self.c * std::mem::size_of::<f32>();
         match how {
             // A, then L_CC and X = S_CC^-1 (L_CC dropped once X is formed).
             Condensation::TrailingBlock => (a + 2 * lcc, a + kept),

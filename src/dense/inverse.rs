@@ -38,8 +38,9 @@ pub(crate) struct InverseF32 {
 }
 
 impl InverseF32 {
-    /// The inverse of the c x c A whose column j is `col(j)` (its lower
-    /// triangle read); None when A is not positive definite in single
+    /// The inverse of the c x c symmetric A whose column j is `col(j)` (the
+    /// lower triangle factored, the whole column summed for
+    /// [`InverseF32::abs_row_sums`]); None when A is not positive definite in single
     /// precision or the work space cannot be allocated. Claims c^2 single
     /// precision entries on `ledger` while held (three times that while
     /// formed).
@@ -141,8 +142,9 @@ const UNIT_TOL: f64 = 1e-12;
 impl<'a> Complement<'a> {
     /// The preconditioner for the reduced unknowns `unknowns` on a dual of
     /// m contacts in dimension d (c = d m components), or None where it
-    /// does not apply: a test vector that is not of unit norm, two unknowns
-    /// that are not orthogonal, a negative diagonal term, more than
+    /// does not apply: a test vector of other than one or two distinct
+    /// entries below c or not of unit norm, two unknowns of a contact that
+    /// are not orthogonal, a negative diagonal term, more than
     /// `max_order` columns in B, or Z not positive definite.
     pub fn new(
         inv: &'a InverseF32,
@@ -162,6 +164,12 @@ impl<'a> Complement<'a> {
         let mut tangential: Vec<Vec<[f64; 2]>> = vec![Vec::new(); m];
         let mut slip = Vec::new();
         for (l, u) in unknowns.iter().enumerate() {
+            if !(1..=2).contains(&u.n_test)
+                || u.test[..u.n_test].iter().any(|&(j, _)| j >= c)
+                || (u.n_test == 2 && u.test[0].0 == u.test[1].0)
+            {
+                return None;
+            }
             let tests = &u.test[..u.n_test];
             let norm2: f64 = tests.iter().map(|&(_, v)| v * v).sum();
             if (norm2 - 1.0).abs() > UNIT_TOL || u.diag < 0.0 || !u.diag.is_finite() {

@@ -76,7 +76,9 @@ pub struct Dual {
     /// made by the first warm 3D Newton step whose reduced system it
     /// preconditions for less than the system's own factor: c^2 single
     /// precision entries, on the ledger while held; cleared with the shift.
-    kept_inverse: std::sync::Mutex<Option<Arc<crate::dense::InverseF32>>>,
+    /// Some(None) once making it failed (A not positive definite in single
+    /// precision, or the allocator refused): not tried again on this A.
+    kept_inverse: std::sync::Mutex<Option<Option<Arc<crate::dense::InverseF32>>>>,
     /// The factor err is multiplied by (>= 1): 1 where the contact blocks
     /// are those of this K, more where they are an earlier K's and rho with
     /// them (`drift.rs`), so that err bounds the err on this K's blocks.
@@ -467,31 +469,33 @@ impl Dual {
     }
 
     /// A^-1 in single precision (see the field `kept_inverse`): the one
-    /// kept, else, where `make` is set and A is dense, a new one (kept for
-    /// the later calls). None on a matrix-free dual, where `make` is off
-    /// and none is kept, or where A is not positive definite in single
-    /// precision or its inverse cannot be allocated.
+    /// kept, else, where `make` is set, A is dense and no earlier attempt
+    /// failed, a new one (kept for the later calls). None on a matrix-free
+    /// dual, where `make` is off and none is kept, where A is not positive
+    /// definite in single precision or its inverse cannot be allocated, and
+    /// where the slot is in use (a solve within a solve, which no method
+    /// does). A slot left by a panic is emptied first.
     pub(crate) fn inverse(&self, make: bool) -> Option<Arc<crate::dense::InverseF32>> {
-        let mut slot = match self.kept_inverse.lock() {
+        use std::sync::TryLockError;
+        let mut slot = match self.kept_inverse.try_lock() {
             Ok(slot) => slot,
-            Err(poisoned) => {
+            Err(TryLockError::Poisoned(poisoned)) => {
                 let mut slot = poisoned.into_inner();
                 *slot = None;
                 self.kept_inverse.clear_poison();
                 slot
             }
+            Err(TryLockError::WouldBlock) => return None,
         };
         if slot.is_none() && make && self.free.is_none() && !self.a.is_empty() {
             let (c, a, ledger) = (self.c, &self.a[..], &self.ledger);
             let big = c * c >= PARALLEL_MIN_ENTRIES;
-            *slot = self
-                .threads
-                .run(big, |par| {
-                    crate::dense::InverseF32::of(c, |j| &a[j * c..(j + 1) * c], ledger, par)
-                })
-                .map(Arc::new);
+            let made = self.threads.run(big, |par| {
+                crate::dense::InverseF32::of(c, |j| &a[j * c..(j + 1) * c], ledger, par)
+            });
+            *slot = Some(made.map(Arc::new));
         }
-        slot.clone()
+        slot.clone().flatten()
     }
 
     /// Makes the operator A + D for the compliance diagonal `shift` (length c;

@@ -246,7 +246,11 @@ pub(super) fn solve_on_inverse(
         })
         .collect();
     // |M|_inf from above: a row's test entries times their rows of |A|,
-    // times the largest direction norm, plus its diagonal term.
+    // times the largest 1-norm of a direction, plus its diagonal term. An
+    // upper bound because no component lies in the directions of two
+    // unknowns with more than that 1-norm between them (`linearise`: unit
+    // vectors, a slip pair, a Coulomb normal's e_N + mu n), so that V's
+    // row sums of |V| are at most it.
     let rows = inv.abs_row_sums();
     let dir_max = red
         .iter()
