@@ -31,6 +31,12 @@
 //! 7-22 in a traced run, and 27-30 Newton steps over nine warm steps in
 //! place of 19-27); a step from such a solve that the backtracking rejects
 //! is solved again exactly before the fallback.
+//! On the warm solves of a 3D dual (a history's steps), a reduced system
+//! whose left-out components and slipping unknowns number at most half of
+//! its unknowns is not assembled: CG or GMRES run on products with A,
+//! preconditioned by A^-1 in single precision, made once per A and kept on
+//! the dual (`Dual::inverse`), through a bordered system of that order
+//! (`dense::Complement`; `solve_on_inverse`).
 //! The symmetric solves go on to the backward error of a solve in double:
 //! refinement and CG get there in 1-3 rounds, and a Tresca step whose sort
 //! is right then ends the solve (an inexact one doubled the Tresca warm

@@ -4,7 +4,10 @@
 //! part from MIXED_MIN on, LU below or where GMRES fails; the truncated SVD
 //! where it is numerically singular. The single-precision factor is kept to
 //! precondition CG or GMRES on the next step's system where the reduced
-//! unknowns barely changed (`Reused`).
+//! unknowns barely changed (`Reused`). On the warm solves of a 3D dual, a
+//! system that leaves few components out is solved without being
+//! assembled, on products with A preconditioned by A^-1
+//! (`solve_on_inverse`).
 
 use super::*;
 

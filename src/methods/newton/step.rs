@@ -282,8 +282,8 @@ pub(super) fn newton_step(
         }
         rhs[(l, 0)] = g;
     }
-    // Where M is not symmetric, M's symmetric part S = W^T A W + diag (each direction cut to its
-    // test vector), positive definite as M is where every unknown is
+    // Where M is not symmetric, M's symmetric part S = W^T A W + diag (each
+    // direction cut to its test vector), positive definite as M is where every unknown is
     // symmetric: its lower entries for the preconditioner of M's solve. A
     // column without a coupling is S's column; a coupled column's row that
     // is not coupled is S's by symmetry; where both are, from A.
