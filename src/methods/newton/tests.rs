@@ -453,6 +453,23 @@ fn slab_contacts(nx: usize, ny: usize, ndof: usize) -> (Csc, Csc) {
     )
 }
 
+/// The lattice slab's K (anchor 0.05), its factor with METIS on one thread
+/// and its bottom face's contacts ([`slab_contacts`]).
+fn lattice_slab(
+    nx: usize,
+    ny: usize,
+    nz: usize,
+) -> (Csc, std::sync::Arc<crate::factor::Factor>, Csc, Csc) {
+    use crate::factor::Factor;
+    use crate::options::Ordering;
+    use std::sync::Arc;
+    let k = lattice(nx, ny, nz, 0.05);
+    let (nm, tm) = slab_contacts(nx, ny, k.nrows);
+    let threads = Arc::new(Threads::new(1));
+    let factor = Factor::with_last(&k, &[], Ordering::Metis, threads).unwrap();
+    (k, factor, nm, tm)
+}
+
 /// The slab's contact-space load: the gap closed in a round central
 /// patch, b_N = 0.1 - curve r^2, and a shear `shear` along x.
 fn patch_load(nx: usize, ny: usize, curve: f64, shear: f64) -> Vec<f64> {
@@ -645,15 +662,9 @@ fn the_restricted_preconditioner_saves_products_in_gross_slip() {
 #[test]
 fn coulomb_steps_narrow_their_products_to_the_contact_zone() {
     use crate::dual::{Condensation, Dual};
-    use crate::factor::Factor;
-    use crate::options::Ordering;
-    use std::sync::Arc;
     let (nx, ny, nz) = (24, 24, 3);
-    let k = lattice(nx, ny, nz, 0.05);
     let m = nx * ny;
-    let (nm, tm) = slab_contacts(nx, ny, k.nrows);
-    let factor =
-        Arc::new(Factor::with_last(&k, &[], Ordering::Metis, Arc::new(Threads::new(1))).unwrap());
+    let (k, factor, nm, tm) = lattice_slab(nx, ny, nz);
     let b = patch_load(nx, ny, 0.004, 0.005);
     let mu = vec![0.3; m];
     let solve = |dual: &Dual| {
@@ -698,15 +709,9 @@ fn coulomb_steps_narrow_their_products_to_the_contact_zone() {
 #[test]
 fn the_kept_factor_serves_the_next_solve_on_the_same_dual() {
     use crate::dual::{Condensation, Dual};
-    use crate::factor::Factor;
-    use crate::options::Ordering;
-    use std::sync::Arc;
     let (nx, ny, nz) = (20, 20, 3);
-    let k = lattice(nx, ny, nz, 0.05);
     let m = nx * ny;
-    let (nm, tm) = slab_contacts(nx, ny, k.nrows);
-    let factor =
-        Arc::new(Factor::with_last(&k, &[], Ordering::Metis, Arc::new(Threads::new(1))).unwrap());
+    let (_, factor, nm, tm) = lattice_slab(nx, ny, nz);
     let mut dense = Dual::build_with(&factor, &nm, &tm, 3, Condensation::Solves).unwrap();
     let mu = vec![0.3; m];
     let b1 = patch_load(nx, ny, 0.0008, 0.004);
@@ -758,15 +763,9 @@ fn the_kept_factor_serves_the_next_solve_on_the_same_dual() {
 #[test]
 fn a_warm_3d_solve_runs_on_the_inverse_of_a() {
     use crate::dual::{Condensation, Dual};
-    use crate::factor::Factor;
-    use crate::options::Ordering;
-    use std::sync::Arc;
     let (nx, ny, nz) = (20, 20, 3);
-    let k = lattice(nx, ny, nz, 0.05);
     let m = nx * ny;
-    let (nm, tm) = slab_contacts(nx, ny, k.nrows);
-    let factor =
-        Arc::new(Factor::with_last(&k, &[], Ordering::Metis, Arc::new(Threads::new(1))).unwrap());
+    let (_, factor, nm, tm) = lattice_slab(nx, ny, nz);
     let mut dense = Dual::build_with(&factor, &nm, &tm, 3, Condensation::Solves).unwrap();
     // Tresca's bound largest at the centre, so that the edge slips.
     let centre = (nx as f64 - 1.0) / 2.0;
