@@ -123,16 +123,7 @@ pub(super) fn krylov_step(
 ) -> bool {
     let dual = problem.dual;
     let k = red.len();
-    let rhs: Vec<f64> = red
-        .iter()
-        .map(|u| {
-            u.rhs
-                - u.test[..u.n_test]
-                    .iter()
-                    .map(|&(j, c)| c * ae0[j])
-                    .sum::<f64>()
-        })
-        .collect();
+    let rhs: Vec<f64> = red.iter().map(|u| u.rhs_after(ae0)).collect();
     // Per reduced unknown, the entry of T^T A V + diag it sits on, from the
     // contacts' diagonal blocks of A.
     let mdiag: Vec<f64> = red
@@ -263,11 +254,7 @@ pub(super) fn krylov_step(
         return false;
     };
     krylov.its += its;
-    for (u, &zl) in red.iter().zip(&z) {
-        for &(j, coef) in &u.dir[..u.n_dir] {
-            step[j] += coef * zl;
-        }
-    }
+    add_directions(red, z, step);
     true
 }
 

@@ -18,6 +18,16 @@ pub(super) struct Reduced {
 }
 
 impl Reduced {
+    /// The right-hand side of this unknown's row once the explicit part of
+    /// the step is moved over: rhs - test . (A e0) (`ae0` = A e0, length c).
+    pub(super) fn rhs_after(&self, ae0: &[f64]) -> f64 {
+        self.rhs
+            - self.test[..self.n_test]
+                .iter()
+                .map(|&(j, coef)| coef * ae0[j])
+                .sum::<f64>()
+    }
+
     pub(super) fn unit(j: usize, rhs: f64) -> Reduced {
         Reduced {
             test: [(j, 1.0), (0, 0.0)],
@@ -158,6 +168,15 @@ pub(super) fn linearise(
     red
 }
 
+/// step += V z: each reduced unknown's value along its direction.
+pub(super) fn add_directions(red: &[Reduced], z: impl IntoIterator<Item = f64>, step: &mut [f64]) {
+    for (u, zl) in red.iter().zip(z) {
+        for &(j, coef) in &u.dir[..u.n_dir] {
+            step[j] += coef * zl;
+        }
+    }
+}
+
 /// Solves for the Newton step `step` at lam (w = A lam - b). False when the
 /// reduced system is singular.
 #[allow(clippy::too_many_arguments)]
@@ -228,23 +247,10 @@ pub(super) fn newton_step(
         && 2 * q <= k
         && let Some(inv) = dual.inverse(true)
     {
-        let rhs: Vec<f64> = red
-            .iter()
-            .map(|u| {
-                u.rhs
-                    - u.test[..u.n_test]
-                        .iter()
-                        .map(|&(j, coef)| coef * ae0[j])
-                        .sum::<f64>()
-            })
-            .collect();
+        let rhs: Vec<f64> = red.iter().map(|u| u.rhs_after(ae0)).collect();
         if let Some(z) = solve_on_inverse(dual, &inv, &red, &rhs, symmetric, eta) {
             krylov.on_inverse += 1;
-            for (u, &zl) in red.iter().zip(&z) {
-                for &(j, coef) in &u.dir[..u.n_dir] {
-                    step[j] += coef * zl;
-                }
-            }
+            add_directions(&red, z, step);
             return true;
         }
     }
@@ -276,11 +282,7 @@ pub(super) fn newton_step(
             }
         }
         col[l] += u.diag;
-        let mut g = u.rhs;
-        for &(j, coef) in &u.test[..u.n_test] {
-            g -= coef * ae0[j];
-        }
-        rhs[(l, 0)] = g;
+        rhs[(l, 0)] = u.rhs_after(ae0);
     }
     // Where M is not symmetric, M's symmetric part S = W^T A W + diag (each
     // direction cut to its test vector), positive definite as M is where every unknown is
@@ -317,10 +319,6 @@ pub(super) fn newton_step(
     let Some(z) = solve_reduced(&mat, &rhs, how, &dual.threads, &dual.ledger) else {
         return false;
     };
-    for (l, u) in red.iter().enumerate() {
-        for &(j, coef) in &u.dir[..u.n_dir] {
-            step[j] += coef * z[(l, 0)];
-        }
-    }
+    add_directions(&red, z.col(0).iter().copied(), step);
     true
 }
