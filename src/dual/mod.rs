@@ -455,16 +455,9 @@ impl Dual {
         &self,
         f: impl FnOnce(&mut Option<crate::dense::Reused>) -> R,
     ) -> R {
-        use std::sync::TryLockError;
-        match self.kept_factor.try_lock() {
-            Ok(mut slot) => f(&mut slot),
-            Err(TryLockError::Poisoned(poisoned)) => {
-                let mut slot = poisoned.into_inner();
-                *slot = None;
-                self.kept_factor.clear_poison();
-                f(&mut slot)
-            }
-            Err(TryLockError::WouldBlock) => f(&mut None),
+        match take_slot(&self.kept_factor) {
+            Some(mut slot) => f(&mut slot),
+            None => f(&mut None),
         }
     }
 
@@ -476,17 +469,7 @@ impl Dual {
     /// where the slot is in use (a solve within a solve, which no method
     /// does). A slot left by a panic is emptied first.
     pub(crate) fn inverse(&self, make: bool) -> Option<Arc<crate::dense::InverseF32>> {
-        use std::sync::TryLockError;
-        let mut slot = match self.kept_inverse.try_lock() {
-            Ok(slot) => slot,
-            Err(TryLockError::Poisoned(poisoned)) => {
-                let mut slot = poisoned.into_inner();
-                *slot = None;
-                self.kept_inverse.clear_poison();
-                slot
-            }
-            Err(TryLockError::WouldBlock) => return None,
-        };
+        let mut slot = take_slot(&self.kept_inverse)?;
         if slot.is_none() && make && self.free.is_none() && !self.a.is_empty() {
             let (c, a, ledger) = (self.c, &self.a[..], &self.ledger);
             let big = c * c >= PARALLEL_MIN_ENTRIES;
@@ -505,16 +488,8 @@ impl Dual {
     pub(crate) fn set_shift(&mut self, shift: &[f64]) {
         debug_assert!(shift.is_empty() || shift.len() == self.c);
         *self.whole_norm.get_mut() = 0;
-        *self
-            .kept_factor
-            .get_mut()
-            .unwrap_or_else(|poisoned| poisoned.into_inner()) = None;
-        self.kept_factor.clear_poison();
-        *self
-            .kept_inverse
-            .get_mut()
-            .unwrap_or_else(|poisoned| poisoned.into_inner()) = None;
-        self.kept_inverse.clear_poison();
+        clear_slot(&mut self.kept_factor);
+        clear_slot(&mut self.kept_inverse);
         if self.free.is_none() && !self.a.is_empty() {
             let c = self.c;
             if self.rigid_diag.is_empty() {
@@ -793,6 +768,31 @@ impl Dual {
         }
         leading_block_apply(&self.a, self.c, x, y, &self.threads);
     }
+}
+
+/// The guard of a slot the dual keeps between solves (the kept factor, A^-1):
+/// one left by a panic is emptied first (what it holds may be half
+/// replaced) and its poison cleared; None where the slot is in use.
+fn take_slot<T: Default>(slot: &std::sync::Mutex<T>) -> Option<std::sync::MutexGuard<'_, T>> {
+    use std::sync::TryLockError;
+    match slot.try_lock() {
+        Ok(guard) => Some(guard),
+        Err(TryLockError::Poisoned(poisoned)) => {
+            let mut guard = poisoned.into_inner();
+            *guard = T::default();
+            slot.clear_poison();
+            Some(guard)
+        }
+        Err(TryLockError::WouldBlock) => None,
+    }
+}
+
+/// Empties a slot the dual keeps between solves, poisoned or not.
+fn clear_slot<T: Default>(slot: &mut std::sync::Mutex<T>) {
+    *slot
+        .get_mut()
+        .unwrap_or_else(|poisoned| poisoned.into_inner()) = T::default();
+    slot.clear_poison();
 }
 
 /// y := H x for the leading len(y) x len(x) block H of the column-major array `a`
