@@ -63,21 +63,25 @@ fn with(method: Method, form: DualForm) -> Options {
     }
 }
 
-/// `method` on the dense and on the matrix-free dual of one problem: both
-/// converge, pass the KKT check, and agree to `rel` in lambda and u.
+/// `method` on the dense and on the matrix-free dual of one problem, each
+/// solved to a hundredth of `rel` (or the default tolerance where that is
+/// tighter): both converge, pass the KKT check, and agree to `rel` in
+/// lambda and u.
 fn agree(name: &str, scene: &Scene, friction: Friction<'_>, method: Method, rel: f64) {
     let mut pb = scene.problem();
+    let opts = |form| {
+        let o = with(method, form);
+        Options {
+            tol: o.tol.min(rel / 100.0),
+            ..o
+        }
+    };
     let dense = pb
-        .solve(&scene.f, &scene.g, friction, &with(method, DualForm::Dense))
+        .solve(&scene.f, &scene.g, friction, &opts(DualForm::Dense))
         .unwrap();
     assert!(!pb.dual().is_matrix_free());
     let free = pb
-        .solve(
-            &scene.f,
-            &scene.g,
-            friction,
-            &with(method, DualForm::MatrixFree),
-        )
+        .solve(&scene.f, &scene.g, friction, &opts(DualForm::MatrixFree))
         .unwrap();
     assert!(pb.dual().is_matrix_free(), "{name}: the form is kept");
     assert!(pb.dual().dense().is_none(), "{name}: A is not formed");

@@ -191,6 +191,24 @@ impl Dual {
         self.free.is_some()
     }
 
+    /// Whether a matrix-free dual's rough products ([`Dual::apply_rough`])
+    /// run in single precision: on K's own factor, or on a host solve that
+    /// offers it (until the host answers that it does not). False on an
+    /// assembled dual.
+    pub(crate) fn offers_rough(&self) -> bool {
+        match &self.free {
+            Some(Operator {
+                solves: Solves::Factor(_),
+                ..
+            }) => true,
+            Some(Operator {
+                solves: Solves::Host(hs),
+                ..
+            }) => hs.host.offers_single(),
+            None => false,
+        }
+    }
+
     /// [`Dual::build_keeping`] without blocks.
     #[cfg(any(test, feature = "internals"))]
     pub fn build_with(

@@ -19,8 +19,10 @@ pub(super) const KRYLOV_MAX_IT: usize = 200;
 /// solve): their error, about 1e-7 times the factor's conditioning, stays well
 /// below the residual such a solve asks for. The step is still checked by the
 /// exact gradient (the backtracking), so a rough step can only cost a step.
-/// A tighter reduced solve refines in mixed precision (`refine`): rough
-/// products for the corrections, exact ones for the residuals.
+/// It is also the forcing term's floor where the dual offers such products
+/// (`forcing`), so that a tighter reduced solve, which refines in mixed
+/// precision (`refine`: rough products for the corrections, exact ones for
+/// the residuals), is left to the duals whose host solves only in double.
 pub(super) const ROUGH_ETA: f64 = 1e-4;
 
 /// The Krylov solve of a Newton step on a matrix-free dual: its forcing term,

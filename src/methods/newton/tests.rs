@@ -921,29 +921,36 @@ fn the_lumped_preconditioner_saves_products() {
 fn the_forcing_term_reads_the_last_step() {
     let (target, lam) = (1e-10, 1.0);
     // No last step: |F| / |F_0|, capped at 0.1.
-    assert_eq!(forcing(0.5, 1.0, target, lam, None), 0.1);
-    assert_eq!(forcing(0.01, 1.0, target, lam, None), 0.01);
+    assert_eq!(forcing(0.5, 1.0, target, lam, None, 0.0), 0.1);
+    assert_eq!(forcing(0.01, 1.0, target, lam, None, 0.0), 0.01);
     // A whole step that did its work: the default.
     let good = LastStep {
         ratio: 0.08,
         full: true,
     };
-    assert_eq!(forcing(0.08, 1.0, target, lam, Some(good)), 0.08);
+    assert_eq!(forcing(0.08, 1.0, target, lam, Some(good), 0.0), 0.08);
     // A whole step that left more than POOR of |F|: LOOSE.
     let poor = LastStep {
         ratio: 0.9,
         full: true,
     };
-    assert_eq!(forcing(0.9, 1.0, target, lam, Some(poor)), LOOSE);
+    assert_eq!(forcing(0.9, 1.0, target, lam, Some(poor), 0.0), LOOSE);
     // Unless it was backtracked: its direction, not its model, fell short.
     let damped = LastStep {
         full: false,
         ..poor
     };
-    assert_eq!(forcing(0.9, 1.0, target, lam, Some(damped)), 0.1);
+    assert_eq!(forcing(0.9, 1.0, target, lam, Some(damped), 0.0), 0.1);
     // Never tighter than a step leaving |F| at ENOUGH of the target.
     let floor = ENOUGH * target * lam / 1e-6;
-    assert!((forcing(1e-6, 1.0, target, lam, Some(good)) - floor).abs() < 1e-18);
+    assert!((forcing(1e-6, 1.0, target, lam, Some(good), 0.0) - floor).abs() < 1e-18);
+    // Nor than the floor (rough products), whatever |F| and the target ask.
+    assert_eq!(
+        forcing(1e-6, 1.0, target, lam, Some(good), ROUGH_ETA),
+        ROUGH_ETA
+    );
+    // A looser term is kept as it is.
+    assert_eq!(forcing(1e-3, 1.0, target, lam, Some(good), ROUGH_ETA), 1e-3);
 }
 
 /// A contact that closes in a Newton step (lambda_N = 0, y_N > 0) has the
