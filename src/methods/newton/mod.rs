@@ -582,7 +582,7 @@ const LOOSE: f64 = 0.5;
 ///   gain a factor 1e-4 or more each, and may take one more Newton step;
 ///   measured on the load-path family's matrix-free slabs (BENCHMARKS.md,
 ///   "The matrix-free route: no reduced solve tighter than its rough
-///   products"): 3-15 % fewer products over a history's warm steps, 0-2
+///   products"): 3-16 % fewer products over a history's warm steps, 0-2
 ///   more Newton steps, the warm mean 5 % lower summed over the rows.
 fn forcing(
     res: f64,
