@@ -32,9 +32,10 @@ pub trait KSolve: Send {
     /// its factor in single precision too, or converts it: half the memory
     /// traffic of a solve). The library takes it for the products whose
     /// accuracy allows a relative error of about 1e-7 cond(K)^(1/2), as its
-    /// own factor's single-precision copy serves them: the loose Krylov solves
-    /// of Newton's early steps and the inner rounds of its mixed-precision
-    /// refinement; every gradient and residual it trusts is from
+    /// own factor's single-precision copy serves them: the Krylov solves of
+    /// Newton's reduced systems (none is asked for less than a relative
+    /// residual of 1e-4 where this is offered); every gradient and residual
+    /// it trusts is from
     /// [`KSolve::solve`], so a rougher answer (an iterative host's solve to
     /// a looser tolerance) costs iterations, never accuracy. `None` (the
     /// default): not offered; the library then calls `solve` for every

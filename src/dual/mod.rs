@@ -192,9 +192,11 @@ impl Dual {
     }
 
     /// Whether a matrix-free dual's rough products ([`Dual::apply_rough`])
-    /// run in single precision: on K's own factor, or on a host solve that
-    /// offers it (until the host answers that it does not). False on an
-    /// assembled dual.
+    /// may run in single precision: on K's own factor (in double where its
+    /// single-precision copy could not be allocated), or on a host solve
+    /// until the host answers that it offers none (a host that solves on
+    /// rows is passed the rough flag and never asked). False on an assembled
+    /// dual.
     pub(crate) fn offers_rough(&self) -> bool {
         match &self.free {
             Some(Operator {

@@ -52,9 +52,10 @@ pub type DsHostSolveFn = Option<
 
 /// Optional: the host's solve with K in single precision: as DsHostSolveFn,
 /// on floats. The library calls it for the products whose accuracy allows a
-/// relative error of about 1e-7 cond(K)^(1/2) (the loose Krylov solves of
-/// Newton's early steps and the inner rounds of its mixed-precision
-/// refinement, where its own factor uses a single-precision copy of L): half
+/// relative error of about 1e-7 cond(K)^(1/2) (the Krylov solves of
+/// Newton's reduced systems, none asked for less than a relative residual
+/// of 1e-4 where this is offered, as its own factor's single-precision copy
+/// of L serves them): half
 /// the memory traffic of a solve in double where the host holds its factor in
 /// single precision too (CHOLMOD 5, MUMPS's SMUMPS, PARDISO); an iterative
 /// host may answer with a solve to a looser tolerance (relative residual

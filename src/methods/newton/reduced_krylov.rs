@@ -4,8 +4,9 @@
 //! (`restricted.rs`) where the dual holds them, else by
 //! the lumped G = B K B^T or the layered Dirichlet preconditioner cut by the
 //! test vectors, with the Jacobi part of the compliance; rough products in
-//! single precision where the forcing term allows, and mixed-precision
-//! refinement where it does not (`refine`).
+//! single precision where the forcing term allows (every solve where the dual
+//! offers them: the forcing term's floor, `forcing`), and refinement with
+//! exact residuals where it does not (`refine`).
 
 use super::*;
 use crate::dual::Dual;
@@ -144,7 +145,8 @@ pub(super) fn krylov_step(
         .iter()
         .all(|u| u.n_test == u.n_dir && u.test[..u.n_test] == u.dir[..u.n_dir]);
     // A loose inner solve tolerates products in single precision (see
-    // ROUGH_ETA); a tight one refines with exact residuals (see `refine`).
+    // ROUGH_ETA); a tight one, asked only where the dual offers no such
+    // products, refines with exact residuals (see `refine`).
     let rough = std::cell::Cell::new(krylov.rough());
     let (v, av) = (&mut krylov.v, &mut krylov.av);
     let mut op = |x: &[f64], y: &mut [f64]| {
