@@ -580,8 +580,7 @@ const LOOSE: f64 = 0.5;
 ///   on them (a tighter one refines with exact products, about twice the
 ///   time each, and `refine`'s rounds). The last steps of a solve then
 ///   shrink |F| by about 1e-4 each at best, and may take one more Newton
-///   step;
-///   measured on the load-path family's matrix-free slabs (BENCHMARKS.md,
+///   step; measured on the load-path family's matrix-free slabs (BENCHMARKS.md,
 ///   "The matrix-free route: no reduced solve tighter than its rough
 ///   products"): 3-16 % fewer products over a history's warm steps, 0-2
 ///   more Newton steps, the warm mean 5 % lower summed over the rows. A

@@ -282,18 +282,10 @@ pub(super) fn solve_on_inverse(
     let (a, threads, m, d) = (&dual.a[..], &*dual.threads, dual.m, dual.d);
     let mut op = |x: &[f64], y: &mut [f64]| {
         v.iter_mut().for_each(|e| *e = 0.0);
-        for (u, &xl) in red.iter().zip(x) {
-            for &(j, cf) in &u.dir[..u.n_dir] {
-                v[j] += cf * xl;
-            }
-        }
+        add_directions(red, x.iter().copied(), &mut v);
         crate::dual::leading_block_apply(a, c, &v, &mut av, threads);
         for ((u, &xl), yl) in red.iter().zip(x).zip(y.iter_mut()) {
-            *yl = u.diag * xl
-                + u.test[..u.n_test]
-                    .iter()
-                    .map(|&(j, cf)| cf * av[j])
-                    .sum::<f64>();
+            *yl = u.diag * xl + u.test_dot(&av);
         }
     };
     let big = c * c >= PARALLEL_MIN_ENTRIES;

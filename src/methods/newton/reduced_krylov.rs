@@ -151,18 +151,10 @@ pub(super) fn krylov_step(
     let (v, av) = (&mut krylov.v, &mut krylov.av);
     let mut op = |x: &[f64], y: &mut [f64]| {
         v.iter_mut().for_each(|e| *e = 0.0);
-        for (u, &xl) in red.iter().zip(x) {
-            for &(j, c) in &u.dir[..u.n_dir] {
-                v[j] += c * xl;
-            }
-        }
+        add_directions(red, x.iter().copied(), v);
         dual.apply_narrow(v, av, rough.get());
         for ((u, &xl), yl) in red.iter().zip(x).zip(y.iter_mut()) {
-            *yl = u.diag * xl
-                + u.test[..u.n_test]
-                    .iter()
-                    .map(|&(j, c)| c * av[j])
-                    .sum::<f64>();
+            *yl = u.diag * xl + u.test_dot(av);
         }
     };
     let (mut gv, mut gg) = (vec![0.0; dual.c], vec![0.0; dual.c]);

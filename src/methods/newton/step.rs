@@ -18,14 +18,18 @@ pub(super) struct Reduced {
 }
 
 impl Reduced {
+    /// test . v: this unknown's test vector against `v` (length c).
+    pub(super) fn test_dot(&self, v: &[f64]) -> f64 {
+        self.test[..self.n_test]
+            .iter()
+            .map(|&(j, coef)| coef * v[j])
+            .sum::<f64>()
+    }
+
     /// The right-hand side of this unknown's row once the explicit part of
     /// the step is moved over: rhs - test . (A e0) (`ae0` = A e0, length c).
     pub(super) fn rhs_after(&self, ae0: &[f64]) -> f64 {
-        self.rhs
-            - self.test[..self.n_test]
-                .iter()
-                .map(|&(j, coef)| coef * ae0[j])
-                .sum::<f64>()
+        self.rhs - self.test_dot(ae0)
     }
 
     pub(super) fn unit(j: usize, rhs: f64) -> Reduced {

@@ -942,8 +942,8 @@ fn the_forcing_term_reads_the_last_step() {
     };
     assert_eq!(forcing(0.9, 1.0, target, lam, Some(damped), 0.0), 0.1);
     // Never tighter than a step leaving |F| at ENOUGH of the target.
-    let floor = ENOUGH * target * lam / 1e-6;
-    assert!((forcing(1e-6, 1.0, target, lam, Some(good), 0.0) - floor).abs() < 1e-18);
+    let enough = ENOUGH * target * lam / 1e-6;
+    assert!((forcing(1e-6, 1.0, target, lam, Some(good), 0.0) - enough).abs() < 1e-18);
     // Nor than the floor (rough products), whatever |F| and the target ask.
     assert_eq!(
         forcing(1e-6, 1.0, target, lam, Some(good), ROUGH_ETA),
