@@ -113,6 +113,11 @@ pub(super) trait OuterStep {
         inner: &mut usize,
         k: usize,
     ) -> Flow;
+
+    /// Told that the driver recomputed w = A lambda - b after a step that
+    /// returned [`Gradient::Updated`] (to confirm a convergence, which it
+    /// did not): w is exact again. The default does nothing.
+    fn refreshed(&mut self, _problem: &DualProblem<'_>, _lam: &[f64], _w: &[f64]) {}
 }
 
 /// The stagnation test. After outer iteration k >= `window`, let r be the ratio of
@@ -248,6 +253,7 @@ pub(super) fn drive(
             // Confirm on an exact gradient: rank-one updates drift by rounding.
             problem.gradient(lam, &mut w);
             err = problem.error(lam, &w, &mut p, &mut v);
+            method.refreshed(problem, lam, &w);
         }
         out.dual_err = err;
         best.offer(lam, err);

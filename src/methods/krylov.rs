@@ -6,12 +6,17 @@
 //! as another (y := P x, P symmetric positive definite), stop at |M z - rhs| <= eta |rhs| or after `max_it` products,
 //! and return the products used; None when the iteration broke down (a
 //! non-finite value, or CG meeting a direction of non-positive curvature).
+//! Both tell a third closure how z is made of the operator's inputs
+//! (`made(i, coef)`: z += coef x_i, x_i the input of the solve's product i,
+//! counted from 0), so that a caller whose products give more than M x
+//! (Newton's give A V x on every component) can combine those into the
+//! same function of z without another product.
 
 /// Restart length of GMRES.
 pub(super) const RESTART: usize = 40;
 
-/// The signature [`pcg`] and [`gmres`] share: (op, rhs, pre, eta, max_it, z)
-/// -> the products used.
+/// The signature [`pcg`] and [`gmres`] share: (op, rhs, pre, eta, max_it, z,
+/// made) -> the products used.
 pub(super) type Solver = fn(
     &mut dyn FnMut(&[f64], &mut [f64]),
     &[f64],
@@ -19,10 +24,12 @@ pub(super) type Solver = fn(
     f64,
     usize,
     &mut [f64],
+    &mut dyn FnMut(usize, f64),
 ) -> Option<usize>;
 
 /// z := approximately M^-1 rhs by preconditioned CG from z = 0 (`pre`: y := P x,
-/// P ~ M^-1).
+/// P ~ M^-1). `made(i, alpha)` follows each update z += alpha p, p the
+/// input of product i.
 pub(super) fn pcg(
     op: &mut dyn FnMut(&[f64], &mut [f64]),
     rhs: &[f64],
@@ -30,6 +37,7 @@ pub(super) fn pcg(
     eta: f64,
     max_it: usize,
     z: &mut [f64],
+    made: &mut dyn FnMut(usize, f64),
 ) -> Option<usize> {
     let k = rhs.len();
     z.iter_mut().for_each(|v| *v = 0.0);
@@ -54,6 +62,7 @@ pub(super) fn pcg(
             z[j] += alpha * p[j];
             r[j] -= alpha * q[j];
         }
+        made(its - 1, alpha);
         pre(&r, &mut y);
         let ry_next = dot(&r, &y);
         let beta = ry_next / ry;
@@ -72,7 +81,12 @@ pub(super) fn pcg(
 pub(super) const CONFIRM_BELOW: f64 = 1e-4;
 
 /// z := approximately M^-1 rhs by GMRES(RESTART) with right preconditioning
-/// M P x = rhs, z = P x, from z = 0 (`pre`: y := P x). A cycle whose own
+/// M P x = rhs, z = P x, from z = 0 (`pre`: y := P x), in its flexible form:
+/// the preconditioned vectors t_l = P v_l are kept, and a cycle adds
+/// sum_l y_l t_l to z, the very vectors its products were taken of (`made(i,
+/// y_l)` for each, i the product t_l went into). So the cycle's residual
+/// estimate is that of z even where `pre` is not linear to the last digit
+/// (single precision), and z is the combination `made` reports. A cycle whose own
 /// residual estimate meets eta |rhs| ends the solve without a product to
 /// confirm it where eta >= CONFIRM_BELOW; a tighter one is confirmed on the
 /// true residual, and a restart begins from there. The products used, None
@@ -84,17 +98,20 @@ pub(super) fn gmres(
     eta: f64,
     max_it: usize,
     z: &mut [f64],
+    made: &mut dyn FnMut(usize, f64),
 ) -> Option<usize> {
     let k = rhs.len();
     z.iter_mut().for_each(|v| *v = 0.0);
     let stop = eta * norm(rhs);
-    // The Krylov basis, RESTART + 1 vectors of length k, column by column.
+    // The Krylov basis, RESTART + 1 vectors of length k, column by column;
+    // the preconditioned vectors t_l = P v_l and the product each went into.
     let mut basis = vec![0.0; (RESTART + 1) * k];
+    let mut pbasis = vec![0.0; RESTART * k];
+    let mut product = [0usize; RESTART];
     let ld = RESTART + 1;
     let mut h = vec![0.0; ld * RESTART];
     let (mut cs, mut sn, mut g) = (vec![0.0; RESTART], vec![0.0; RESTART], vec![0.0; ld]);
     let mut r = vec![0.0; k];
-    let mut t = vec![0.0; k];
     let mut its = 0;
     let mut first = true;
     loop {
@@ -127,10 +144,12 @@ pub(super) fn gmres(
         // its rounding, single precision in the layered Dirichlet one).
         let mut met = false;
         for col in 0..RESTART {
-            pre(&basis[col * k..(col + 1) * k], &mut t);
+            let t = &mut pbasis[col * k..(col + 1) * k];
+            pre(&basis[col * k..(col + 1) * k], t);
             let (done, next) = basis.split_at_mut((col + 1) * k);
             let w = &mut next[..k];
-            op(&t, w);
+            op(t, w);
+            product[col] = its;
             its += 1;
             // Modified Gram-Schmidt against the basis so far.
             for i in 0..=col {
@@ -178,16 +197,13 @@ pub(super) fn gmres(
             }
             g[i] = s / h[i + i * ld];
         }
-        // z += P (V y): the combination first, then one preconditioning.
-        r.iter_mut().for_each(|v| *v = 0.0);
+        // z += sum_l y_l t_l.
         for l in 0..used {
+            let t = &pbasis[l * k..(l + 1) * k];
             for j in 0..k {
-                r[j] += g[l] * basis[l * k + j];
+                z[j] += g[l] * t[j];
             }
-        }
-        pre(&r, &mut t);
-        for j in 0..k {
-            z[j] += t[j];
+            made(product[l], g[l]);
         }
         if !z.iter().all(|v| v.is_finite()) {
             return None;
@@ -249,17 +265,27 @@ mod tests {
         };
         let mut z = vec![0.0; k];
         let mut sym = tridiag(k, 0.0);
-        let its = pcg(&mut sym, &rhs, &mut pre, 1e-12, 500, &mut z).unwrap();
+        let its = pcg(&mut sym, &rhs, &mut pre, 1e-12, 500, &mut z, &mut |_, _| {}).unwrap();
         assert!(residual(&mut sym, &z, &rhs) <= 1e-12, "cg");
         assert!(its < 100, "{its}");
         // Nonsymmetric: GMRES, across restarts (RESTART < iterations needed at
         // 1e-13 only when the matrix is harder; here one cycle may do).
         let mut skew = tridiag(k, 0.5);
-        let its = gmres(&mut skew, &rhs, &mut pre, 1e-13, 500, &mut z).unwrap();
+        let its = gmres(
+            &mut skew,
+            &rhs,
+            &mut pre,
+            1e-13,
+            500,
+            &mut z,
+            &mut |_, _| {},
+        )
+        .unwrap();
         assert!(residual(&mut skew, &z, &rhs) <= 1e-13, "gmres");
         assert!(its < 200, "{its}");
         // A loose eta stops early.
-        let its_loose = gmres(&mut skew, &rhs, &mut pre, 1e-2, 500, &mut z).unwrap();
+        let its_loose =
+            gmres(&mut skew, &rhs, &mut pre, 1e-2, 500, &mut z, &mut |_, _| {}).unwrap();
         assert!(its_loose < its);
         assert!(residual(&mut skew, &z, &rhs) <= 1e-2);
     }
@@ -281,7 +307,7 @@ mod tests {
         let rhs: Vec<f64> = (0..k).map(|i| 1.0 + (i as f64 * 0.7).cos()).collect();
         // Tight: the three products, then one to confirm on the true residual.
         let mut z = vec![0.0; k];
-        let its = gmres(&mut op, &rhs, &mut pre, 1e-12, 100, &mut z).unwrap();
+        let its = gmres(&mut op, &rhs, &mut pre, 1e-12, 100, &mut z, &mut |_, _| {}).unwrap();
         assert_eq!((its, calls.get()), (4, 4));
         for i in 0..k {
             assert!(
@@ -300,10 +326,10 @@ mod tests {
             norm(&az.iter().zip(&rhs).map(|(a, b)| a - b).collect::<Vec<_>>())
         };
         let mut one = vec![0.0; k];
-        gmres(&mut op, &rhs, &mut pre, 0.5, 1, &mut one).unwrap();
+        gmres(&mut op, &rhs, &mut pre, 0.5, 1, &mut one, &mut |_, _| {}).unwrap();
         assert!(residual_after(&one) > 0.5 * norm(&rhs));
         calls.set(0);
-        let its = gmres(&mut op, &rhs, &mut pre, 0.5, 100, &mut z).unwrap();
+        let its = gmres(&mut op, &rhs, &mut pre, 0.5, 100, &mut z, &mut |_, _| {}).unwrap();
         assert_eq!((its, calls.get()), (2, 2));
         assert!(residual_after(&z) <= 0.5 * norm(&rhs));
     }
@@ -324,9 +350,48 @@ mod tests {
         let mut skew = tridiag(k, 0.5);
         for eta in [1e-8, 1e-10, 1e-12] {
             let mut z = vec![0.0; k];
-            gmres(&mut skew, &rhs, &mut pre, eta, 500, &mut z).unwrap();
+            gmres(&mut skew, &rhs, &mut pre, eta, 500, &mut z, &mut |_, _| {}).unwrap();
             let r = residual(&mut skew, &z, &rhs);
             assert!(r <= eta, "eta {eta:.0e}: true residual {r:.2e}");
+        }
+    }
+
+    /// `made` reports z as a combination of the products' inputs, for CG and
+    /// for GMRES across restarts and under a preconditioner in single
+    /// precision: sum coef x_i equals z to rounding.
+    #[test]
+    fn made_reports_z_from_the_products_inputs() {
+        let k = 120;
+        let rhs: Vec<f64> = (0..k).map(|i| (i as f64 * 0.37).sin() + 0.1).collect();
+        let mut pre = |x: &[f64], y: &mut [f64]| {
+            for (i, (yi, xi)) in y.iter_mut().zip(x).enumerate() {
+                *yi = f64::from((xi / (4.0 + i as f64 * 0.01)) as f32);
+            }
+        };
+        for (skew, solver) in [(0.0, pcg as Solver), (0.5, gmres), (0.9, gmres)] {
+            let inputs = std::cell::RefCell::new(Vec::<Vec<f64>>::new());
+            let mut m = tridiag(k, skew);
+            let mut op = |x: &[f64], y: &mut [f64]| {
+                inputs.borrow_mut().push(x.to_vec());
+                m(x, y);
+            };
+            let mut sum = vec![0.0; k];
+            let mut made = |i: usize, coef: f64| {
+                for (s, x) in sum.iter_mut().zip(&inputs.borrow()[i]) {
+                    *s += coef * x;
+                }
+            };
+            let mut z = vec![0.0; k];
+            let its = solver(&mut op, &rhs, &mut pre, 1e-13, 500, &mut z, &mut made).unwrap();
+            assert_eq!(its, inputs.borrow().len());
+            let scale = norm(&z);
+            for j in 0..k {
+                assert!((sum[j] - z[j]).abs() <= 1e-13 * scale, "skew {skew}, {j}");
+            }
+            // Across restarts where the skew is large.
+            if skew == 0.9 {
+                assert!(its > RESTART, "{its}");
+            }
         }
     }
 }

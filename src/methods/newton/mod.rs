@@ -52,7 +52,9 @@
 //! Globalisation: a Newton step (or, backtracking, half, a quarter or an eighth
 //! of it) is kept only if it lowers the natural residual |F| (force units) by the
 //! factor 1 - ARMIJO t, and of those lengths the one with the lowest |F| is
-//! kept (each costs O(c), no product); err is not the merit, since its
+//! kept (each costs O(c), no product: A d is one product, or on a
+//! matrix-free dual the reduced solve's own combination of its products,
+//! `krylov_step`); err is not the merit, since its
 //! denominator grows with |lambda| and a step could "lower" it by inflating the
 //! multipliers. Otherwise the iterate takes a few projected Gauss-Seidel sweeps (a
 //! first-order descent step for Tresca) and Newton restarts from there, so it
@@ -124,6 +126,20 @@ use reduced_dense::*;
 use reduced_krylov::*;
 use step::*;
 
+/// A bound on the relative error of a product with A in single precision
+/// (`Dual::apply_rough`; measured at most 6.3e-7 on the 3d-64x64x6 slab's
+/// steps, 2.9e-7 on 3d-116x116x4): a step whose A d was combined from such
+/// products (`krylov_step`) moves w by t A d to within ROUGH_DRIFT t |A d|.
+const ROUGH_DRIFT: f64 = 1e-6;
+
+/// w is recomputed (one exact product) after a Newton step where the bound
+/// on its drift, in |F|'s units, exceeds 1 / RESYNC of |F|: the next sort,
+/// the backtracking and the driver's err read w. Measured on the
+/// 3d-32x32x4 slab's proportional histories (two runs each): 10 and 100
+/// gave the same warm steps, 1000 up to 10 % slower ones, and no
+/// recomputation before the driver's confirmation 15-30 % slower ones.
+const RESYNC: f64 = 100.0;
+
 /// Sufficient decrease for keeping a Newton step: |F(lam + d)| <= (1 - ARMIJO) |F(lam)|.
 const ARMIJO: f64 = 1e-4;
 
@@ -174,10 +190,11 @@ pub(super) const NEWTON: MethodSpec = MethodSpec {
     needs_entries: false,
     // Dense: the reduced matrix, the copy its solver factors and, on a large
     // dual, A in single precision for the sweeps. Matrix-free: the Krylov
-    // vectors (GMRES's basis and a few more, length c at most).
+    // vectors (GMRES's basis, its preconditioned vectors, the products kept
+    // for A d and a few more, length c at most).
     workspace: |_m, c, matrix_free| {
         if matrix_free {
-            (super::krylov::RESTART + 10) * c * F64
+            (3 * super::krylov::RESTART + 12) * c * F64
         } else {
             let rough = if c >= sweeps::ROUGH_MIN_C {
                 c * c * std::mem::size_of::<f32>()
@@ -230,6 +247,12 @@ pub(super) struct Newton {
     /// The last Newton step, when the last outer iteration was one (the
     /// forcing term's history; None at the start and after a fallback).
     last: Option<LastStep>,
+    /// A bound on how far w has drifted from A lam - b (2-norm, w's
+    /// units) through steps whose A d came from rough products (see
+    /// ROUGH_DRIFT); 0 where w is exact.
+    drift: f64,
+    /// The largest rho: |F| moves by at most rho_max times w's drift.
+    rho_max: f64,
     best: f64,
     best_at: usize,
 }
@@ -257,6 +280,8 @@ impl Newton {
             res0: 0.0,
             res: 0.0,
             last: None,
+            drift: 0.0,
+            rho_max: 0.0,
             best: 0.0,
             best_at: 0,
         }
@@ -320,6 +345,8 @@ impl OuterStep for Newton {
         self.res = residual_norm(problem, lam, w);
         self.res0 = self.res;
         self.last = None;
+        self.drift = 0.0;
+        self.rho_max = problem.dual.rho.iter().fold(0.0, |a: f64, &r| a.max(r));
         (self.best, self.best_at) = (self.res, 0);
         Flow::Go(Gradient::Exact)
     }
@@ -380,6 +407,13 @@ impl OuterStep for Newton {
             if exact && !rough {
                 break;
             }
+            if exact && self.drift > 0.0 {
+                // The exact solve starts from an exact gradient: the
+                // rejection may be the drift's.
+                problem.gradient(lam, w);
+                self.res = residual_norm(problem, lam, w);
+                self.drift = 0.0;
+            }
             let before = self.krylov.its;
             // The last dense reduced system's factor (see [`Reused`]) is
             // kept on the dual, from step to step and from solve to solve.
@@ -397,14 +431,20 @@ impl OuterStep for Newton {
                 )
             });
             *inner += self.krylov.its - before;
-            if !solved {
+            let Some(combined) = solved else {
                 continue;
-            }
+            };
             // Backtracking: the full step and halves of it, their gradients
-            // w + t A d from one exact product (A is linear): one addition's
-            // rounding away from A (lam + t d) - b, as current as a gradient
-            // computed afresh, so the driver need not recompute it before it
-            // accepts a convergence (one product per solve saved). Every
+            // w + t A d (A is linear). A d is the reduced solve's own
+            // combination of its products where it made one (`krylov_step`:
+            // a matrix-free dual whose products were not narrowed), else one
+            // product, in single precision where the reduced solve's were.
+            // An exact one leaves w one addition's rounding away from
+            // A (lam + t d) - b, as current as a gradient computed afresh,
+            // so the driver need not recompute it before it accepts a
+            // convergence (one product per solve saved). Rough ones drift
+            // (see ROUGH_DRIFT), and w is then recomputed where the drift
+            // nears |F| and before a convergence is accepted. Every
             // length is tried (each costs O(c), no product) and the one
             // with the lowest |F| among those that meet the sufficient
             // decrease is kept, not the first: where the step flips many
@@ -412,8 +452,16 @@ impl OuterStep for Newton {
             // |F| more than a longer one that barely meets it (BENCHMARKS.md,
             // "The nonlinear host": 6-8 % fewer Newton steps on the host
             // example).
+            // In single precision where the step's reduced solve was.
+            let rough_ad = self.krylov.rough() && problem.dual.offers_rough();
             let ad = &mut self.ae0;
-            problem.dual.apply(step, ad);
+            if combined {
+                self.krylov.combined += 1;
+            } else if rough_ad {
+                problem.dual.apply_rough(step, ad);
+            } else {
+                problem.dual.apply(step, ad);
+            }
             let (mut t, mut kept) = (1.0, None);
             for _ in 0..BACKTRACKS {
                 for j in 0..c {
@@ -433,7 +481,19 @@ impl OuterStep for Newton {
                     full: t == 1.0,
                 });
                 self.res = r;
-                return Flow::Go(Gradient::Exact);
+                if rough_ad {
+                    self.drift += ROUGH_DRIFT * t * norm(ad);
+                }
+                // w drifted too far to trust |F| against it (the next sort,
+                // the backtracking, the driver's err): recomputed.
+                if self.drift > 0.0 && self.res < RESYNC * self.rho_max * self.drift {
+                    self.resync(problem, lam, w);
+                }
+                return Flow::Go(if self.drift > 0.0 {
+                    Gradient::Updated
+                } else {
+                    Gradient::Exact
+                });
             }
         }
         if problem.dual.is_matrix_free() {
@@ -443,12 +503,25 @@ impl OuterStep for Newton {
         *inner += sweeps::sweeps_for_newton(problem, &mut self.rough_a, lam, w, FALLBACK_SWEEPS);
         problem.gradient(lam, w);
         self.res = residual_norm(problem, lam, w);
+        self.drift = 0.0;
         self.last = None;
         Flow::Go(Gradient::Exact)
+    }
+
+    fn refreshed(&mut self, problem: &DualProblem<'_>, lam: &[f64], w: &[f64]) {
+        self.res = residual_norm(problem, lam, w);
+        self.drift = 0.0;
     }
 }
 
 impl Newton {
+    /// w := A lam - b afresh (one exact product), and |F| with it.
+    fn resync(&mut self, problem: &DualProblem<'_>, lam: &[f64], w: &mut [f64]) {
+        problem.gradient(lam, w);
+        self.res = residual_norm(problem, lam, w);
+        self.drift = 0.0;
+    }
+
     /// A cold start on a matrix-free dual: lam = P(alpha G b), the projection
     /// onto the feasible set of the minimiser of the dual energy along G b
     /// (G = B K B^T ~ A^-1: the lumped estimate of the unconstrained
@@ -520,6 +593,7 @@ impl Newton {
         }
         problem.gradient(lam, w);
         self.res = residual_norm(problem, lam, w);
+        self.drift = 0.0;
         self.last = None;
         Flow::Go(Gradient::Exact)
     }

@@ -6,7 +6,9 @@
 //! test vectors, with the Jacobi part of the compliance; rough products in
 //! single precision where the forcing term allows (every solve where the dual
 //! offers them: the forcing term's floor, `forcing`), and refinement with
-//! exact residuals where it does not (`refine`).
+//! exact residuals where it does not (`refine`). Where the products are not
+//! narrowed, the step's A d is combined from them (`krylov_step`), so the
+//! backtracking takes no product of its own.
 
 use super::*;
 use crate::dual::Dual;
@@ -40,10 +42,17 @@ pub(super) struct Krylov {
     pub exact: bool,
     pub(super) v: Vec<f64>,
     pub(super) av: Vec<f64>,
+    /// The products A V x_i a reduced solve keeps, on every component, to
+    /// make A V z from (`krylov_step`): the last one for CG, the last
+    /// RESTART + 1 for GMRES; length c each, grown at first use.
+    pub(super) kept: Vec<f64>,
     /// The rows a step's products are narrowed to (`Dual::narrow_to`).
     pub(super) rows: Vec<usize>,
     /// Steps whose products were narrowed.
     pub narrowed: usize,
+    /// Steps whose A d the reduced solve combined from its own products
+    /// (`krylov_step`), with no product of its own.
+    pub combined: usize,
     /// Whether the last dense reduced solve stopped at the forcing term
     /// (GMRES on a system that is not symmetric, `exact` off): a step from
     /// it that the backtracking rejects is solved again exactly.
@@ -71,8 +80,10 @@ impl Krylov {
             exact: false,
             v: vec![0.0; c],
             av: vec![0.0; c],
+            kept: Vec::new(),
             rows: Vec::with_capacity(c),
             narrowed: 0,
+            combined: 0,
             inexact_dense: false,
             inverse: false,
             on_inverse: 0,
@@ -115,15 +126,23 @@ pub(super) fn block_entry(problem: &DualProblem<'_>, ja: usize, jb: usize) -> f6
 /// a_l = v_l^T A v_l (so that it is G where the diagonal term of M vanishes and
 /// tends to 1 / M_ll where that term dominates, as for a fast slip); M's
 /// diagonal (Jacobi) when the dual holds no G. Both from the contacts'
-/// diagonal blocks of A. Adds V z to `step`. False when the Krylov iteration
-/// broke down.
+/// diagonal blocks of A. Adds V z to `step`.
+///
+/// `ae0` = A e0 on entry. Where `whole` (the products are not narrowed:
+/// each gives A V x on every component) and the solve is not a refinement,
+/// A V z is combined from the products the solve took (`Solver`'s `made`)
+/// and added to `ae0`, which then holds A (e0 + V z) without another
+/// product, to the precision of those products: Some(true). Some(false)
+/// where `ae0` is left as it was; None when the Krylov iteration broke
+/// down.
 pub(super) fn krylov_step(
     problem: &DualProblem<'_>,
     red: &[Reduced],
     step: &mut [f64],
-    ae0: &[f64],
+    ae0: &mut [f64],
     krylov: &mut Krylov,
-) -> bool {
+    whole: bool,
+) -> Option<bool> {
     let dual = problem.dual;
     let k = red.len();
     let rhs: Vec<f64> = red.iter().map(|u| u.rhs_after(ae0)).collect();
@@ -148,13 +167,42 @@ pub(super) fn krylov_step(
     // ROUGH_ETA); a tight one, asked only where the dual offers no such
     // products, refines with exact residuals (see `refine`).
     let rough = std::cell::Cell::new(krylov.rough());
+    let refines = !(krylov.exact || rough.get());
+    // The products kept for A V z: CG combines z as it goes (the last
+    // product serves), GMRES at the end of a cycle (its RESTART products
+    // and the restart's).
+    let c = dual.c;
+    let slots = match (whole && !refines, symmetric) {
+        (false, _) => 0,
+        (true, true) => 1,
+        (true, false) => crate::methods::krylov::RESTART + 1,
+    };
+    if krylov.kept.len() < slots * c {
+        krylov.kept.resize(slots * c, 0.0);
+    }
+    let kept = std::cell::RefCell::new(&mut krylov.kept);
     let (v, av) = (&mut krylov.v, &mut krylov.av);
+    let mut products = 0;
     let mut op = |x: &[f64], y: &mut [f64]| {
         v.iter_mut().for_each(|e| *e = 0.0);
         add_directions(red, x.iter().copied(), v);
         dual.apply_narrow(v, av, rough.get());
         for ((u, &xl), yl) in red.iter().zip(x).zip(y.iter_mut()) {
             *yl = u.diag * xl + u.test_dot(av);
+        }
+        if slots > 0 {
+            let at = (products % slots) * c;
+            kept.borrow_mut()[at..at + c].copy_from_slice(av);
+        }
+        products += 1;
+    };
+    let mut made = |i: usize, coef: f64| {
+        if slots > 0 {
+            let at = (i % slots) * c;
+            let kept = kept.borrow();
+            for (a, &p) in ae0.iter_mut().zip(&kept[at..at + c]) {
+                *a += coef * p;
+            }
         }
     };
     let (mut gv, mut gg) = (vec![0.0; dual.c], vec![0.0; dual.c]);
@@ -241,17 +289,15 @@ pub(super) fn krylov_step(
         crate::methods::krylov::gmres
     };
     let (eta, max_it) = (krylov.eta, krylov.max_it);
-    let its = if krylov.exact || rough.get() {
-        solver(&mut op, &rhs, &mut pre, eta, max_it, &mut z)
-    } else {
+    let its = if refines {
         refine(solver, &mut op, &rough, &rhs, &mut pre, eta, max_it, &mut z)
+    } else {
+        solver(&mut op, &rhs, &mut pre, eta, max_it, &mut z, &mut made)
     };
-    let Some(its) = its else {
-        return false;
-    };
+    let its = its?;
     krylov.its += its;
     add_directions(red, z, step);
-    true
+    Some(slots > 0)
 }
 
 /// The restricted preconditioner serves reduced systems of at least this
@@ -394,7 +440,7 @@ pub(super) fn refine(
         saved.copy_from_slice(&r);
         rough.set(true);
         let inner = ROUGH_ETA.max(stop / r_norm);
-        its += solver(op, &r, pre, inner, max_it - its, &mut dz)?;
+        its += solver(op, &r, pre, inner, max_it - its, &mut dz, &mut |_, _| {})?;
         z.iter_mut().zip(&dz).for_each(|(a, b)| *a += b);
         rough.set(false);
         op(z, &mut mz);
@@ -420,7 +466,15 @@ pub(super) fn refine(
     }
     // Exact products for the rest.
     rough.set(false);
-    its += solver(op, &r, pre, stop / r_norm, max_it - its, &mut dz)?;
+    its += solver(
+        op,
+        &r,
+        pre,
+        stop / r_norm,
+        max_it - its,
+        &mut dz,
+        &mut |_, _| {},
+    )?;
     z.iter_mut().zip(&dz).for_each(|(a, b)| *a += b);
     Some(its)
 }

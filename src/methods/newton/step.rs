@@ -181,8 +181,10 @@ pub(super) fn add_directions(red: &[Reduced], z: impl IntoIterator<Item = f64>, 
     }
 }
 
-/// Solves for the Newton step `step` at lam (w = A lam - b). False when the
-/// reduced system is singular.
+/// Solves for the Newton step `step` at lam (w = A lam - b). None when the
+/// reduced system is singular; Some(true) where `ae0` then holds A `step`
+/// (a matrix-free dual's reduced solve combined it from its own products:
+/// `krylov_step`), Some(false) where it does not.
 #[allow(clippy::too_many_arguments)]
 pub(super) fn newton_step(
     problem: &DualProblem<'_>,
@@ -194,12 +196,12 @@ pub(super) fn newton_step(
     cscale: f64,
     krylov: &mut Krylov,
     reused: &mut Option<Reused>,
-) -> bool {
+) -> Option<bool> {
     let dual = problem.dual;
     let red = linearise(problem, lam, w, step, f, cscale);
     let k = red.len();
     if k == 0 {
-        return true;
+        return Some(false);
     }
     if dual.is_matrix_free() {
         // The products of this step read and give only the rows of the
@@ -215,13 +217,14 @@ pub(super) fn newton_step(
         rows.extend((0..dual.c).filter(|&j| step[j] != 0.0));
         rows.sort_unstable();
         rows.dedup();
-        if dual.narrow_to(rows) {
+        let narrowed = dual.narrow_to(rows);
+        if narrowed {
             krylov.narrowed += 1;
         }
         // The fixed components' part of the right-hand side, to the accuracy
         // the reduced solve asks for.
         dual.apply_narrow(step, ae0, krylov.rough());
-        let solved = krylov_step(problem, &red, step, ae0, krylov);
+        let solved = krylov_step(problem, &red, step, ae0, krylov, !narrowed);
         dual.widen();
         return solved;
     }
@@ -255,7 +258,7 @@ pub(super) fn newton_step(
         if let Some(z) = solve_on_inverse(dual, &inv, &red, &rhs, symmetric, eta) {
             krylov.on_inverse += 1;
             add_directions(&red, z, step);
-            return true;
+            return Some(false);
         }
     }
     // M = T^T A V + diag, column by column: column l is the sum over the entries of
@@ -264,7 +267,7 @@ pub(super) fn newton_step(
     // Where the allocator refuses the k x k system the step fails as a singular
     // one does (the fallback sweeps take over) instead of aborting the host.
     let Ok(mut mat) = crate::memory::try_mat::<f64>(k, k, "") else {
-        return false;
+        return None;
     };
     let mut rhs = Mat::<f64>::zeros(k, 1);
     // Each row's test vector as two (index, coefficient) entries, the second
@@ -320,9 +323,7 @@ pub(super) fn newton_step(
         key,
         reused,
     };
-    let Some(z) = solve_reduced(&mat, &rhs, how, &dual.threads, &dual.ledger) else {
-        return false;
-    };
+    let z = solve_reduced(&mat, &rhs, how, &dual.threads, &dual.ledger)?;
     add_directions(&red, z.col(0).iter().copied(), step);
-    true
+    Some(false)
 }
