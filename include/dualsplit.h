@@ -1004,8 +1004,12 @@ typedef struct DsReport {
    warm-up and fallback sweeps on a dense dual), or one product with A
    (MPRGP, the sub-problems on a matrix-free dual, Newton's Krylov solves
    on a matrix-free dual). Newton's product for the explicit part of a
-   step, its backtracking product and the lumped start's two products are
-   not counted (about two per Newton step).
+   step, its backtracking product (taken only where the Krylov solve's
+   products were narrowed or refined; elsewhere A d is combined from
+   them), the exact recomputations of the gradient (after a step whose
+   single-precision products drifted too far, and before a convergence
+   is accepted on such a gradient) and the lumped start's two products
+   are not counted (one or two per Newton step).
    */
   int64_t inner_iterations;
   /*

@@ -57,8 +57,11 @@ pub(super) enum Gradient {
     Stale,
     /// w = A lambda - b, computed from lambda.
     Exact,
-    /// w was kept by rank-one updates: current up to the rounding they gather, so
-    /// it is recomputed before a convergence is accepted.
+    /// w was kept by updates: current up to the rounding they gather
+    /// (rank-one updates) or their products' precision (Newton's
+    /// single-precision products on a matrix-free dual), so it is
+    /// recomputed before a convergence is accepted, before the solve ends
+    /// otherwise, and before its err is kept as the best.
     Updated,
 }
 
@@ -104,7 +107,8 @@ pub(super) trait OuterStep {
     }
 
     /// Outer iteration number `k` (0 for the first) from `lam`, with
-    /// w = A lam - b exact on entry. Adds its inner iterations to `inner`.
+    /// w = A lam - b on entry: exact, or as the method's last step kept it
+    /// where that returned [`Gradient::Updated`]. Adds its inner iterations to `inner`.
     fn step(
         &mut self,
         problem: &DualProblem<'_>,
@@ -115,8 +119,8 @@ pub(super) trait OuterStep {
     ) -> Flow;
 
     /// Told that the driver recomputed w = A lambda - b after a step that
-    /// returned [`Gradient::Updated`] (to confirm a convergence, which it
-    /// did not): w is exact again. The default does nothing.
+    /// returned [`Gradient::Updated`] (before it accepts a convergence or
+    /// ends the solve): w is exact again. The default does nothing.
     fn refreshed(&mut self, _problem: &DualProblem<'_>, _lam: &[f64], _w: &[f64]) {}
 }
 
@@ -249,15 +253,26 @@ pub(super) fn drive(
             problem.gradient(lam, &mut w);
         }
         let mut err = problem.error(lam, &w, &mut p, &mut v);
-        if err <= target && gradient == Gradient::Updated {
-            // Confirm on an exact gradient: rank-one updates drift by rounding.
-            problem.gradient(lam, &mut w);
-            err = problem.error(lam, &w, &mut p, &mut v);
-            method.refreshed(problem, lam, &w);
+        // A gradient kept by updates drifts (rank-one updates by rounding;
+        // Newton's single-precision products by up to about 1 % of |F|):
+        // its err serves the monitor and the stagnation test, and is
+        // recomputed on an exact gradient before it ends the solve or is
+        // kept as the best.
+        let mut scratch = Scratch {
+            w: &mut w,
+            p: &mut p,
+            v: &mut v,
+        };
+        if err <= target {
+            scratch.exact(problem, lam, &mut gradient, &mut err, method);
         }
         out.dual_err = err;
-        best.offer(lam, err);
-        if out.outer > 0 && !problem.progress(out.outer, err, lam, &p, &v) {
+        if gradient != Gradient::Updated {
+            best.offer(lam, err);
+        }
+        if out.outer > 0 && !problem.progress(out.outer, err, lam, scratch.p, scratch.v) {
+            scratch.exact(problem, lam, &mut gradient, &mut err, method);
+            out.dual_err = err;
             out.end = End::Stopped;
             return out;
         }
@@ -265,7 +280,7 @@ pub(super) fn drive(
             return out;
         } else if out.outer >= opts.max_outer {
             Some(End::Limit)
-        } else if stagnation.stalled(out.outer, best.err(), target, opts.max_outer) {
+        } else if stagnation.stalled(out.outer, best.err().min(err), target, opts.max_outer) {
             Some(End::Stalled)
         } else if problem.deadline.is_some_and(|d| Instant::now() >= d) {
             Some(End::TimeLimit)
@@ -273,6 +288,9 @@ pub(super) fn drive(
             None
         };
         if let Some(end) = end {
+            scratch.exact(problem, lam, &mut gradient, &mut err, method);
+            out.dual_err = err;
+            best.offer(lam, err);
             out.end = end;
             best.restore(lam, &mut out);
             return out;
@@ -293,6 +311,35 @@ pub(super) fn drive(
                 best.restore(lam, &mut out);
                 return out;
             }
+        }
+    }
+}
+
+/// The driver's gradient w = A lam - b and the error's scratch (p: the
+/// bounds, length m; v: -w, length c).
+struct Scratch<'a> {
+    w: &'a mut [f64],
+    p: &'a mut [f64],
+    v: &'a mut [f64],
+}
+
+impl Scratch<'_> {
+    /// Where the gradient was kept by updates ([`Gradient::Updated`]): w
+    /// recomputed from lam, `err` with it, the method told
+    /// ([`OuterStep::refreshed`]).
+    fn exact(
+        &mut self,
+        problem: &DualProblem<'_>,
+        lam: &[f64],
+        gradient: &mut Gradient,
+        err: &mut f64,
+        method: &mut dyn OuterStep,
+    ) {
+        if *gradient == Gradient::Updated {
+            problem.gradient(lam, self.w);
+            *err = problem.error(lam, self.w, self.p, self.v);
+            method.refreshed(problem, lam, self.w);
+            *gradient = Gradient::Exact;
         }
     }
 }

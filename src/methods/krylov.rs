@@ -1,7 +1,7 @@
 //! Krylov solvers for Newton's reduced systems on a matrix-free dual
 //! (`newton.rs`): preconditioned conjugate gradients where the system is
 //! symmetric (Tresca, and Coulomb contacts whose normal force does not drag a
-//! slip force), restarted GMRES with right preconditioning otherwise. Both take
+//! slip force), restarted flexible GMRES with right preconditioning otherwise. Both take
 //! the operator as a closure (one product with A each) and the preconditioner
 //! as another (y := P x, P symmetric positive definite), stop at |M z - rhs| <= eta |rhs| or after `max_it` products,
 //! and return the products used; None when the iteration broke down (a
@@ -75,9 +75,10 @@ pub(super) fn pcg(
 }
 
 /// The relative residual below which GMRES confirms a met target with one
-/// product (see [`gmres`]): a single-precision preconditioner's rounding,
-/// about 1e-7 times the conditioning it sees, stays well below the looser
-/// targets (the rough solves of newton.rs ask for 1e-4 at the tightest).
+/// product (see [`gmres`]): the rounding of products in single precision
+/// (newton.rs's rough ones), about 1e-7 times the conditioning they see,
+/// stays well below the looser targets (the rough solves of newton.rs ask
+/// for 1e-4 at the tightest).
 pub(super) const CONFIRM_BELOW: f64 = 1e-4;
 
 /// z := approximately M^-1 rhs by GMRES(RESTART) with right preconditioning
@@ -140,8 +141,8 @@ pub(super) fn gmres(
         g[0] = beta;
         let mut used = 0;
         // Whether the cycle met the target by its own residual estimate
-        // |g[col + 1]| (the residual of M P x where `pre` is linear: up to
-        // its rounding, single precision in the layered Dirichlet one).
+        // |g[col + 1]|: the residual of the z it makes from the kept t_l,
+        // whatever `pre` did, up to the products' rounding.
         let mut met = false;
         for col in 0..RESTART {
             let t = &mut pbasis[col * k..(col + 1) * k];
@@ -189,7 +190,7 @@ pub(super) fn gmres(
         if used == 0 {
             return None;
         }
-        // Back substitution for y (in g), then z += P V y.
+        // Back substitution for y (in g), then z += sum_l y_l t_l.
         for i in (0..used).rev() {
             let mut s = g[i];
             for l in i + 1..used {
@@ -209,10 +210,10 @@ pub(super) fn gmres(
             return None;
         }
         // Met within a loose target: no product to confirm it (one of the
-        // 3-6 a loose Newton step's solve takes; the step is judged on exact
-        // products by the backtracking, a refinement round by its exact
-        // residual). A tight target is confirmed on the true residual, since
-        // a preconditioner's rounding can stand between the estimate and it.
+        // 3-6 a loose Newton step's solve takes; the step is judged by the
+        // backtracking's |F|, a refinement round by its exact residual). A
+        // tight target is confirmed on the true residual, since the
+        // products' rounding can stand between the estimate and it.
         if (met && eta >= CONFIRM_BELOW) || its >= max_it {
             return Some(its);
         }
@@ -335,9 +336,9 @@ mod tests {
     }
 
     /// A preconditioner in single precision (as the layered Dirichlet one is)
-    /// is not linear to 1e-7: the cycle's residual estimate then drifts from
-    /// the true residual, and a tight target is met only because GMRES
-    /// confirms it on the true residual before it stops.
+    /// is not linear to 1e-7: flexible GMRES keeps the vectors it gave, so
+    /// the cycle's residual estimate stays that of z, and a tight target is
+    /// met on the true residual (which GMRES confirms before it stops).
     #[test]
     fn gmres_meets_a_tight_target_under_a_single_precision_preconditioner() {
         let k = 200;

@@ -52,9 +52,10 @@
 //! Globalisation: a Newton step (or, backtracking, half, a quarter or an eighth
 //! of it) is kept only if it lowers the natural residual |F| (force units) by the
 //! factor 1 - ARMIJO t, and of those lengths the one with the lowest |F| is
-//! kept (each costs O(c), no product: A d is one product, or on a
-//! matrix-free dual the reduced solve's own combination of its products,
-//! `krylov_step`); err is not the merit, since its
+//! kept (each costs O(c), no product: A d is one product, or the
+//! combination of a matrix-free reduced solve's own products where they
+//! were not narrowed and the solve did not refine, `krylov_step`); err is
+//! not the merit, since its
 //! denominator grows with |lambda| and a step could "lower" it by inflating the
 //! multipliers. Otherwise the iterate takes a few projected Gauss-Seidel sweeps (a
 //! first-order descent step for Tresca) and Newton restarts from there, so it
@@ -126,14 +127,19 @@ use reduced_dense::*;
 use reduced_krylov::*;
 use step::*;
 
-/// A bound on the relative error of a product with A in single precision
-/// (`Dual::apply_rough`; measured at most 6.3e-7 on the 3d-64x64x6 slab's
-/// steps, 2.9e-7 on 3d-116x116x4): a step whose A d was combined from such
-/// products (`krylov_step`) moves w by t A d to within ROUGH_DRIFT t |A d|.
+/// The relative error assumed of a product with A in single precision
+/// (`Dual::apply_rough`): an estimate, not a bound (the error grows with the
+/// factor's conditioning; measured at most 6.3e-7 on the 3d-64x64x6 slab's
+/// steps, 2.9e-7 on 3d-116x116x4). A step of length t whose A d came from
+/// such products moves w by t A d to within about ROUGH_DRIFT t s, s = |A d|
+/// for one product, the sum of the sizes of those it was combined from
+/// (`Krylov::spread`) otherwise. Where the estimate falls short, the
+/// recomputation comes late; a convergence is still accepted only on an
+/// exact w.
 const ROUGH_DRIFT: f64 = 1e-6;
 
-/// w is recomputed (one exact product) after a Newton step where the bound
-/// on its drift, in |F|'s units, exceeds 1 / RESYNC of |F|: the next sort,
+/// w is recomputed (one exact product) after a Newton step where the
+/// estimate of its drift, in |F|'s units, exceeds 1 / RESYNC of |F|: the next sort,
 /// the backtracking and the driver's err read w. Measured on the
 /// 3d-32x32x4 slab's proportional histories (two runs each): 10 and 100
 /// gave the same warm steps, 1000 up to 10 % slower ones, and no
@@ -247,7 +253,7 @@ pub(super) struct Newton {
     /// The last Newton step, when the last outer iteration was one (the
     /// forcing term's history; None at the start and after a fallback).
     last: Option<LastStep>,
-    /// A bound on how far w has drifted from A lam - b (2-norm, w's
+    /// An estimate of how far w has drifted from A lam - b (2-norm, w's
     /// units) through steps whose A d came from rough products (see
     /// ROUGH_DRIFT); 0 where w is exact.
     drift: f64,
@@ -452,7 +458,8 @@ impl OuterStep for Newton {
             // |F| more than a longer one that barely meets it (BENCHMARKS.md,
             // "The nonlinear host": 6-8 % fewer Newton steps on the host
             // example).
-            // In single precision where the step's reduced solve was.
+            // In single precision where the forcing term allows rough
+            // products (those of the reduced solve, where it ran).
             let rough_ad = self.krylov.rough() && problem.dual.offers_rough();
             let ad = &mut self.ae0;
             if combined {
@@ -482,7 +489,12 @@ impl OuterStep for Newton {
                 });
                 self.res = r;
                 if rough_ad {
-                    self.drift += ROUGH_DRIFT * t * norm(ad);
+                    let size = if combined {
+                        self.krylov.spread
+                    } else {
+                        norm(ad)
+                    };
+                    self.drift += ROUGH_DRIFT * t * size;
                 }
                 // w drifted too far to trust |F| against it (the next sort,
                 // the backtracking, the driver's err): recomputed.

@@ -50,9 +50,14 @@ pub(super) struct Krylov {
     pub(super) rows: Vec<usize>,
     /// Steps whose products were narrowed.
     pub narrowed: usize,
-    /// Steps whose A d the reduced solve combined from its own products
-    /// (`krylov_step`), with no product of its own.
+    /// Reduced solves that combined their step's A d from their own
+    /// products (`krylov_step`), so that the step took no product of its own.
     pub combined: usize,
+    /// The scale of the last combined A d's rounding: |A e0| plus
+    /// sum_i |coef_i| |A V x_i| over the products it was combined from
+    /// (each product errs relative to its own size, and the combination
+    /// may cancel).
+    pub(super) spread: f64,
     /// Whether the last dense reduced solve stopped at the forcing term
     /// (GMRES on a system that is not symmetric, `exact` off): a step from
     /// it that the backtracking rejects is solved again exactly.
@@ -84,6 +89,7 @@ impl Krylov {
             rows: Vec::with_capacity(c),
             narrowed: 0,
             combined: 0,
+            spread: 0.0,
             inexact_dense: false,
             inverse: false,
             on_inverse: 0,
@@ -132,9 +138,10 @@ pub(super) fn block_entry(problem: &DualProblem<'_>, ja: usize, jb: usize) -> f6
 /// each gives A V x on every component) and the solve is not a refinement,
 /// A V z is combined from the products the solve took (`Solver`'s `made`)
 /// and added to `ae0`, which then holds A (e0 + V z) without another
-/// product, to the precision of those products: Some(true). Some(false)
-/// where `ae0` is left as it was; None when the Krylov iteration broke
-/// down.
+/// product, to the precision of those products (`krylov.spread` the scale
+/// of their rounding): Some(true). Some(false) where `ae0` is left as it
+/// was; None when the Krylov iteration broke down (`ae0` may then hold
+/// part of the combination: the step is solved again or given up).
 pub(super) fn krylov_step(
     problem: &DualProblem<'_>,
     red: &[Reduced],
@@ -181,6 +188,8 @@ pub(super) fn krylov_step(
         krylov.kept.resize(slots * c, 0.0);
     }
     let kept = std::cell::RefCell::new(&mut krylov.kept);
+    let sizes = vec![std::cell::Cell::new(0.0); slots];
+    let mut spread = norm(ae0);
     let (v, av) = (&mut krylov.v, &mut krylov.av);
     let mut products = 0;
     let mut op = |x: &[f64], y: &mut [f64]| {
@@ -191,18 +200,20 @@ pub(super) fn krylov_step(
             *yl = u.diag * xl + u.test_dot(av);
         }
         if slots > 0 {
-            let at = (products % slots) * c;
-            kept.borrow_mut()[at..at + c].copy_from_slice(av);
+            let at = products % slots;
+            kept.borrow_mut()[at * c..(at + 1) * c].copy_from_slice(av);
+            sizes[at].set(norm(av));
         }
         products += 1;
     };
     let mut made = |i: usize, coef: f64| {
         if slots > 0 {
-            let at = (i % slots) * c;
+            let at = i % slots;
             let kept = kept.borrow();
-            for (a, &p) in ae0.iter_mut().zip(&kept[at..at + c]) {
+            for (a, &p) in ae0.iter_mut().zip(&kept[at * c..(at + 1) * c]) {
                 *a += coef * p;
             }
+            spread += coef.abs() * sizes[at].get();
         }
     };
     let (mut gv, mut gg) = (vec![0.0; dual.c], vec![0.0; dual.c]);
@@ -296,6 +307,7 @@ pub(super) fn krylov_step(
     };
     let its = its?;
     krylov.its += its;
+    krylov.spread = spread;
     add_directions(red, z, step);
     Some(slots > 0)
 }

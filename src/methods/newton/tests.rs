@@ -514,6 +514,15 @@ fn drive_newton(
     (out, newton)
 }
 
+/// |a - b|_2.
+fn norm_diff(a: &[f64], b: &[f64]) -> f64 {
+    a.iter()
+        .zip(b)
+        .map(|(x, y)| (x - y).powi(2))
+        .sum::<f64>()
+        .sqrt()
+}
+
 /// The largest entrywise difference.
 fn max_diff(a: &[f64], b: &[f64]) -> f64 {
     a.iter()
@@ -622,6 +631,92 @@ fn the_layered_dirichlet_preconditioner_saves_products() {
     );
 }
 
+/// The A d a matrix-free reduced solve combines from its own products
+/// (`krylov_step`) is A times the step it gives, against one product of
+/// A with that step, within the rounding its combination gathers
+/// (`Krylov::spread`, the sum of the sizes combined): 1e-13 of it with
+/// exact products, 1e-5 of it with products in single precision. CG on
+/// Tresca, GMRES on Coulomb (with the lumped preconditioner, and with
+/// Jacobi alone, where GMRES restarts), on the nearly floating lattice
+/// slab (anchor 1e-4), whose reduced systems take many products and whose
+/// combinations cancel (the spread is 20-500 times |A d|). Its K is so
+/// ill-conditioned that the single-precision products err by about 1e-6
+/// of the spread, at ROUGH_DRIFT's estimate.
+#[test]
+fn the_combined_product_is_a_times_the_step() {
+    use crate::dual::{Condensation, Dual};
+    use crate::factor::Factor;
+    use crate::options::Ordering;
+    use std::sync::Arc;
+    let (nx, ny, nz) = (16, 16, 4);
+    let k = lattice(nx, ny, nz, 1e-4);
+    let (nm, tm) = slab_contacts(nx, ny, k.nrows);
+    let factor =
+        Arc::new(Factor::with_last(&k, &[], Ordering::Amd, Arc::new(Threads::new(1))).unwrap());
+    let m = nx * ny;
+    let jacobi = Dual::build_with(&factor, &nm, &tm, 3, Condensation::MatrixFree).unwrap();
+    let mut lumped = Dual::build_with(&factor, &nm, &tm, 3, Condensation::MatrixFree).unwrap();
+    lumped.set_lumped(&k, None);
+    let p = vec![0.01; m];
+    let mu = vec![0.3; m];
+    let b = patch_load(nx, ny, 0.0005, 0.02);
+    let mut restarted = false;
+    for (free, law) in [
+        (&lumped, Friction::Tresca(&p)),
+        (&lumped, Friction::Coulomb(&mu)),
+        (&jacobi, Friction::Coulomb(&mu)),
+    ] {
+        let mut answer = vec![0.0; free.c];
+        drive_newton(free, &b, law, &mut answer, |_| {});
+        let problem = DualProblem {
+            dual: free,
+            b: &b,
+            law,
+            monitor: None,
+            deadline: None,
+            predicted: false,
+            near: false,
+        };
+        let lam: Vec<f64> = answer.iter().map(|v| 0.7 * v).collect();
+        let mut w = vec![0.0; free.c];
+        problem.gradient(&lam, &mut w);
+        for (exact, eta, tol) in [(true, 1e-12, 1e-13), (false, 1e-4, 1e-5)] {
+            let c = free.c;
+            let (mut step, mut f, mut ae0) = (vec![0.0; c], vec![0.0; c], vec![0.0; c]);
+            let mut krylov = Krylov::new(c);
+            (krylov.exact, krylov.eta) = (exact, eta);
+            let combined = newton_step(
+                &problem,
+                &lam,
+                &w,
+                &mut step,
+                &mut f,
+                &mut ae0,
+                1.0,
+                &mut krylov,
+                &mut None,
+            );
+            assert_eq!(combined, Some(true), "exact {exact}");
+            let mut ad = vec![0.0; c];
+            free.apply(&step, &mut ad);
+            let (off, spread) = (norm_diff(&ad, &ae0), krylov.spread);
+            println!(
+                "exact {exact}: {} products, A d off by {:.1e} of |A d|, spread {:.1e} |A d|",
+                krylov.its,
+                off / norm(&ad),
+                spread / norm(&ad)
+            );
+            assert!(
+                off <= tol * spread,
+                "exact {exact}: {off:.2e} for {spread:.2e}"
+            );
+            restarted |=
+                matches!(law, Friction::Coulomb(_)) && krylov.its > crate::methods::krylov::RESTART;
+        }
+    }
+    assert!(restarted, "no GMRES solve restarted");
+}
+
 /// A matrix-free Newton step takes no product of its own for the
 /// backtracking: its reduced solve combines A d from its products
 /// (`krylov_step`), in single precision where the forcing term allows, so
@@ -629,7 +724,7 @@ fn the_layered_dirichlet_preconditioner_saves_products() {
 /// and sheared, a cold solve and a warm one at 2 % more load, Tresca and
 /// Coulomb: every step combined its A d, and each answer is dense Newton's
 /// (1e-10 relative) with err at most the target 1e-12 on a gradient
-/// computed afresh.
+/// computed afresh, the err the driver reports.
 #[test]
 fn a_step_s_product_is_combined_from_its_reduced_solve() {
     use crate::dual::{Condensation, Dual};
@@ -668,6 +763,12 @@ fn a_step_s_product_is_combined_from_its_reduced_solve() {
             let (mut pb, mut v) = (vec![0.0; m], vec![0.0; free.c]);
             let err = problem.error(&l_free, &w, &mut pb, &mut v);
             assert!(err <= 1e-12, "{err:.2e}");
+            // The err reported is that of an exact gradient too.
+            assert!(
+                (out.dual_err - err).abs() <= 1e-3 * err,
+                "{:.3e} reported, {err:.3e}",
+                out.dual_err
+            );
         }
     }
 }
