@@ -130,10 +130,10 @@ use step::*;
 /// The relative error assumed of a product with A in single precision
 /// (`Dual::apply_rough`): an estimate, not a bound (the error grows with the
 /// factor's conditioning; measured at most 6.3e-7 on the 3d-64x64x6 slab's
-/// steps, 2.9e-7 on 3d-116x116x4). A step of length t whose A d came from
-/// such products moves w by t A d to within about ROUGH_DRIFT t s, s = |A d|
-/// for one product, the sum of the sizes of those it was combined from
-/// (`Krylov::spread`) otherwise. Where the estimate falls short, the
+/// steps, 2.9e-7 on 3d-116x116x4). A step of length t whose A d was
+/// combined from such products moves w by t A d to within about
+/// ROUGH_DRIFT t s, s the sum of the sizes combined (`Krylov::spread`).
+/// Where the estimate falls short, the
 /// recomputation comes late; a convergence is still accepted only on an
 /// exact w.
 const ROUGH_DRIFT: f64 = 1e-6;
@@ -444,13 +444,18 @@ impl OuterStep for Newton {
             // w + t A d (A is linear). A d is the reduced solve's own
             // combination of its products where it made one (`krylov_step`:
             // a matrix-free dual whose products were not narrowed), else one
-            // product, in single precision where the reduced solve's were.
-            // An exact one leaves w one addition's rounding away from
+            // exact product: that leaves w one addition's rounding away from
             // A (lam + t d) - b, as current as a gradient computed afresh,
             // so the driver need not recompute it before it accepts a
-            // convergence (one product per solve saved). Rough ones drift
-            // (see ROUGH_DRIFT), and w is then recomputed where the drift
-            // nears |F| and before a convergence is accepted. Every
+            // convergence (one product per solve saved). A combination of
+            // single-precision products drifts (see ROUGH_DRIFT), and w is
+            // then recomputed where the drift nears |F| and before a
+            // convergence is accepted. (A single-precision product in place
+            // of the exact one, on the narrowed steps, saved nothing on the
+            // host example's solves of three or four Newton steps, whose
+            // products are narrowed: half a product a step against the
+            // exact one that confirms the convergence, and one more Newton
+            // step in one of its solves.) Every
             // length is tried (each costs O(c), no product) and the one
             // with the lowest |F| among those that meet the sufficient
             // decrease is kept, not the first: where the step flips many
@@ -458,14 +463,10 @@ impl OuterStep for Newton {
             // |F| more than a longer one that barely meets it (BENCHMARKS.md,
             // "The nonlinear host": 6-8 % fewer Newton steps on the host
             // example).
-            // In single precision where the forcing term allows rough
-            // products (those of the reduced solve, where it ran).
-            let rough_ad = self.krylov.rough() && problem.dual.offers_rough();
+            let rough_ad = combined && self.krylov.rough() && problem.dual.offers_rough();
             let ad = &mut self.ae0;
             if combined {
                 self.krylov.combined += 1;
-            } else if rough_ad {
-                problem.dual.apply_rough(step, ad);
             } else {
                 problem.dual.apply(step, ad);
             }
@@ -489,12 +490,7 @@ impl OuterStep for Newton {
                 });
                 self.res = r;
                 if rough_ad {
-                    let size = if combined {
-                        self.krylov.spread
-                    } else {
-                        norm(ad)
-                    };
-                    self.drift += ROUGH_DRIFT * t * size;
+                    self.drift += ROUGH_DRIFT * t * self.krylov.spread;
                 }
                 // w drifted too far to trust |F| against it (the next sort,
                 // the backtracking, the driver's err): recomputed.
