@@ -130,17 +130,17 @@ use step::*;
 /// The relative error assumed of a product with A in single precision
 /// (`Dual::apply_rough`): an estimate, not a bound (the error grows with the
 /// factor's conditioning; measured at most 6.3e-7 on the 3d-64x64x6 slab's
-/// steps, 2.9e-7 on 3d-116x116x4). A step of length t whose A d was
-/// combined from such products moves w by t A d to within about
-/// ROUGH_DRIFT t s, s the sum of the sizes combined (`Krylov::spread`).
-/// Where the estimate falls short, the
-/// recomputation comes late; a convergence is still accepted only on an
-/// exact w.
+/// steps, 2.9e-7 on 3d-116x116x4, about 1e-6 on a nearly floating lattice
+/// slab in `newton::tests`). A step of length t whose A d was combined
+/// from such products moves w by t A d to within about ROUGH_DRIFT t s, s
+/// the sum of the sizes combined (`Krylov::spread`). Where the estimate
+/// falls short, the recomputation comes late; a convergence is still
+/// accepted only on an exact w.
 const ROUGH_DRIFT: f64 = 1e-6;
 
 /// w is recomputed (one exact product) after a Newton step where the
-/// estimate of its drift, in |F|'s units, exceeds 1 / RESYNC of |F|: the next sort,
-/// the backtracking and the driver's err read w. Measured on the
+/// estimate of its drift, in |F|'s units, exceeds 1 / RESYNC of |F|: the
+/// next sort, the backtracking and the driver's err read w. Measured on the
 /// 3d-32x32x4 slab's proportional histories (two runs each): 10 and 100
 /// gave the same warm steps, 1000 up to 10 % slower ones, and no
 /// recomputation before the driver's confirmation 15-30 % slower ones.

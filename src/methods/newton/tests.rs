@@ -170,15 +170,7 @@ fn rough_sweeps_follow_the_exact_ones() {
     let (pb, g) = strip(41);
     let p = vec![2e-3; 41];
     let b = rhs(&pb, &g, 4e-3, 3e-3);
-    let problem = DualProblem {
-        dual: pb.dual(),
-        b: &b,
-        law: Friction::Tresca(&p),
-        monitor: None,
-        deadline: None,
-        predicted: false,
-        near: false,
-    };
+    let problem = plain(pb.dual(), &b, Friction::Tresca(&p));
     let c = problem.dual.c;
     let (mut lam_exact, mut w_exact) = (vec![0.0; c], vec![0.0; c]);
     problem.gradient(&lam_exact, &mut w_exact);
@@ -494,15 +486,7 @@ fn drive_newton(
     lam: &mut [f64],
     setup: impl FnOnce(&mut Newton),
 ) -> (super::super::driver::Outcome, Newton) {
-    let problem = DualProblem {
-        dual,
-        b,
-        law,
-        monitor: None,
-        deadline: None,
-        predicted: false,
-        near: false,
-    };
+    let problem = plain(dual, b, law);
     let mut newton = Newton::new(&problem, 1e-12);
     setup(&mut newton);
     let opts = Options {
@@ -512,6 +496,48 @@ fn drive_newton(
     let out = super::super::driver::drive(&problem, lam, &opts, 1e-12, &mut newton);
     assert_eq!(out.end, super::super::End::Converged, "{out:?}");
     (out, newton)
+}
+
+/// The dual problem on `dual` with load `b` and friction `law`: no monitor,
+/// no deadline, a start that is neither predicted nor near.
+fn plain<'a>(dual: &'a crate::dual::Dual, b: &'a [f64], law: Friction<'a>) -> DualProblem<'a> {
+    DualProblem {
+        dual,
+        b,
+        law,
+        monitor: None,
+        deadline: None,
+        predicted: false,
+        near: false,
+    }
+}
+
+/// One Newton step at lam (w = A lam - b) with the Krylov state set by
+/// `setup`: `newton_step`'s outcome, the step, what it left in `ae0` (A e0,
+/// or A times the step where it combined that) and the Krylov state.
+fn one_step(
+    problem: &DualProblem<'_>,
+    lam: &[f64],
+    w: &[f64],
+    cscale: f64,
+    setup: impl FnOnce(&mut Krylov),
+) -> (Option<bool>, Vec<f64>, Vec<f64>, Krylov) {
+    let c = problem.dual.c;
+    let (mut step, mut f, mut ae0) = (vec![0.0; c], vec![0.0; c], vec![0.0; c]);
+    let mut krylov = Krylov::new(c);
+    setup(&mut krylov);
+    let out = newton_step(
+        problem,
+        lam,
+        w,
+        &mut step,
+        &mut f,
+        &mut ae0,
+        cscale,
+        &mut krylov,
+        &mut None,
+    );
+    (out, step, ae0, krylov)
 }
 
 /// |a - b|_2.
@@ -582,32 +608,12 @@ fn the_layered_dirichlet_preconditioner_saves_products() {
     }
     println!("whole solves' products: lumped {its_lumped}, layered Dirichlet {its_layered}");
     let step_products = |dual: &Dual, lam: &[f64]| {
-        let problem = DualProblem {
-            dual,
-            b: &b,
-            law: Friction::Tresca(&p),
-            monitor: None,
-            deadline: None,
-            predicted: false,
-            near: false,
-        };
-        let c = dual.c;
-        let mut w = vec![0.0; c];
+        let problem = plain(dual, &b, Friction::Tresca(&p));
+        let mut w = vec![0.0; dual.c];
         problem.gradient(lam, &mut w);
-        let (mut step, mut f, mut ae0) = (vec![0.0; c], vec![0.0; c], vec![0.0; c]);
-        let mut krylov = Krylov::new(c);
-        (krylov.exact, krylov.eta) = (true, 1e-10);
-        let solved = newton_step(
-            &problem,
-            lam,
-            &w,
-            &mut step,
-            &mut f,
-            &mut ae0,
-            1.0,
-            &mut krylov,
-            &mut None,
-        );
+        let (solved, step, _, krylov) = one_step(&problem, lam, &w, 1.0, |krylov| {
+            (krylov.exact, krylov.eta) = (true, 1e-10);
+        });
         assert!(solved.is_some());
         (step, krylov.its)
     };
@@ -668,36 +674,16 @@ fn the_combined_product_is_a_times_the_step() {
     ] {
         let mut answer = vec![0.0; free.c];
         drive_newton(free, &b, law, &mut answer, |_| {});
-        let problem = DualProblem {
-            dual: free,
-            b: &b,
-            law,
-            monitor: None,
-            deadline: None,
-            predicted: false,
-            near: false,
-        };
+        let problem = plain(free, &b, law);
         let lam: Vec<f64> = answer.iter().map(|v| 0.7 * v).collect();
         let mut w = vec![0.0; free.c];
         problem.gradient(&lam, &mut w);
         for (exact, eta, tol) in [(true, 1e-12, 1e-13), (false, 1e-4, 1e-5)] {
-            let c = free.c;
-            let (mut step, mut f, mut ae0) = (vec![0.0; c], vec![0.0; c], vec![0.0; c]);
-            let mut krylov = Krylov::new(c);
-            (krylov.exact, krylov.eta) = (exact, eta);
-            let combined = newton_step(
-                &problem,
-                &lam,
-                &w,
-                &mut step,
-                &mut f,
-                &mut ae0,
-                1.0,
-                &mut krylov,
-                &mut None,
-            );
+            let (combined, step, ae0, krylov) = one_step(&problem, &lam, &w, 1.0, |krylov| {
+                (krylov.exact, krylov.eta) = (exact, eta);
+            });
             assert_eq!(combined, Some(true), "exact {exact}");
-            let mut ad = vec![0.0; c];
+            let mut ad = vec![0.0; free.c];
             free.apply(&step, &mut ad);
             let (off, spread) = (norm_diff(&ad, &ae0), krylov.spread);
             println!(
@@ -749,15 +735,7 @@ fn a_step_s_product_is_combined_from_its_reduced_solve() {
             // closes the whole face).
             assert!(out.outer > 0);
             assert_eq!(newton.krylov.combined, out.outer, "{out:?}");
-            let problem = DualProblem {
-                dual: &free,
-                b,
-                law,
-                monitor: None,
-                deadline: None,
-                predicted: false,
-                near: false,
-            };
+            let problem = plain(&free, b, law);
             let mut w = vec![0.0; free.c];
             problem.gradient(&l_free, &mut w);
             let (mut pb, mut v) = (vec![0.0; m], vec![0.0; free.c]);
@@ -992,33 +970,13 @@ fn a_warm_3d_solve_runs_on_the_inverse_of_a() {
         // The warm solve's first Newton step (sorted by the multipliers,
         // WARM_C), solved exactly on the inverse (products with A) and on
         // the assembled reduced system: the same step.
-        let problem = DualProblem {
-            dual: &dense,
-            b: &b2,
-            law,
-            monitor: None,
-            deadline: None,
-            predicted: false,
-            near: false,
-        };
+        let problem = plain(&dense, &b2, law);
         let mut w = vec![0.0; dense.c];
         problem.gradient(&lam, &mut w);
         let step_with = |inverse: bool| {
-            let c = dense.c;
-            let (mut step, mut f, mut ae0) = (vec![0.0; c], vec![0.0; c], vec![0.0; c]);
-            let mut krylov = Krylov::new(c);
-            (krylov.inverse, krylov.exact) = (inverse, true);
-            let ok = newton_step(
-                &problem,
-                &lam,
-                &w,
-                &mut step,
-                &mut f,
-                &mut ae0,
-                WARM_C,
-                &mut krylov,
-                &mut None,
-            );
+            let (ok, step, _, krylov) = one_step(&problem, &lam, &w, WARM_C, |krylov| {
+                (krylov.inverse, krylov.exact) = (inverse, true);
+            });
             assert!(ok.is_some());
             (step, krylov.on_inverse)
         };
@@ -1173,15 +1131,7 @@ fn a_closing_contact_is_sorted_by_its_trial_normal_force() {
     let c = dual.c;
     for (shear, want) in [(3e-5, Some(41)), (7e-5, None), (3e-4, Some(0))] {
         let b = rhs(&pb, &g, 4e-3, shear);
-        let problem = DualProblem {
-            dual,
-            b: &b,
-            law: Friction::Coulomb(&mu),
-            monitor: None,
-            deadline: None,
-            predicted: false,
-            near: false,
-        };
+        let problem = plain(dual, &b, Friction::Coulomb(&mu));
         let lam = vec![0.0; c];
         let mut w = vec![0.0; c];
         problem.gradient(&lam, &mut w);
