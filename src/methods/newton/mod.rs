@@ -381,7 +381,6 @@ impl OuterStep for Newton {
         } else {
             1.0
         };
-        let (step, trial, wt) = (&mut self.step, &mut self.trial, &mut self.wt);
         self.krylov.inverse = self.inverse_on && self.warm && problem.dual.d == 3;
         // No tighter than ROUGH_ETA where a matrix-free dual's products run
         // in single precision (see `forcing`).
@@ -416,10 +415,9 @@ impl OuterStep for Newton {
             if exact && self.drift > 0.0 {
                 // The exact solve starts from an exact gradient: the
                 // rejection may be the drift's.
-                problem.gradient(lam, w);
-                self.res = residual_norm(problem, lam, w);
-                self.drift = 0.0;
+                self.resync(problem, lam, w);
             }
+            let (step, trial, wt) = (&mut self.step, &mut self.trial, &mut self.wt);
             let before = self.krylov.its;
             // The last dense reduced system's factor (see [`Reused`]) is
             // kept on the dual, from step to step and from solve to solve.
