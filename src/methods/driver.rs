@@ -57,12 +57,14 @@ pub(super) enum Gradient {
     Stale,
     /// w = A lambda - b, computed from lambda.
     Exact,
-    /// w was kept by updates: current up to the rounding they gather
-    /// (rank-one updates) or their products' precision (Newton's
-    /// single-precision products on a matrix-free dual), so it is
+    /// w was kept by rank-one updates: current up to the rounding they gather, so
+    /// it is recomputed before a convergence is accepted.
+    Updated,
+    /// w was kept by updates from single-precision products (Newton on a
+    /// matrix-free dual): off by up to about 1 % of |F|, so it is
     /// recomputed before a convergence is accepted, before the solve ends
     /// otherwise, and before its err is kept as the best.
-    Updated,
+    Drifted,
 }
 
 /// How a step (or the start) ended.
@@ -108,7 +110,8 @@ pub(super) trait OuterStep {
 
     /// Outer iteration number `k` (0 for the first) from `lam`, with
     /// w = A lam - b on entry: exact, or as the method's last step kept it
-    /// where that returned [`Gradient::Updated`]. Adds its inner iterations to `inner`.
+    /// where that returned [`Gradient::Updated`] or [`Gradient::Drifted`].
+    /// Adds its inner iterations to `inner`.
     fn step(
         &mut self,
         problem: &DualProblem<'_>,
@@ -119,8 +122,9 @@ pub(super) trait OuterStep {
     ) -> Flow;
 
     /// Told that the driver recomputed w = A lambda - b after a step that
-    /// returned [`Gradient::Updated`] (before it accepts a convergence or
-    /// ends the solve): w is exact again. The default does nothing.
+    /// returned [`Gradient::Updated`] or [`Gradient::Drifted`] (before it
+    /// accepts a convergence, or ends the solve after a drifted one): w is
+    /// exact again. The default does nothing.
     fn refreshed(&mut self, _problem: &DualProblem<'_>, _lam: &[f64], _w: &[f64]) {}
 }
 
@@ -207,11 +211,6 @@ impl BestIterate {
         }
     }
 
-    /// The lowest error offered.
-    pub fn err(&self) -> f64 {
-        self.err
-    }
-
     /// Puts the best iterate into `lam` and its error into `out` when it is better
     /// than the current one.
     pub fn restore(&self, lam: &mut [f64], out: &mut Outcome) {
@@ -238,6 +237,9 @@ pub(super) fn drive(
     let mut v = vec![0.0; c];
     let mut best = BestIterate::new(c);
     let mut stagnation = Stagnation::new(opts.stall_window, opts.stall_factor);
+    // The lowest err met, drifted ones included: the stagnation test's
+    // running minimum (the best iterate keeps exact errs only).
+    let mut lowest = f64::INFINITY;
     problem.gradient(lam, &mut w);
     let mut gradient = match method.start(problem, lam, &mut w, &mut out.inner) {
         Flow::Go(g) => g,
@@ -253,11 +255,12 @@ pub(super) fn drive(
             problem.gradient(lam, &mut w);
         }
         let mut err = problem.error(lam, &w, &mut p, &mut v);
-        // A gradient kept by updates drifts (rank-one updates by rounding;
-        // Newton's single-precision products by up to about 1 % of |F|):
-        // its err serves the monitor and the stagnation test, and is
-        // recomputed on an exact gradient before it ends the solve or is
-        // kept as the best.
+        // A gradient kept by updates is recomputed before its err is
+        // accepted as converged (rank-one updates gather rounding); a
+        // drifted one also before the solve ends otherwise, and its err
+        // serves the monitor and the stagnation test but is not kept as
+        // the best (Newton's single-precision products: up to about 1 % of
+        // |F| off).
         let mut scratch = Scratch {
             w: &mut w,
             p: &mut p,
@@ -267,11 +270,12 @@ pub(super) fn drive(
             scratch.exact(problem, lam, &mut gradient, &mut err, method);
         }
         out.dual_err = err;
-        if gradient != Gradient::Updated {
+        lowest = lowest.min(err);
+        if gradient != Gradient::Drifted {
             best.offer(lam, err);
         }
         if out.outer > 0 && !problem.progress(out.outer, err, lam, scratch.p, scratch.v) {
-            scratch.exact(problem, lam, &mut gradient, &mut err, method);
+            scratch.undrift(problem, lam, &mut gradient, &mut err, method);
             out.dual_err = err;
             out.end = End::Stopped;
             return out;
@@ -280,7 +284,7 @@ pub(super) fn drive(
             return out;
         } else if out.outer >= opts.max_outer {
             Some(End::Limit)
-        } else if stagnation.stalled(out.outer, best.err().min(err), target, opts.max_outer) {
+        } else if stagnation.stalled(out.outer, lowest, target, opts.max_outer) {
             Some(End::Stalled)
         } else if problem.deadline.is_some_and(|d| Instant::now() >= d) {
             Some(End::TimeLimit)
@@ -288,8 +292,12 @@ pub(super) fn drive(
             None
         };
         if let Some(end) = end {
-            scratch.exact(problem, lam, &mut gradient, &mut err, method);
+            scratch.undrift(problem, lam, &mut gradient, &mut err, method);
             out.dual_err = err;
+            if err <= target {
+                // The drift alone kept err above the target.
+                return out;
+            }
             best.offer(lam, err);
             out.end = end;
             best.restore(lam, &mut out);
@@ -306,6 +314,10 @@ pub(super) fn drive(
             Flow::Stalled => {
                 problem.gradient(lam, &mut w);
                 out.dual_err = problem.error(lam, &w, &mut p, &mut v);
+                if out.dual_err <= target {
+                    // The method's own progress test read a drifted |F|.
+                    return out;
+                }
                 best.offer(lam, out.dual_err);
                 out.end = End::Stalled;
                 best.restore(lam, &mut out);
@@ -324,9 +336,9 @@ struct Scratch<'a> {
 }
 
 impl Scratch<'_> {
-    /// Where the gradient was kept by updates ([`Gradient::Updated`]): w
-    /// recomputed from lam, `err` with it, the method told
-    /// ([`OuterStep::refreshed`]).
+    /// Where the gradient was kept by updates ([`Gradient::Updated`],
+    /// [`Gradient::Drifted`]): w recomputed from lam, `err` with it, the
+    /// method told ([`OuterStep::refreshed`]).
     fn exact(
         &mut self,
         problem: &DualProblem<'_>,
@@ -335,11 +347,26 @@ impl Scratch<'_> {
         err: &mut f64,
         method: &mut dyn OuterStep,
     ) {
-        if *gradient == Gradient::Updated {
+        if matches!(*gradient, Gradient::Updated | Gradient::Drifted) {
             problem.gradient(lam, self.w);
             *err = problem.error(lam, self.w, self.p, self.v);
             method.refreshed(problem, lam, self.w);
             *gradient = Gradient::Exact;
+        }
+    }
+
+    /// As [`Scratch::exact`] where the gradient drifted
+    /// ([`Gradient::Drifted`]) only.
+    fn undrift(
+        &mut self,
+        problem: &DualProblem<'_>,
+        lam: &[f64],
+        gradient: &mut Gradient,
+        err: &mut f64,
+        method: &mut dyn OuterStep,
+    ) {
+        if *gradient == Gradient::Drifted {
+            self.exact(problem, lam, gradient, err, method);
         }
     }
 }

@@ -496,7 +496,7 @@ impl OuterStep for Newton {
                     self.resync(problem, lam, w);
                 }
                 return Flow::Go(if self.drift > 0.0 {
-                    Gradient::Updated
+                    Gradient::Drifted
                 } else {
                     Gradient::Exact
                 });
