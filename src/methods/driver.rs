@@ -48,6 +48,10 @@ pub struct Outcome {
     pub method: Option<crate::options::Method>,
     /// Why `Auto` chose it (empty for a method given by the options).
     pub choice: &'static str,
+    /// The run ended converged on a drifted gradient, unconfirmed, where
+    /// the caller measures the error on the recovered u
+    /// (`DualProblem::measured_after`): `dual_err` is the drifted one.
+    pub unconfirmed: bool,
 }
 
 /// What a step leaves in w.
@@ -62,7 +66,9 @@ pub(super) enum Gradient {
     Updated,
     /// w was kept by updates from single-precision products (Newton on a
     /// matrix-free dual): off by up to about 1 % of |F|, so it is
-    /// recomputed before a convergence is accepted, before the solve ends
+    /// recomputed before a convergence is accepted (or the convergence is
+    /// left to the caller's measurement on the recovered u, where it makes
+    /// one: `DualProblem::measured_after`), before the solve ends
     /// otherwise, and before its err is kept as the best.
     Drifted,
 }
@@ -240,7 +246,10 @@ pub(super) fn drive(
     // The lowest err met, drifted ones included: the stagnation test's
     // running minimum (the best iterate keeps exact errs only).
     let mut lowest = f64::INFINITY;
-    problem.gradient(lam, &mut w);
+    match problem.start_gradient.take() {
+        Some(w0) => w.copy_from_slice(w0),
+        None => problem.gradient(lam, &mut w),
+    }
     let mut gradient = match method.start(problem, lam, &mut w, &mut out.inner) {
         Flow::Go(g) => g,
         Flow::Infeasible => {
@@ -260,13 +269,16 @@ pub(super) fn drive(
         // drifted one also before the solve ends otherwise, and its err
         // serves the monitor and the stagnation test but is not kept as
         // the best (Newton's single-precision products: up to about 1 % of
-        // |F| off).
+        // |F| off). Where the caller measures the error on the recovered u
+        // anyway (`measured_after`), a drifted convergence is left to that
+        // measurement: the recovery's solve costs what the recomputation
+        // would.
         let mut scratch = Scratch {
             w: &mut w,
             p: &mut p,
             v: &mut v,
         };
-        if err <= target {
+        if err <= target && !(gradient == Gradient::Drifted && problem.measured_after) {
             scratch.exact(problem, lam, &mut gradient, &mut err, method);
         }
         out.dual_err = err;
@@ -281,6 +293,7 @@ pub(super) fn drive(
             return out;
         }
         let end = if err <= target {
+            out.unconfirmed = gradient == Gradient::Drifted;
             return out;
         } else if out.outer >= opts.max_outer {
             Some(End::Limit)

@@ -34,7 +34,7 @@ use crate::friction::Friction;
 
 use crate::options::{Method, Options};
 use driver::OuterStep;
-use std::cell::RefCell;
+use std::cell::{Cell, RefCell};
 use std::time::Instant;
 
 /// What the monitor sees after every outer iteration.
@@ -79,6 +79,19 @@ pub struct DualProblem<'a> {
     /// 8): Newton takes no warm-up sweeps and sorts the contacts by the
     /// natural map at the start, as for a prediction.
     pub near: bool,
+    /// w = A lam - b at the starting multipliers, computed exactly by the
+    /// caller (length c): the driver takes it for its first gradient
+    /// instead of a product with A. Taken by the first run on this problem
+    /// (under `Auto`, the methods after the first start from another
+    /// iterate and compute it).
+    pub start_gradient: Cell<Option<&'a [f64]>>,
+    /// The caller measures the error again on the u it recovers from the
+    /// answer (one solve with K, as a product with A costs): the driver may
+    /// then end converged on a drifted gradient ([`driver::Gradient::Drifted`])
+    /// without recomputing it, and says so ([`Outcome::unconfirmed`]); the
+    /// caller runs again from there where the recovered error misses the
+    /// target. False: every convergence is confirmed on an exact gradient.
+    pub measured_after: bool,
 }
 
 impl DualProblem<'_> {

@@ -321,6 +321,9 @@ impl ContactProblem {
             *bi -= gi;
         }
         let mut extrapolated = false;
+        // w = A lambda - b at the start, where a host increment's prediction
+        // computed it (the driver then takes no product for it).
+        let mut start_w: Option<Vec<f64>> = None;
         let load = match warm {
             Warm::Given => None,
             Warm::History(h) => {
@@ -342,6 +345,8 @@ impl ContactProblem {
                     deadline: None,
                     predicted: false,
                     near: false,
+                    start_gradient: std::cell::Cell::new(None),
+                    measured_after: false,
                 };
                 // w = A lambda_n - b and q = b + [g; 0] - A lambda_n = [g; 0]
                 // - w (`history::Increments`).
@@ -354,12 +359,18 @@ impl ContactProblem {
                     // exceeds lambda_n's more than INCREMENT_RISE times (one
                     // product; `history::Increments`).
                     let before = at.natural_residual(lam, &w);
-                    at.gradient(&start, &mut w);
-                    if at.natural_residual(&start, &w) <= INCREMENT_RISE * before {
+                    let mut ws = vec![0.0; c];
+                    at.gradient(&start, &mut ws);
+                    if at.natural_residual(&start, &ws) <= INCREMENT_RISE * before {
                         lam.copy_from_slice(&start);
                         extrapolated = true;
+                        w = ws;
                     }
                 }
+                // The gradient at the start, whichever it is, for the
+                // driver (this branch runs without a compliance: its b is
+                // the solve's).
+                start_w = Some(w);
                 Some(q)
             }
         };
@@ -416,11 +427,12 @@ impl ContactProblem {
         let mut target = round_tol;
         let rhs_seconds = start.elapsed().as_secs_f64();
         let (mut iterate_seconds, mut recover_seconds) = (0.0, 0.0);
-        let mut end = End::Converged;
+        let mut end;
         let mut outer = 0;
         let mut inner = 0;
-        let mut unknowns = c;
-        let (mut method, mut choice) = (opts.method, "");
+        let mut unknowns;
+        let mut method = opts.method;
+        let mut choice;
         let mut u = vec![0.0; ndof];
         let mut bt_lam = vec![0.0; ndof];
         // The forward half of the last recovery (dense dual from the
@@ -428,9 +440,12 @@ impl ContactProblem {
         let mut forward = Vec::new();
         let mut v = vec![0.0; c];
         let mut p = vec![0.0; m];
-        let mut err = f64::INFINITY;
+        let mut err;
         // rho of the nonlinear law's error (empty: the dual's own).
         let mut law_rho = Vec::new();
+        // The prediction's gradient serves the first run (one round: its b
+        // is the solve's where no law is nonlinear).
+        let mut first_w = start_w.filter(|_| nonlinear.is_empty());
         loop {
             if !nonlinear.is_empty() {
                 // A cold start's first round is rigid at the nonlinear
@@ -440,16 +455,26 @@ impl ContactProblem {
                 offset = self.take_tangent(&nonlinear, (&delta, cap), &b, &mut b_round);
                 target = round_tol;
             }
-            let problem = DualProblem {
-                dual: &self.dual,
-                b: &b_round,
-                law: friction,
-                monitor: Some(std::cell::RefCell::new(&mut relay)),
-                deadline,
-                predicted: extrapolated && rounds == 0,
-                near: rounds > 0,
-            };
-            for _ in 0..=REFINEMENTS {
+            // Where a run ended converged on a drifted gradient
+            // (`Outcome::unconfirmed`) and the error on the recovered u
+            // missed the tolerance, the run goes on from there with every
+            // convergence confirmed on an exact gradient (not a refinement:
+            // the target stays).
+            let mut confirm = false;
+            let mut refinements = 0;
+            loop {
+                let first = first_w.take();
+                let problem = DualProblem {
+                    dual: &self.dual,
+                    b: &b_round,
+                    law: friction,
+                    monitor: Some(std::cell::RefCell::new(&mut relay)),
+                    deadline,
+                    predicted: extrapolated && rounds == 0,
+                    near: rounds > 0,
+                    start_gradient: std::cell::Cell::new(first.as_deref()),
+                    measured_after: !confirm,
+                };
                 let local = Options {
                     max_outer: opts.max_outer.saturating_sub(outer),
                     ..*opts
@@ -496,9 +521,11 @@ impl ContactProblem {
                     err = f64::INFINITY;
                     break;
                 }
-                // Tighten the dual target only when the dual run met it but the error
-                // on the recovered u missed the tolerance (rounding in A).
-                if end != End::Converged || err <= round_tol || outer >= opts.max_outer {
+                // Tighten the dual target only when the dual run met it on an
+                // exact gradient but the error on the recovered u missed the
+                // tolerance (rounding in A).
+                let done = refinements == REFINEMENTS && !o.unconfirmed;
+                if end != End::Converged || err <= round_tol || outer >= opts.max_outer || done {
                     if end == End::Converged && err > round_tol {
                         end = End::Limit;
                     }
@@ -508,7 +535,12 @@ impl ContactProblem {
                     end = End::TimeLimit;
                     break;
                 }
-                target *= 0.1;
+                if o.unconfirmed {
+                    confirm = true;
+                } else {
+                    refinements += 1;
+                    target *= 0.1;
+                }
             }
             if nonlinear.is_empty() || end == End::Infeasible {
                 // (An infeasible round's v is its tangent's: the dual's rho.)
