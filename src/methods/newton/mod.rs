@@ -144,6 +144,12 @@ const ROUGH_DRIFT: f64 = 1e-6;
 /// 3d-32x32x4 slab's proportional histories (two runs each): 10 and 100
 /// gave the same warm steps, 1000 up to 10 % slower ones, and no
 /// recomputation before the driver's confirmation 15-30 % slower ones.
+/// Not where the drift is below ENOUGH of the target (in |F|'s units, err's
+/// scale taken as |lambda|, as in [`forcing`]): it then moves err by at most
+/// a tenth of the target, and the last step of a solve, whose |F| is far
+/// below the drift of its own products' 1 %, need not be followed by a
+/// recomputation (on the 3d-32x32x4 slab's proportional Coulomb history,
+/// one of the three exact products of each warm step).
 const RESYNC: f64 = 100.0;
 
 /// Sufficient decrease for keeping a Newton step: |F(lam + d)| <= (1 - ARMIJO) |F(lam)|.
@@ -492,7 +498,7 @@ impl OuterStep for Newton {
                 }
                 // w drifted too far to trust |F| against it (the next sort,
                 // the backtracking, the driver's err): recomputed.
-                if self.drift > 0.0 && self.res < RESYNC * self.rho_max * self.drift {
+                if needs_resync(self.res, self.rho_max * self.drift, self.target, norm(lam)) {
                     self.resync(problem, lam, w);
                 }
                 return Flow::Go(if self.drift > 0.0 {
@@ -620,6 +626,14 @@ fn better_length(res: f64, kept: Option<(f64, f64)>, tried: (f64, f64)) -> Optio
 
 /// The fraction of the target a step's error aims at (see [`forcing`]).
 const ENOUGH: f64 = 0.1;
+
+/// Whether w is recomputed after a step that left |F| = `res`, with w's
+/// estimated drift `drift` in |F|'s units (rho_max times its 2-norm), for
+/// the dual target `target` at |lambda| = `lam_norm` (see RESYNC): where
+/// the drift exceeds 1 / RESYNC of |F| and ENOUGH of the target.
+fn needs_resync(res: f64, drift: f64, target: f64, lam_norm: f64) -> bool {
+    drift > 0.0 && res < RESYNC * drift && drift > ENOUGH * target * lam_norm
+}
 
 /// A Newton step's outcome that the next step's forcing term reads.
 #[derive(Copy, Clone, Debug)]

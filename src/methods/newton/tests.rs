@@ -753,6 +753,26 @@ fn a_step_s_product_is_combined_from_its_reduced_solve() {
     }
 }
 
+/// w is recomputed after a step where its drift exceeds a hundredth of |F|
+/// and a tenth of the target (err's scale |lambda|), not otherwise: the
+/// last step of a solve, its |F| far below its own products' drift, is
+/// not followed by a recomputation.
+#[test]
+fn w_is_recomputed_where_its_drift_matters() {
+    let (target, lam) = (1e-10, 0.01);
+    // A middle step: |F| 1e-9, drift 1e-8 (both above the target's scale).
+    assert!(needs_resync(1e-9, 1e-8, target, lam));
+    // Drift below a hundredth of |F|.
+    assert!(!needs_resync(1e-9, 0.9e-11, target, lam));
+    // The last step: |F| 1e-13 under a drift of 5e-15, below a tenth of
+    // target |lambda| = 1e-12.
+    assert!(!needs_resync(1e-13, 5e-15, target, lam));
+    // The same drift at a target a hundred times tighter: recomputed.
+    assert!(needs_resync(1e-13, 5e-15, 1e-12, lam));
+    // Exact w (no drift): never.
+    assert!(!needs_resync(0.0, 0.0, target, 0.0));
+}
+
 /// Where the caller measures the error on the recovered u
 /// (`DualProblem::measured_after`), the driver ends converged on a drifted
 /// gradient without recomputing it, and says so; where it does not, it
