@@ -914,9 +914,10 @@ typedef struct DsProgress {
   /*
    The current err (docs/design.md section 5), measured on the dual gradient;
    dimensionless. After a matrix-free Newton step whose gradient was kept
-   by single-precision products it is within about 1 % of the exact one
-   (the gradient is recomputed before the solve ends, and the err the
-   report gives is an exact gradient's); so are the contact counts.
+   by single-precision products it is within about 1 % of the exact one,
+   or about a tenth of the tolerance where that is more (the err the
+   report gives is measured on the recovered u); so are the contact
+   counts.
    */
   double err;
   /*

@@ -65,11 +65,13 @@ pub(super) enum Gradient {
     /// it is recomputed before a convergence is accepted.
     Updated,
     /// w was kept by updates from single-precision products (Newton on a
-    /// matrix-free dual): off by up to about 1 % of |F|, so it is
-    /// recomputed before a convergence is accepted (or the convergence is
-    /// left to the caller's measurement on the recovered u, where it makes
-    /// one: `DualProblem::measured_after`), before the solve ends
-    /// otherwise, and before its err is kept as the best.
+    /// matrix-free dual): off by up to about 1 % of |F|, or where that is
+    /// more, about a tenth of the target in err's units (Newton's
+    /// `needs_resync`), so it is recomputed before a convergence is
+    /// accepted (or the convergence is left to the caller's measurement on
+    /// the recovered u, where it makes one: `DualProblem::measured_after`),
+    /// before the solve ends otherwise, and before its err is kept as the
+    /// best.
     Drifted,
 }
 

@@ -90,7 +90,8 @@ pub struct DualProblem<'a> {
     /// then end converged on a drifted gradient ([`driver::Gradient::Drifted`])
     /// without recomputing it, and says so ([`Outcome::unconfirmed`]); the
     /// caller runs again from there where the recovered error misses the
-    /// target. False: every convergence is confirmed on an exact gradient.
+    /// tolerance. False: every convergence is confirmed on an exact
+    /// gradient.
     pub measured_after: bool,
 }
 

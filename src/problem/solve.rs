@@ -523,9 +523,9 @@ impl ContactProblem {
                 }
                 // Tighten the dual target only when the dual run met it on an
                 // exact gradient but the error on the recovered u missed the
-                // tolerance (rounding in A).
-                let done = refinements == REFINEMENTS && !o.unconfirmed;
-                if end != End::Converged || err <= round_tol || outer >= opts.max_outer || done {
+                // tolerance (rounding in A), REFINEMENTS times at most (the
+                // end then stays as the last run left it).
+                if end != End::Converged || err <= round_tol || outer >= opts.max_outer {
                     if end == End::Converged && err > round_tol {
                         end = End::Limit;
                     }
@@ -537,9 +537,12 @@ impl ContactProblem {
                 }
                 if o.unconfirmed {
                     confirm = true;
-                } else {
-                    refinements += 1;
-                    target *= 0.1;
+                    continue;
+                }
+                target *= 0.1;
+                refinements += 1;
+                if refinements > REFINEMENTS {
+                    break;
                 }
             }
             if nonlinear.is_empty() || end == End::Infeasible {

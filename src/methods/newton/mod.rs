@@ -135,7 +135,8 @@ use step::*;
 /// from such products moves w by t A d to within about ROUGH_DRIFT t s, s
 /// the sum of the sizes combined (`Krylov::spread`). Where the estimate
 /// falls short, the recomputation comes late; a convergence is still
-/// accepted only on an exact w.
+/// accepted only on an exact w, or on the error the increment solve
+/// measures on the recovered u (`DualProblem::measured_after`).
 const ROUGH_DRIFT: f64 = 1e-6;
 
 /// w is recomputed (one exact product) after a Newton step where the
@@ -145,11 +146,13 @@ const ROUGH_DRIFT: f64 = 1e-6;
 /// gave the same warm steps, 1000 up to 10 % slower ones, and no
 /// recomputation before the driver's confirmation 15-30 % slower ones.
 /// Not where the drift is below ENOUGH of the target (in |F|'s units, err's
-/// scale taken as |lambda|, as in [`forcing`]): it then moves err by at most
-/// a tenth of the target, and the last step of a solve, whose |F| is far
-/// below the drift of its own products' 1 %, need not be followed by a
-/// recomputation (on the 3d-32x32x4 slab's proportional Coulomb history,
-/// one of the three exact products of each warm step).
+/// scale taken as |lambda|, as in [`forcing`]): it then moves err by about
+/// a tenth of the target at most (times the dual's err factor, 1 but on
+/// kept contact blocks; the drift is an estimate), and the last step of a
+/// solve, whose |F| fell below RESYNC times the drift, need not be
+/// followed by a recomputation (on the 3d-32x32x4 slab's proportional
+/// histories, nine warm steps: 27 exact products fell to 19 for Tresca,
+/// 31 to 26 for Coulomb, whose first steps are narrowed).
 const RESYNC: f64 = 100.0;
 
 /// Sufficient decrease for keeping a Newton step: |F(lam + d)| <= (1 - ARMIJO) |F(lam)|.
@@ -453,8 +456,10 @@ impl OuterStep for Newton {
             // so the driver need not recompute it before it accepts a
             // convergence (one product per solve saved). A combination of
             // single-precision products drifts (see ROUGH_DRIFT), and w is
-            // then recomputed where the drift nears |F| and before a
-            // convergence is accepted. (A single-precision product in place
+            // then recomputed where the drift nears |F| and matters against
+            // the target (`needs_resync`), and before a convergence is
+            // accepted (by the driver, or by the increment solve's error
+            // on the recovered u). (A single-precision product in place
             // of the exact one, on the narrowed steps, saved nothing on the
             // host example's solves of three or four Newton steps, whose
             // products are narrowed: half a product a step against the

@@ -778,9 +778,10 @@ fn w_is_recomputed_where_its_drift_matters() {
 /// gradient without recomputing it, and says so; where it does not, it
 /// recomputes. On the lattice slab pressed and sheared, a cold solve and a
 /// warm one at 2 % more load, Tresca and Coulomb: the same iterates either
-/// way (the recomputation changes no step), some end unconfirmed, and every
-/// answer's err on a gradient computed afresh meets the target 1e-12 and
-/// is within 1 % of the drifted err reported. A start gradient handed over
+/// way (the recomputation changes no step here), some end unconfirmed, and
+/// every answer's err on a gradient computed afresh meets the target 1e-12
+/// and is within a tenth of the target of the drifted err reported (the
+/// drift Newton leaves unrecomputed). A start gradient handed over
 /// (`start_gradient`) is taken once and gives the same run.
 #[test]
 fn a_drifted_convergence_is_left_to_a_caller_that_measures() {
@@ -828,9 +829,12 @@ fn a_drifted_convergence_is_left_to_a_caller_that_measures() {
             let err = problem.error(&l_measured, &w, &mut pb, &mut v);
             assert!(err <= target, "{err:.2e}");
             if out.unconfirmed {
+                // Within the drift Newton leaves unrecomputed: about a
+                // tenth of the target (`needs_resync`; measured within
+                // 1 % of err here).
                 unconfirmed += 1;
                 assert!(
-                    (out.dual_err - err).abs() <= 1e-2 * err,
+                    (out.dual_err - err).abs() <= ENOUGH * target,
                     "{:.3e} reported, {err:.3e}",
                     out.dual_err
                 );
