@@ -782,7 +782,9 @@ fn w_is_recomputed_where_its_drift_matters() {
 /// every answer's err on a gradient computed afresh meets the target 1e-12
 /// and is within a tenth of the target of the drifted err reported (the
 /// drift Newton leaves unrecomputed). A start gradient handed over
-/// (`start_gradient`) is taken once and gives the same run.
+/// (`start_gradient`) is taken once and gives the same run. A run cut
+/// short by the iteration limit reports the err of a fresh gradient at the
+/// iterate it returns, measured caller or not.
 #[test]
 fn a_drifted_convergence_is_left_to_a_caller_that_measures() {
     use crate::dual::{Condensation, Dual};
@@ -844,6 +846,34 @@ fn a_drifted_convergence_is_left_to_a_caller_that_measures() {
         }
     }
     assert!(unconfirmed > 0, "no run ended on a drifted gradient");
+    // A run that ends otherwise (here the iteration limit, after two
+    // steps) recomputes a drifted gradient whatever the caller measures:
+    // the err it reports is that of the iterate it returns, on a fresh
+    // gradient.
+    for law in [Friction::Tresca(&p), Friction::Coulomb(&mu)] {
+        let mut lam = vec![0.0; free.c];
+        let mut measured = plain(&free, &b1, law);
+        measured.measured_after = true;
+        let mut newton = Newton::new(&measured, target);
+        let short = Options {
+            max_outer: 2,
+            ..opts
+        };
+        let out = super::super::driver::drive(&measured, &mut lam, &short, target, &mut newton);
+        assert_eq!(out.end, super::super::End::Limit, "{out:?}");
+        assert!(!out.unconfirmed);
+        let problem = plain(&free, &b1, law);
+        let mut w = vec![0.0; free.c];
+        problem.gradient(&lam, &mut w);
+        let (mut pb, mut v) = (vec![0.0; m], vec![0.0; free.c]);
+        let err = problem.error(&lam, &w, &mut pb, &mut v);
+        assert!(err > target);
+        assert!(
+            (out.dual_err - err).abs() <= 1e-10 * err,
+            "{:.3e} reported, {err:.3e}",
+            out.dual_err
+        );
+    }
 }
 
 /// Matrix-free Newton on the thin lattice slab (anchored firmly), pressed
