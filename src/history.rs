@@ -62,6 +62,13 @@ pub(crate) struct History {
     /// lambda_k-1 and l_k - l_k-1, when the two last steps both converged on
     /// the same K, N and T.
     prev: Option<(Vec<f64>, Vec<f64>)>,
+    /// A lambda_k and A lambda_k-1 (c each), where the steps that ended
+    /// with them measured them (`advance`: b - v of the recovered u, as
+    /// exact as a gradient computed afresh) on the same K, N and T: the
+    /// next step's gradient at its start then needs no product where the
+    /// prediction's projection moved nothing ([`History::start_product`]).
+    alam: Option<Vec<f64>>,
+    alam_prev: Option<Vec<f64>>,
     /// The tangential force the next step's return mapping starts from
     /// (interface compliance, `compliance.rs`): lambda_T of the last converged
     /// step ((d - 1) m), scaled where k_T changed since (`Compliance::carry`);
@@ -89,6 +96,8 @@ impl History {
             lam: vec![0.0; c],
             load: None,
             prev: None,
+            alam: None,
+            alam_prev: None,
             lt: Vec::new(),
             ku: vec![0.0; n],
             lu: Some(Vec::new()),
@@ -110,6 +119,8 @@ impl History {
     pub fn forget_loads(&mut self) {
         self.load = None;
         self.prev = None;
+        self.alam = None;
+        self.alam_prev = None;
     }
 
     /// New contacts with c unknowns: lambda is kept when c is unchanged
@@ -154,10 +165,50 @@ impl History {
         s
     }
 
+    /// A x for the line's point before its projection, x = lambda_k + s
+    /// (lambda_k - lambda_k-1) (s as [`History::start`] returned it; 0: x =
+    /// lambda_k), from the products the last steps measured; None where
+    /// they are not known.
+    pub fn start_product(&self, s: f64) -> Option<Vec<f64>> {
+        let alam = self.alam.as_ref()?;
+        if s == 0.0 {
+            return Some(alam.clone());
+        }
+        let prev = self.alam_prev.as_ref()?;
+        Some(
+            alam.iter()
+                .zip(prev)
+                .map(|(a, p)| a + s * (a - p))
+                .collect(),
+        )
+    }
+
+    /// x = lambda_k + s (lambda_k - lambda_k-1), the line's point before its
+    /// projection (lambda_k where no line is known).
+    pub fn line_point(&self, s: f64) -> Vec<f64> {
+        match (&self.prev, s > 0.0) {
+            (Some((prev, _)), true) => self
+                .lam
+                .iter()
+                .zip(prev)
+                .map(|(l, p)| l + s * (l - p))
+                .collect(),
+            _ => self.lam.clone(),
+        }
+    }
+
     /// Records a converged step: its total displacement `u`, multipliers `lam`
-    /// and load `load`, and the forward half `forward` its displacement was
-    /// back-substituted from (None: another route; see the field `lu`).
-    pub fn advance(&mut self, u: &[f64], lam: &[f64], load: Vec<f64>, forward: Option<Vec<f64>>) {
+    /// and load `load`, the forward half `forward` its displacement was
+    /// back-substituted from (None: another route; see the field `lu`), and
+    /// A lam where it was measured (`alam`; None: not known).
+    pub fn advance(
+        &mut self,
+        u: &[f64],
+        lam: &[f64],
+        load: Vec<f64>,
+        forward: Option<Vec<f64>>,
+        alam: Option<Vec<f64>>,
+    ) {
         self.lu = match (self.lu.take(), forward) {
             (Some(lu), Some(y)) if lu.is_empty() => Some(y),
             (Some(mut lu), Some(y)) => {
@@ -171,6 +222,14 @@ impl History {
             let dl = load.iter().zip(&last).map(|(x, y)| x - y).collect();
             (std::mem::replace(&mut self.lam, lam.to_vec()), dl)
         });
+        // A lambda_k-1 pairs with lambda_k-1 only where a line is kept.
+        self.alam_prev = match self.prev {
+            Some(_) => std::mem::replace(&mut self.alam, alam),
+            None => {
+                self.alam = alam;
+                None
+            }
+        };
         self.lam.copy_from_slice(lam);
         self.load = Some(load);
     }
@@ -301,11 +360,11 @@ mod tests {
         // Nothing to predict from before two steps: the plain warm start.
         let l1 = vec![1.0, 0.0, 0.5, 0.0];
         assert_eq!(h.start(&l1, law, 2, &mut lam), 0.0);
-        h.advance(&[0.0; 3], &[1.0, 0.0, 0.2, 0.0], l1.clone(), None);
+        h.advance(&[0.0; 3], &[1.0, 0.0, 0.2, 0.0], l1.clone(), None, None);
         let l2 = vec![2.0, 0.0, 1.0, 0.0];
         assert_eq!(h.start(&l2, law, 2, &mut lam), 0.0);
         assert_eq!(lam, [1.0, 0.0, 0.2, 0.0]);
-        h.advance(&[0.0; 3], &[2.0, 0.0, 0.4, 0.0], l2.clone(), None);
+        h.advance(&[0.0; 3], &[2.0, 0.0, 0.4, 0.0], l2.clone(), None, None);
         // A third equal increment: s = 1, the line continued.
         let l3 = vec![3.0, 0.0, 1.5, 0.0];
         assert_eq!(h.start(&l3, law, 2, &mut lam), 1.0);
@@ -314,6 +373,73 @@ mod tests {
         let l3h = vec![2.5, 0.0, 1.25, 0.0];
         assert_eq!(h.start(&l3h, law, 2, &mut lam), 0.5);
         assert_close(&lam, &[2.5, 0.0, 0.5, 0.0]);
+    }
+
+    /// A x at the line's point x = lambda_k + s (lambda_k - lambda_k-1),
+    /// from the A lambda the steps measured, equals A times that point (a
+    /// 4 x 4 A); it is lambda_k's own at s = 0, unknown where a step did not
+    /// measure it, and forgotten with the loads.
+    #[test]
+    fn the_start_product_is_a_times_the_line_point() {
+        let a = [
+            [4.0, 1.0, 0.5, 0.0],
+            [1.0, 3.0, 0.0, 0.25],
+            [0.5, 0.0, 2.0, 1.0],
+            [0.0, 0.25, 1.0, 5.0],
+        ];
+        let times = |x: &[f64]| -> Vec<f64> {
+            a.iter()
+                .map(|row| row.iter().zip(x).map(|(r, v)| r * v).sum())
+                .collect()
+        };
+        // Products agree to a few roundings of their largest entry (13.3).
+        let assert_near = |got: &[f64], want: &[f64]| {
+            let d = got
+                .iter()
+                .zip(want)
+                .fold(0.0f64, |m, (x, y)| m.max((x - y).abs()));
+            assert!(d <= 1e-14, "{got:?} against {want:?}");
+        };
+        let p = [1.0, 1.0];
+        let law = Friction::Tresca(&p);
+        let mut h = history();
+        let mut lam = vec![0.0; 4];
+        let (lam1, lam2) = ([1.0, 0.0, 0.2, 0.0], [2.0, 0.5, 0.4, -0.1]);
+        h.advance(
+            &[0.0; 3],
+            &lam1,
+            vec![1.0, 0.0, 0.5, 0.0],
+            None,
+            Some(times(&lam1)),
+        );
+        assert_near(&h.start_product(0.0).unwrap(), &times(&lam1));
+        assert!(h.start_product(1.0).is_none(), "no line yet");
+        h.advance(
+            &[0.0; 3],
+            &lam2,
+            vec![2.0, 0.0, 1.0, 0.0],
+            None,
+            Some(times(&lam2)),
+        );
+        let s = h.start(&[3.0, 0.0, 1.5, 0.0], law, 2, &mut lam);
+        assert_eq!(s, 1.0);
+        let x = h.line_point(s);
+        assert_close(&x, &[3.0, 1.0, 0.6, -0.2]);
+        assert_near(&h.start_product(s).unwrap(), &times(&x));
+        assert_close(&h.line_point(0.0), &lam2);
+        // A step that did not measure A lambda: nothing known after it.
+        h.advance(&[0.0; 3], &lam1, vec![3.0, 0.0, 1.5, 0.0], None, None);
+        assert!(h.start_product(0.0).is_none() && h.start_product(1.0).is_none());
+        h.advance(
+            &[0.0; 3],
+            &lam2,
+            vec![4.0, 0.0, 2.0, 0.0],
+            None,
+            Some(times(&lam2)),
+        );
+        assert!(h.start_product(0.0).is_some() && h.start_product(1.0).is_none());
+        h.forget_loads();
+        assert!(h.start_product(0.0).is_none());
     }
 
     #[test]
@@ -328,11 +454,13 @@ mod tests {
             &[1.0, 0.0, 0.2, 0.0],
             vec![1.0, 0.0, 0.0, 0.0],
             None,
+            None,
         );
         h.advance(
             &[0.0; 3],
             &[2.0, 0.0, 0.4, 0.0],
             vec![2.0, 0.0, 0.0, 0.0],
+            None,
             None,
         );
         // Then shear with a rounding error's worth of press: s = 1e-15 > 0,
@@ -363,11 +491,13 @@ mod tests {
             &[1.0, 1.0, 0.1, -0.3],
             vec![0.0, 0.0, 1.0, 0.0],
             None,
+            None,
         );
         h.advance(
             &[0.0; 3],
             &[0.5, 2.0, 0.3, -0.45],
             vec![0.0, 0.0, 2.0, 0.0],
+            None,
             None,
         );
         // s = 1: lambda_N,0 = 0 (cut from -0.5), lambda_T,1 = -0.6 cut to -0.5.
@@ -400,11 +530,13 @@ mod tests {
             &[1.0, 0.0, 0.0, 0.0],
             vec![1.0, 0.0, 0.0, 0.0],
             None,
+            None,
         );
         h.advance(
             &[2.0; 3],
             &[2.0, 0.0, 0.0, 0.0],
             vec![2.0, 0.0, 0.0, 0.0],
+            None,
             None,
         );
         h.new_contacts(4);
@@ -425,21 +557,24 @@ mod tests {
             &[0.0; 4],
             vec![0.0; 4],
             Some(vec![1.0, 2.0, 3.0]),
+            None,
         );
         h.advance(
             &[0.0; 3],
             &[0.0; 4],
             vec![0.0; 4],
             Some(vec![0.5, 0.0, -1.0]),
+            None,
         );
         assert_eq!(h.lu.as_deref(), Some(&[1.5, 2.0, 2.0][..]));
-        h.advance(&[0.0; 3], &[0.0; 4], vec![0.0; 4], None);
+        h.advance(&[0.0; 3], &[0.0; 4], vec![0.0; 4], None, None);
         assert_eq!(h.lu, None, "a step on another route");
         h.advance(
             &[0.0; 3],
             &[0.0; 4],
             vec![0.0; 4],
             Some(vec![1.0, 1.0, 1.0]),
+            None,
         );
         assert_eq!(h.lu, None, "unknown until the history is reset");
         h.reset();

@@ -1075,13 +1075,14 @@ impl ContactProblem {
             mut sol,
             load,
             forward,
+            alam,
         } = solved?;
         for (ui, uh) in sol.u.iter_mut().zip(&self.history.u) {
             *ui += uh;
         }
         if sol.report.status == SolveStatus::Converged {
             let load = load.expect("a step's load");
-            self.history.advance(&sol.u, &lam, load, forward);
+            self.history.advance(&sol.u, &lam, load, forward, alam);
             self.history.lt = lam[m..].to_vec();
             if self.stiff.k().is_none() {
                 // K u_k+1 = f_total - B^T lambda_k+1 (the step's equilibrium).

@@ -49,6 +49,10 @@ pub(super) struct Solved {
     pub sol: Solution,
     pub load: Option<Vec<f64>>,
     pub forward: Option<Vec<f64>>,
+    /// A lambda at the answer, b - v of the recovered u (the history's
+    /// `alam`), where the solve converged with neither a compliance nor a
+    /// nonlinear law (its b is then the dual's).
+    pub alam: Option<Vec<f64>>,
 }
 
 impl ContactProblem {
@@ -330,7 +334,27 @@ impl ContactProblem {
                 let mut bu = vec![0.0; c];
                 self.dual.rows.mul_vec(&h.u, &mut bu);
                 let load = History::load_of(&b, &bu, m);
-                extrapolated = h.start(&load, friction, self.d, lam) > 0.0;
+                let s = h.start(&load, friction, self.d, lam);
+                extrapolated = s > 0.0;
+                // The gradient at the start from the last steps' A lambda
+                // (no compliance: b is the solve's): A x on the line, plus
+                // one product of what the projection moved, if anything.
+                if self.dual.shift().is_empty()
+                    && let Some(mut ax) = h.start_product(s)
+                {
+                    let delta: Vec<f64> = lam
+                        .iter()
+                        .zip(h.line_point(s))
+                        .map(|(l, x)| l - x)
+                        .collect();
+                    if delta.iter().any(|&d| d != 0.0) {
+                        let mut ad = vec![0.0; c];
+                        self.dual.apply(&delta, &mut ad);
+                        ax.iter_mut().zip(&ad).for_each(|(a, d)| *a += d);
+                    }
+                    ax.iter_mut().zip(&b).for_each(|(a, bj)| *a -= bj);
+                    start_w = Some(ax);
+                }
                 Some(load)
             }
             // Not with an interface compliance: A + D would mix D lambda_n
@@ -650,10 +674,14 @@ impl ContactProblem {
                 host_seconds: host_counts.seconds - counts.seconds,
             },
         };
+        // A lambda = b - v (v = -w on the recovered u), where b is the dual's.
+        let alam = (end == End::Converged && nonlinear.is_empty() && self.dual.shift().is_empty())
+            .then(|| b.iter().zip(&v).map(|(bj, vj)| bj - vj).collect());
         Ok(Solved {
             sol,
             load,
             forward: (!forward.is_empty()).then_some(forward),
+            alam,
         })
     }
 }
