@@ -32,6 +32,12 @@
 //! the contact state changes the prediction is still nearer than lam_k on the
 //! contacts that keep theirs; Newton sorts such a start by the natural map at
 //! it (a plain warm start by its multipliers).
+//!
+//! The gradient at the start. A converged step without a compliance keeps
+//! A lambda_k (b - v on its recovered u): A x at the line's point x is the
+//! same combination of the last two, and only what the projection moved
+//! takes a product (solve.rs), none on a plain warm start. Forgotten with
+//! the loads.
 
 use crate::friction::{Friction, project_disk};
 
@@ -62,12 +68,14 @@ pub(crate) struct History {
     /// lambda_k-1 and l_k - l_k-1, when the two last steps both converged on
     /// the same K, N and T.
     prev: Option<(Vec<f64>, Vec<f64>)>,
-    /// A lambda_k and A lambda_k-1 (c each), where the steps that ended
-    /// with them measured them (`advance`: b - v of the recovered u, as
-    /// exact as a gradient computed afresh) on the same K, N and T: the
-    /// next step's gradient at its start then needs no product where the
+    /// A lambda_k (c), where the step that ended with it measured it
+    /// (`advance`: b - v of the recovered u, exact to the rounding b
+    /// carries: a solve's, or `load_span`'s bound where b was combined from
+    /// kept loads) without a compliance, on the same K, N and T: the next
+    /// step's gradient at its start then needs no product where the
     /// prediction's projection moved nothing ([`History::start_product`]).
     alam: Option<Vec<f64>>,
+    /// A lambda_k-1 (c), as `alam`, paired with `prev`'s lambda_k-1.
     alam_prev: Option<Vec<f64>>,
     /// The tangential force the next step's return mapping starts from
     /// (interface compliance, `compliance.rs`): lambda_T of the last converged
@@ -114,8 +122,9 @@ impl History {
         self.forget_loads();
     }
 
-    /// Forgets the loads (K, N or T changed: the last loads are not those of
-    /// the new operator); u_k and lambda_k stay as the warm start.
+    /// Forgets the loads and the kept A lambda (K, N, T or the compliance
+    /// changed: the last loads are not those of the new operator); u_k and
+    /// lambda_k stay as the warm start.
     pub fn forget_loads(&mut self) {
         self.load = None;
         self.prev = None;

@@ -79,8 +79,8 @@ pub struct DualProblem<'a> {
     /// 8): Newton takes no warm-up sweeps and sorts the contacts by the
     /// natural map at the start, as for a prediction.
     pub near: bool,
-    /// w = A lam - b at the starting multipliers, computed exactly by the
-    /// caller (length c): the driver takes it for its first gradient
+    /// w = A lam - b at the starting multipliers, computed by the caller as
+    /// exactly as the driver would (to the rounding b carries; length c): the driver takes it for its first gradient
     /// instead of a product with A. Taken by the first run on this problem
     /// (under `Auto`, the methods after the first start from another
     /// iterate and compute it).

@@ -49,9 +49,9 @@ pub(super) struct Solved {
     pub sol: Solution,
     pub load: Option<Vec<f64>>,
     pub forward: Option<Vec<f64>>,
-    /// A lambda at the answer, b - v of the recovered u (the history's
-    /// `alam`), where the solve converged with neither a compliance nor a
-    /// nonlinear law (its b is then the dual's).
+    /// For a history step, A lambda at the answer, b - v of the recovered u
+    /// (`History::advance`'s `alam`), where the solve converged with neither
+    /// a compliance nor a nonlinear law (its b is then the dual's).
     pub alam: Option<Vec<f64>>,
 }
 
@@ -326,7 +326,8 @@ impl ContactProblem {
         }
         let mut extrapolated = false;
         // w = A lambda - b at the start, where a host increment's prediction
-        // computed it (the driver then takes no product for it).
+        // computed it or a history step's combines it from the A lambda the
+        // last steps kept (the driver then takes no product for it).
         let mut start_w: Option<Vec<f64>> = None;
         let load = match warm {
             Warm::Given => None,
@@ -338,14 +339,23 @@ impl ContactProblem {
                 extrapolated = s > 0.0;
                 // The gradient at the start from the last steps' A lambda
                 // (no compliance: b is the solve's): A x on the line, plus
-                // one product of what the projection moved, if anything.
+                // one product of what the projection moved, if anything
+                // beyond rounding (a saturated slip force rescaled by an
+                // ulp moves w less than a product's own rounding).
                 if self.dual.shift().is_empty()
                     && let Some(mut ax) = h.start_product(s)
                 {
                     let delta: Vec<f64> = lam
                         .iter()
                         .zip(h.line_point(s))
-                        .map(|(l, x)| l - x)
+                        .map(|(&l, x)| {
+                            let d = l - x;
+                            if d.abs() <= 8.0 * f64::EPSILON * l.abs().max(x.abs()) {
+                                0.0
+                            } else {
+                                d
+                            }
+                        })
                         .collect();
                     if delta.iter().any(|&d| d != 0.0) {
                         let mut ad = vec![0.0; c];
@@ -674,9 +684,13 @@ impl ContactProblem {
                 host_seconds: host_counts.seconds - counts.seconds,
             },
         };
-        // A lambda = b - v (v = -w on the recovered u), where b is the dual's.
-        let alam = (end == End::Converged && nonlinear.is_empty() && self.dual.shift().is_empty())
-            .then(|| b.iter().zip(&v).map(|(bj, vj)| bj - vj).collect());
+        // A lambda = b - v (v = -w on the recovered u), where b is the dual's,
+        // for a history step that converged (however its last run ended).
+        let alam = (history.is_some()
+            && sol.report.status == SolveStatus::Converged
+            && nonlinear.is_empty()
+            && self.dual.shift().is_empty())
+        .then(|| b.iter().zip(&v).map(|(bj, vj)| bj - vj).collect());
         Ok(Solved {
             sol,
             load,
