@@ -80,10 +80,10 @@ pub struct DualProblem<'a> {
     /// natural map at the start, as for a prediction.
     pub near: bool,
     /// w = A lam - b at the starting multipliers, computed by the caller as
-    /// exactly as the driver would (to the rounding b carries; length c): the driver takes it for its first gradient
-    /// instead of a product with A. Taken by the first run on this problem
-    /// (under `Auto`, the methods after the first start from another
-    /// iterate and compute it).
+    /// exactly as the driver would (to the rounding b carries; length c):
+    /// the driver takes it for its first gradient instead of a product with
+    /// A. Taken by the first run on this problem (under `Auto`, the methods
+    /// after the first start from another iterate and compute it).
     pub start_gradient: Cell<Option<&'a [f64]>>,
     /// The caller measures the error again on the u it recovers from the
     /// answer (one solve with K, as a product with A costs): the driver may
