@@ -95,7 +95,23 @@ pub struct DualProblem<'a> {
     pub measured_after: bool,
 }
 
-impl DualProblem<'_> {
+impl<'a> DualProblem<'a> {
+    /// The dual problem on `dual` with load `b` and friction `law`: no
+    /// monitor, no deadline, a start that is neither predicted nor near, no
+    /// gradient handed over, every convergence confirmed on an exact one.
+    pub fn new(dual: &'a Dual, b: &'a [f64], law: Friction<'a>) -> Self {
+        DualProblem {
+            dual,
+            b,
+            law,
+            monitor: None,
+            deadline: None,
+            predicted: false,
+            near: false,
+            start_gradient: Cell::new(None),
+            measured_after: false,
+        }
+    }
     /// w := A lam - b (the negative of v = [N u - g; T u]).
     pub fn gradient(&self, lam: &[f64], w: &mut [f64]) {
         self.dual.apply(lam, w);

@@ -371,17 +371,7 @@ impl ContactProblem {
             // into q, and the solve's b is shifted below.
             Warm::Increment(_) if !self.dual.shift().is_empty() => None,
             Warm::Increment(incs) => {
-                let at = DualProblem {
-                    dual: &self.dual,
-                    b: &b,
-                    law: friction,
-                    monitor: None,
-                    deadline: None,
-                    predicted: false,
-                    near: false,
-                    start_gradient: std::cell::Cell::new(None),
-                    measured_after: false,
-                };
+                let at = DualProblem::new(&self.dual, &b, friction);
                 // w = A lambda_n - b and q = b + [g; 0] - A lambda_n = [g; 0]
                 // - w (`history::Increments`).
                 let mut w = vec![0.0; c];

@@ -498,20 +498,19 @@ fn drive_newton(
     (out, newton)
 }
 
-/// The dual problem on `dual` with load `b` and friction `law`: no monitor,
-/// no deadline, a start that is neither predicted nor near.
+/// The dual problem on `dual` with load `b` and friction `law`
+/// ([`DualProblem::new`]).
 fn plain<'a>(dual: &'a crate::dual::Dual, b: &'a [f64], law: Friction<'a>) -> DualProblem<'a> {
-    DualProblem {
-        dual,
-        b,
-        law,
-        monitor: None,
-        deadline: None,
-        predicted: false,
-        near: false,
-        start_gradient: std::cell::Cell::new(None),
-        measured_after: false,
-    }
+    DualProblem::new(dual, b, law)
+}
+
+/// err at `lam` on a gradient computed afresh.
+fn fresh_err(problem: &DualProblem<'_>, lam: &[f64]) -> f64 {
+    let dual = problem.dual;
+    let mut w = vec![0.0; dual.c];
+    problem.gradient(lam, &mut w);
+    let (mut p, mut v) = (vec![0.0; dual.m], vec![0.0; dual.c]);
+    problem.error(lam, &w, &mut p, &mut v)
 }
 
 /// One Newton step at lam (w = A lam - b) with the Krylov state set by
@@ -737,11 +736,7 @@ fn a_step_s_product_is_combined_from_its_reduced_solve() {
             // closes the whole face).
             assert!(out.outer > 0);
             assert_eq!(newton.krylov.combined, out.outer, "{out:?}");
-            let problem = plain(&free, b, law);
-            let mut w = vec![0.0; free.c];
-            problem.gradient(&l_free, &mut w);
-            let (mut pb, mut v) = (vec![0.0; m], vec![0.0; free.c]);
-            let err = problem.error(&l_free, &w, &mut pb, &mut v);
+            let err = fresh_err(&plain(&free, b, law), &l_free);
             assert!(err <= 1e-12, "{err:.2e}");
             // The err reported is that of an exact gradient too.
             assert!(
@@ -825,10 +820,7 @@ fn a_drifted_convergence_is_left_to_a_caller_that_measures() {
             assert_eq!(out.outer, ref_out.outer, "{out:?} {ref_out:?}");
             assert_eq!(out.inner, ref_out.inner, "{out:?} {ref_out:?}");
             assert_eq!(max_diff(&l_measured, &l_plain), 0.0);
-            let mut w = vec![0.0; free.c];
-            problem.gradient(&l_measured, &mut w);
-            let (mut pb, mut v) = (vec![0.0; m], vec![0.0; free.c]);
-            let err = problem.error(&l_measured, &w, &mut pb, &mut v);
+            let err = fresh_err(&problem, &l_measured);
             assert!(err <= target, "{err:.2e}");
             if out.unconfirmed {
                 // Within the drift Newton leaves unrecomputed: about a
@@ -862,11 +854,7 @@ fn a_drifted_convergence_is_left_to_a_caller_that_measures() {
         let out = super::super::driver::drive(&measured, &mut lam, &short, target, &mut newton);
         assert_eq!(out.end, super::super::End::Limit, "{out:?}");
         assert!(!out.unconfirmed);
-        let problem = plain(&free, &b1, law);
-        let mut w = vec![0.0; free.c];
-        problem.gradient(&lam, &mut w);
-        let (mut pb, mut v) = (vec![0.0; m], vec![0.0; free.c]);
-        let err = problem.error(&lam, &w, &mut pb, &mut v);
+        let err = fresh_err(&plain(&free, &b1, law), &lam);
         assert!(err > target);
         assert!(
             (out.dual_err - err).abs() <= 1e-10 * err,
