@@ -73,13 +73,7 @@ pub(crate) fn drift(
     give_up: f64,
 ) -> Drift {
     let n = k.nrows;
-    let delta: Vec<f64> = k
-        .values
-        .iter()
-        .zip(ref_values)
-        .map(|(a, b)| a - b)
-        .collect();
-    if delta.iter().all(|&x| x == 0.0) {
+    if k.values.iter().zip(ref_values).all(|(a, b)| a == b) {
         return Drift {
             mu_min: 0.0,
             mu_max: 0.0,
@@ -97,7 +91,8 @@ pub(crate) fn drift(
         })
         .collect();
     let mut kq = vec![0.0; n];
-    k.mul_vec(&q, &mut kq);
+    // K is stored whole and symmetric: K^T q, the gathering product, is K q.
+    k.mul_t_vec(&q, &mut kq);
     let norm = dot(&q, &kq).sqrt();
     if norm.is_nan() || norm <= 0.0 {
         return unbounded(0);
@@ -117,7 +112,7 @@ pub(crate) fn drift(
         solves: 0,
     };
     for step in 0..MAX_STEPS {
-        mul_with(k, &delta, &q, &mut p);
+        mul_change(k, ref_values, &q, &mut p);
         alpha.push(dot(&q, &p));
         // K times the solve's result is (K - K_ref) q, up to the solve's
         // rounding: kept instead of a product with K.
@@ -192,11 +187,11 @@ pub(crate) fn drift(
     last
 }
 
-/// Bytes [`drift`] works in for K of order `n` whose copy takes `k_bytes`
-/// (the differences of the values, at most that; the basis and K times it,
-/// and three more n-vectors).
-pub(crate) fn work_bytes(n: usize, k_bytes: usize) -> usize {
-    k_bytes + (2 * (MAX_STEPS + 1) + 4) * n * std::mem::size_of::<f64>()
+/// Bytes [`drift`] works in for K of order `n`: the basis and K times it,
+/// and four more n-vectors (the change of K is applied from the two sets
+/// of values, not stored).
+pub(crate) fn work_bytes(n: usize) -> usize {
+    (2 * (MAX_STEPS + 1) + 4) * n * std::mem::size_of::<f64>()
 }
 
 /// A drift nothing can be said of (a non-finite value on the way).
@@ -208,13 +203,19 @@ fn unbounded(solves: usize) -> Drift {
     }
 }
 
-/// y := D x, D the matrix of `k`'s pattern with the values `values`.
-fn mul_with(k: &Csc, values: &[f64], x: &[f64], y: &mut [f64]) {
-    y.iter_mut().for_each(|v| *v = 0.0);
-    for (j, cols) in k.col_ptr.windows(2).enumerate() {
-        for p in cols[0]..cols[1] {
-            y[k.row_idx[p]] += values[p] * x[j];
-        }
+/// y := (K - K_ref)^T x, K = `k` and K_ref the matrix of its pattern with
+/// the values `ref_values`: (K - K_ref) x, both being stored whole and
+/// symmetric. Column by column, each entry of y one sum (a gather: no
+/// scattered updates of y, and no copy of the differences).
+fn mul_change(k: &Csc, ref_values: &[f64], x: &[f64], y: &mut [f64]) {
+    for (cols, yj) in k.col_ptr.windows(2).zip(y.iter_mut()) {
+        let range = cols[0]..cols[1];
+        *yj = k.row_idx[range.clone()]
+            .iter()
+            .zip(&k.values[range.clone()])
+            .zip(&ref_values[range])
+            .map(|((&r, &a), &b)| (a - b) * x[r])
+            .sum();
     }
 }
 

@@ -426,10 +426,12 @@ impl Factor {
     /// The smallest relative pivot L_jj^2 / K_jj of a numeric factor `values` (j in
     /// the factor's ordering), or None for n = 0.
     fn smallest_pivot(&self, values: &[f64], k: &Csc) -> Option<(usize, f64)> {
+        // Rows are sorted within a column (`Csc`): the diagonal by bisection.
         let diag_k = |old: usize| {
-            (k.col_ptr[old]..k.col_ptr[old + 1])
-                .find(|&p| k.row_idx[p] == old)
-                .map_or(0.0, |p| k.values[p])
+            let (lo, hi) = (k.col_ptr[old], k.col_ptr[old + 1]);
+            k.row_idx[lo..hi]
+                .binary_search(&old)
+                .map_or(0.0, |at| k.values[lo + at])
         };
         let ratio = |l_jj: f64, k_jj: f64| if k_jj > 0.0 { l_jj * l_jj / k_jj } else { 0.0 };
         if self.is_dense() {
@@ -606,12 +608,8 @@ impl Factor {
 
     /// A zeroed vector for L's values, or `OutOfMemory`.
     fn values_vec(&self) -> Result<Vec<f64>> {
-        let mut values = Vec::new();
-        values
-            .try_reserve_exact(self.values_len())
-            .map_err(|_| crate::Error::new(ErrorKind::OutOfMemory, "K: Cholesky factor values"))?;
-        values.resize(self.values_len(), 0.0);
-        Ok(values)
+        zeroed(self.values_len())
+            .ok_or_else(|| crate::Error::new(ErrorKind::OutOfMemory, "K: Cholesky factor values"))
     }
 
     /// The numeric supernodal factorisation of `k`: (values, Err(message) when
@@ -1046,6 +1044,26 @@ impl Factor {
 fn workspace(req: StackReq) -> Result<MemBuffer> {
     MemBuffer::try_new(req)
         .map_err(|_| crate::Error::new(ErrorKind::OutOfMemory, "K: factorisation workspace"))
+}
+
+/// `len` zeros in a new vector, None where the allocator refuses them. The
+/// allocator's zeroed memory (fresh pages from the system for a large
+/// vector, zero already) spares a pass that writes every value: faer's
+/// numeric factorisation zeroes L's values itself before it factors.
+fn zeroed(len: usize) -> Option<Vec<f64>> {
+    if len == 0 {
+        return Some(Vec::new());
+    }
+    let layout = std::alloc::Layout::array::<f64>(len).ok()?;
+    // SAFETY: the layout has a nonzero size (len > 0, f64 is 8 bytes).
+    let ptr = unsafe { std::alloc::alloc_zeroed(layout) }.cast::<f64>();
+    if ptr.is_null() {
+        return None;
+    }
+    // SAFETY: ptr comes from the global allocator with the layout of `len`
+    // f64 (what a Vec of capacity len holds), and all-zero bits are 0.0 in
+    // every element: the Vec owns an initialised allocation of its own.
+    Some(unsafe { Vec::from_raw_parts(ptr, len, len) })
 }
 
 /// rhs := P^T L^-T L^-1 P rhs for a dense L (`values`, n x n column-major, lower

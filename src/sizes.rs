@@ -114,11 +114,11 @@ impl Sizes {
     /// factorisation's workspace and the dual's rebuild.
     /// A matrix-free dual may keep its contact blocks: the values of the K
     /// they were computed on are then held (at most `k_bytes`), and the
-    /// estimate of their drift works in K's pattern's values and a few
-    /// n-vectors (`drift::work_bytes`) before the dual is rebuilt.
+    /// estimate of their drift works in a few n-vectors
+    /// (`drift::work_bytes`) before the dual is rebuilt.
     pub fn refactor(&self, how: Condensation, k_bytes: usize) -> usize {
         let keep = if how == Condensation::MatrixFree {
-            k_bytes + crate::drift::work_bytes(self.n, k_bytes)
+            k_bytes + crate::drift::work_bytes(self.n)
         } else {
             0
         };
