@@ -207,6 +207,11 @@ impl Mprgp {
         }
     }
 
+    /// Stops the next solves at the residual `tol` (relative, as `new`'s).
+    pub fn set_tol(&mut self, tol: f64) {
+        self.tol = tol;
+    }
+
     /// Solves a quadratic with both nonnegative unknowns and disks (the whole dual).
     pub fn solve_convex(
         &mut self,

@@ -101,9 +101,20 @@ use std::sync::Arc;
 /// Gauss-Seidel sweeps taken when a Newton step is rejected.
 const FALLBACK_SWEEPS: usize = 5;
 
-/// MPRGP iterations taken instead when a Newton step on a matrix-free dual is
-/// rejected (each one product with A, as a Krylov iteration of a step).
+/// MPRGP iterations taken at most instead when a Newton step on a matrix-free
+/// dual is rejected (each one product with A, as a Krylov iteration of a step).
 const FALLBACK_MPRGP: usize = 20;
+
+/// The fallback's MPRGP stops once its residual (that of the Tresca problem
+/// of the current bound) has fallen to this fraction of the one it started
+/// from: Newton restarts from there. On the host example's 3D scenes, whose
+/// first shear iterations reject Newton steps, this took the products of
+/// 3d-32x32x4's 36 contact solves from 385 to 379 and 3d-52x52x4's from
+/// 588 to 550 (its worst solve from 94 to 76), with no more Newton steps
+/// (110 and 140 against 141). Fallbacks of 5 iterations instead saved more
+/// products there but took 161 Newton steps, and a fifth in place of half
+/// never stopped early (BENCHMARKS.md, "What is slow, and why").
+const FALLBACK_DROP: f64 = 0.5;
 
 /// Projected Gauss-Seidel sweeps before the first Newton step, in chunks of
 /// PRESWEEP_CHUNK with the error checked in between. From a cold start (every
@@ -581,8 +592,9 @@ impl Newton {
     }
 
     /// The fallback on a matrix-free dual (no Gauss-Seidel without entries of A):
-    /// FALLBACK_MPRGP iterations of MPRGP / MPGP (one product with A each) on the
-    /// Tresca problem of the current bound, from lam: a first-order descent step
+    /// MPRGP / MPGP (one product with A an iteration) on the Tresca problem of
+    /// the current bound, from lam, until its residual halves (FALLBACK_DROP)
+    /// or for FALLBACK_MPRGP iterations: a first-order descent step
     /// that, unlike a projection step, makes progress where A is ill-conditioned
     /// (the slender beam of tests/hard_scenes.rs); Newton restarts from there.
     fn mprgp_fallback(
@@ -604,6 +616,10 @@ impl Newton {
         if self.norm.is_none() {
             self.norm = dual.whole_norm();
         }
+        // w is exact here (a rejected rough step was solved again from a
+        // recomputed gradient), or within its drift of it, which was below
+        // 1 / RESYNC of |F|: near enough for a stopping tolerance.
+        solver.set_tol(FALLBACK_DROP * qp.residual(lam, w));
         let run = solver.solve_convex(&qp, lam, &mut self.norm);
         if let Some(norm) = self.norm {
             dual.keep_whole_norm(norm);
