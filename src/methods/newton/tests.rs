@@ -1334,3 +1334,52 @@ fn the_backtracking_keeps_the_best_length_that_decreases_enough() {
     );
     assert_eq!(pick(&[(1.0, f64::NAN), (0.5, f64::INFINITY)]), None);
 }
+
+/// The matrix-free fallback (MPRGP on the Tresca problem of the current
+/// bound) stops once the residual of that problem, measured afresh, has
+/// halved (FALLBACK_DROP), within FALLBACK_MPRGP iterations; from the zero
+/// multipliers of a slab pressed into a patch it gets there in fewer, and
+/// the multipliers stay feasible for the bound.
+#[test]
+fn the_fallback_stops_once_its_residual_halves() {
+    use crate::dual::{Condensation, Dual};
+    use crate::methods::mprgp::ConvexQp;
+    let (nx, ny, nz) = (16, 16, 3);
+    let m = nx * ny;
+    let (k, factor, nm, tm) = lattice_slab(nx, ny, nz);
+    let b = patch_load(nx, ny, 0.004, 0.005);
+    let mu = vec![0.3; m];
+    let mut dual = Dual::build_with(&factor, &nm, &tm, 3, Condensation::MatrixFree).unwrap();
+    dual.set_lumped(&k, None);
+    let problem = plain(&dual, &b, Friction::Coulomb(&mu));
+    // A start with some normal force, so that Coulomb's bound is not zero.
+    let mut lam = vec![0.0; dual.c];
+    lam[..m].iter_mut().for_each(|v| *v = 0.01);
+    let mut w = vec![0.0; dual.c];
+    problem.gradient(&lam, &mut w);
+    let mut radii = vec![0.0; m];
+    problem.law.bounds(&lam[..m], &mut radii);
+    let before = ConvexQp::whole(&problem, &radii).residual(&lam, &w);
+    let mut newton = Newton::new(&problem, 1e-12);
+    let mut inner = 0;
+    let flow = newton.mprgp_fallback(&problem, &mut lam, &mut w, &mut inner);
+    assert!(matches!(flow, Flow::Go(Gradient::Exact)));
+    // The same Tresca problem (the bound the fallback froze), on a
+    // gradient computed afresh.
+    let mut fresh = vec![0.0; dual.c];
+    problem.gradient(&lam, &mut fresh);
+    assert!(max_diff(&fresh, &w) <= 1e-12 * norm(&fresh), "w left exact");
+    let after = ConvexQp::whole(&problem, &radii).residual(&lam, &fresh);
+    println!("fallback: {inner} iterations, residual {before:.3e} -> {after:.3e}");
+    assert!(before > 0.0);
+    assert!(
+        after <= FALLBACK_DROP * before * (1.0 + 1e-9),
+        "{before:.3e} -> {after:.3e}"
+    );
+    assert!((1..FALLBACK_MPRGP).contains(&inner), "{inner} iterations");
+    for i in 0..m {
+        assert!(lam[i] >= 0.0);
+        let t = lam[m + 2 * i].hypot(lam[m + 2 * i + 1]);
+        assert!(t <= radii[i] * (1.0 + 1e-12) + 1e-300, "contact {i}");
+    }
+}
