@@ -1048,8 +1048,9 @@ fn workspace(req: StackReq) -> Result<MemBuffer> {
 
 /// `len` zeros in a new vector, None where the allocator refuses them. The
 /// allocator's zeroed memory (fresh pages from the system for a large
-/// vector, zero already) spares a pass that writes every value: faer's
-/// numeric factorisation zeroes L's values itself before it factors.
+/// vector, zero already) spares a pass that writes every value (the
+/// supernodal factorisation zeroes L's values again itself; the dense one
+/// relies on the zeros above the diagonal).
 fn zeroed(len: usize) -> Option<Vec<f64>> {
     if len == 0 {
         return Some(Vec::new());

@@ -300,12 +300,14 @@ impl ConvexQp<'_> {
     /// [`ConvexQp::solve_in`] with its own scratch (allocates 5 k values).
     #[cfg(test)]
     pub fn solve(&self, x: &mut [f64], tol: f64, max: usize) -> Result<usize, Unbounded> {
-        self.solve_in(x, tol, max, &mut Scratch::new(self.k), &mut None)
+        self.solve_in(x, (tol, 0.0), max, &mut Scratch::new(self.k), &mut None)
     }
 
     /// Runs MPRGP from x (projected first) until the relative residual is at most
-    /// `tol` or `max` iterations (matrix-vector products), at least one; returns
-    /// the iterations, or [`Unbounded`] when the quadratic has no minimiser.
+    /// `tol`, or (where `drop` > 0) at most `drop` times its value at the
+    /// projected start, or for `max` iterations (matrix-vector products), at
+    /// least one; `(tol, drop)` is the stop. Returns the iterations, or
+    /// [`Unbounded`] when the quadratic has no minimiser.
     ///
     /// `scratch` holds at least k values per vector (no allocation here); `norm`
     /// caches the estimate of |H| (30 products): None is filled in, Some is used,
@@ -313,7 +315,7 @@ impl ConvexQp<'_> {
     pub fn solve_in(
         &self,
         x: &mut [f64],
-        tol: f64,
+        (tol, drop): (f64, f64),
         max: usize,
         scratch: &mut Scratch,
         norm: &mut Option<f64>,
@@ -332,6 +334,13 @@ impl ConvexQp<'_> {
             g.iter_mut().zip(self.q).for_each(|(gi, qi)| *gi -= qi);
         };
         gradient(x, g);
+        // The relative stop, on the residual at the projected start (no
+        // product: g is the start's).
+        let tol = if drop > 0.0 {
+            tol.max(drop * self.residual(x, g))
+        } else {
+            tol
+        };
         self.split_gradient(x, g, alpha, phi, beta);
         p.copy_from_slice(phi);
         let dot = |a: &[f64], b: &[f64]| a.iter().zip(b).map(|(x, y)| x * y).sum::<f64>();

@@ -193,6 +193,9 @@ impl SubSolver for GaussSeidel {
 pub(super) struct Mprgp {
     scratch: Scratch,
     tol: f64,
+    /// Where > 0, a solve also stops at this fraction of its residual at
+    /// the (projected) start.
+    drop: f64,
     max: usize,
 }
 
@@ -203,13 +206,15 @@ impl Mprgp {
         Mprgp {
             scratch: Scratch::new(k),
             tol,
+            drop: 0.0,
             max,
         }
     }
 
-    /// Stops the next solves at the residual `tol` (relative, as `new`'s).
-    pub fn set_tol(&mut self, tol: f64) {
-        self.tol = tol;
+    /// Also stops each solve once its residual is at most `drop` times the
+    /// one at its projected start (0: never).
+    pub fn with_drop(self, drop: f64) -> Self {
+        Mprgp { drop, ..self }
     }
 
     /// Solves a quadratic with both nonnegative unknowns and disks (the whole dual).
@@ -219,7 +224,7 @@ impl Mprgp {
         x: &mut [f64],
         norm: &mut Option<f64>,
     ) -> Result<usize, Unbounded> {
-        qp.solve_in(x, self.tol, self.max, &mut self.scratch, norm)
+        qp.solve_in(x, (self.tol, self.drop), self.max, &mut self.scratch, norm)
     }
 }
 

@@ -106,14 +106,16 @@ const FALLBACK_SWEEPS: usize = 5;
 const FALLBACK_MPRGP: usize = 20;
 
 /// The fallback's MPRGP stops once its residual (that of the Tresca problem
-/// of the current bound) has fallen to this fraction of the one it started
-/// from: Newton restarts from there. On the host example's 3D scenes, whose
-/// first shear iterations reject Newton steps, this took the products of
-/// 3d-32x32x4's 36 contact solves from 385 to 379 and 3d-52x52x4's from
-/// 588 to 550 (its worst solve from 94 to 76), with no more Newton steps
-/// (110 and 140 against 141). Fallbacks of 5 iterations instead saved more
-/// products there but took 161 Newton steps, and a fifth in place of half
-/// never stopped early (BENCHMARKS.md, "What is slow, and why").
+/// of the current bound) has fallen to this fraction of the one at its
+/// start (Newton's iterate projected onto the bounds): Newton restarts from
+/// there. On the host example's 3D scenes, whose first shear iterations
+/// reject Newton steps, the contact solves' products fell from 385 to 366
+/// (3d-32x32x4, Newton steps 110 -> 109) and from 588 to 556 (3d-52x52x4,
+/// Newton steps 141 -> 147): 3 % and 1.7 % less work, a Newton step
+/// weighed as 2.7 products. Fallbacks of 5 iterations instead saved more
+/// products on 3d-32x32x4 (346) but took 161 Newton steps on 3d-52x52x4,
+/// and a fifth in place of half never stopped early (BENCHMARKS.md, "What
+/// is slow, and why", item 12).
 const FALLBACK_DROP: f64 = 0.5;
 
 /// Projected Gauss-Seidel sweeps before the first Newton step, in chunks of
@@ -611,15 +613,11 @@ impl Newton {
         let qp = ConvexQp::whole(problem, &self.radii);
         let solver = self
             .fallback
-            .get_or_insert_with(|| Mprgp::new(c, 0.0, FALLBACK_MPRGP));
+            .get_or_insert_with(|| Mprgp::new(c, 0.0, FALLBACK_MPRGP).with_drop(FALLBACK_DROP));
         // |A + D| estimated once per operator (see `Dual::whole_norm`).
         if self.norm.is_none() {
             self.norm = dual.whole_norm();
         }
-        // w is exact here (a rejected rough step was solved again from a
-        // recomputed gradient), or within its drift of it, which was below
-        // 1 / RESYNC of |F|: near enough for a stopping tolerance.
-        solver.set_tol(FALLBACK_DROP * qp.residual(lam, w));
         let run = solver.solve_convex(&qp, lam, &mut self.norm);
         if let Some(norm) = self.norm {
             dual.keep_whole_norm(norm);

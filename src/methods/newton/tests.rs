@@ -1337,8 +1337,9 @@ fn the_backtracking_keeps_the_best_length_that_decreases_enough() {
 
 /// The matrix-free fallback (MPRGP on the Tresca problem of the current
 /// bound) stops once the residual of that problem, measured afresh, has
-/// halved (FALLBACK_DROP), within FALLBACK_MPRGP iterations; from the zero
-/// multipliers of a slab pressed into a patch it gets there in fewer, and
+/// halved (FALLBACK_DROP), within FALLBACK_MPRGP iterations; from normal
+/// forces of 0.01 on a slab pressed into a patch (a feasible start, so the
+/// residual it starts from is the one at lam) it gets there in fewer, and
 /// the multipliers stay feasible for the bound.
 #[test]
 fn the_fallback_stops_once_its_residual_halves() {
