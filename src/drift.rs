@@ -18,6 +18,26 @@ use crate::sparse::Csc;
 /// Lanczos steps at most (each one solve with K).
 const MAX_STEPS: usize = 8;
 
+/// Lanczos steps of the estimate of a small step from the last K whose
+/// drift is known ([`step_drift`]).
+const STEP_STEPS: usize = 2;
+
+/// The factor a small step's widened bounds are multiplied by
+/// ([`step_drift`]): after two Lanczos steps the widened bounds can fall
+/// short of the spectrum's ends by a factor 2 or 3 (the first step's
+/// [-0.09, 0.02] against [-0.18, 0.06] below), which the product with the
+/// known drift only covers when this one is over-estimated.
+const STEP_INFLATION: f64 = 4.0;
+
+/// A step's inflated bounds at most this (each end), for it to be composed
+/// with the known drift ([`Drift::then`]) instead of a full estimate.
+pub(crate) const SMALL_STEP: f64 = 0.05;
+
+/// A step from the last K is tried only where its relative change
+/// |K - K_last|_F / |K_last|_F is at most this: a larger one would seldom
+/// be small in the sense of [`SMALL_STEP`], and its solves would be lost.
+const SMALL_CHANGE: f64 = 0.01;
+
 /// Lanczos steps at least before the widened bounds are trusted: the
 /// extreme Ritz values of the first steps lie well inside the spectrum, and
 /// their residual bounds can miss its ends (on a material update of a slab,
@@ -51,6 +71,64 @@ impl Drift {
         }
         hi.max(1.0) / lo.min(1.0)
     }
+
+    /// The drift of K_next from K_ref, where `self` bounds that of K from
+    /// K_ref and `step` that of K_next from K. In the order of symmetric
+    /// matrices, `self` says (1 - mu_max) K <= K_ref <= (1 - mu_min) K
+    /// and `step` (1 - mu_max') K_next <= K <= (1 - mu_min') K_next, so
+    /// (1 - mu_max)(1 - mu_max') K_next <= K_ref <= (1 - mu_min)(1 -
+    /// mu_min') K_next (each factor at least 0 where err_factor is finite).
+    /// The solves are the step's.
+    pub(crate) fn then(&self, step: &Drift) -> Drift {
+        Drift {
+            mu_min: 1.0 - (1.0 - self.mu_min) * (1.0 - step.mu_min),
+            mu_max: 1.0 - (1.0 - self.mu_max) * (1.0 - step.mu_max),
+            solves: step.solves,
+        }
+    }
+
+    /// Whether both ends lie within [`SMALL_STEP`] of 0.
+    pub(crate) fn is_small(&self) -> bool {
+        -self.mu_min <= SMALL_STEP && self.mu_max <= SMALL_STEP
+    }
+}
+
+/// The drift of `k` from the K last refactored, `last_values` (its
+/// pattern's), where that change is small: None where its relative size
+/// exceeds [`SMALL_CHANGE`]; else the estimate of [`drift`] after
+/// [`STEP_STEPS`] Lanczos steps with its bounds multiplied by
+/// [`STEP_INFLATION`] (an estimate of a small step, to be composed with
+/// the known drift of the last K by [`Drift::then`], where
+/// [`Drift::is_small`]).
+pub(crate) fn step_drift(
+    factor: &Factor,
+    single: &[f32],
+    k: &Csc,
+    last_values: &[f64],
+) -> Option<Drift> {
+    let (mut change, mut size) = (0.0, 0.0);
+    for (a, b) in k.values.iter().zip(last_values) {
+        change += (a - b) * (a - b);
+        size += b * b;
+    }
+    // (A NaN sum, from values at the edge of the doubles, is no small change.)
+    let small = change <= SMALL_CHANGE * SMALL_CHANGE * size;
+    if !small {
+        return None;
+    }
+    let d = lanczos(
+        factor,
+        single,
+        k,
+        last_values,
+        f64::INFINITY,
+        (STEP_STEPS, STEP_STEPS),
+    );
+    Some(Drift {
+        mu_min: STEP_INFLATION * d.mu_min,
+        mu_max: STEP_INFLATION * d.mu_max,
+        solves: d.solves,
+    })
 }
 
 /// The drift of `k`'s blocks from those of the matrix with `k`'s pattern and
@@ -71,6 +149,26 @@ pub(crate) fn drift(
     k: &Csc,
     ref_values: &[f64],
     give_up: f64,
+) -> Drift {
+    lanczos(
+        factor,
+        single,
+        k,
+        ref_values,
+        give_up,
+        (MIN_STEPS, MAX_STEPS),
+    )
+}
+
+/// [`drift`] with `(min_steps, max_steps)` Lanczos steps in place of
+/// ([`MIN_STEPS`], [`MAX_STEPS`]).
+fn lanczos(
+    factor: &Factor,
+    single: &[f32],
+    k: &Csc,
+    ref_values: &[f64],
+    give_up: f64,
+    (min_steps, max_steps): (usize, usize),
 ) -> Drift {
     let n = k.nrows;
     if k.values.iter().zip(ref_values).all(|(a, b)| a == b) {
@@ -111,7 +209,7 @@ pub(crate) fn drift(
         mu_max: 0.0,
         solves: 0,
     };
-    for step in 0..MAX_STEPS {
+    for step in 0..max_steps {
         mul_change(k, ref_values, &q, &mut p);
         alpha.push(dot(&q, &p));
         // K times the solve's result is (K - K_ref) q, up to the solve's
@@ -174,7 +272,7 @@ pub(crate) fn drift(
             mu_max: theta[hi].max(0.0),
             solves: step + 1,
         };
-        let settled = step + 1 >= MIN_STEPS && last.err_factor() <= give_up;
+        let settled = step + 1 >= min_steps && last.err_factor() <= give_up;
         if exhausted || settled || inner.err_factor() > give_up {
             return last;
         }
@@ -402,6 +500,74 @@ mod tests {
         assert!(
             d.mu_min <= lo + 1e-6 && d.mu_max >= hi - 1e-6,
             "{d:?} {lo} {hi}"
+        );
+    }
+
+    /// Scalings compose exactly: K1 = 1.25 K0 drifts by 1 - 1 / 1.25 =
+    /// 0.2 from K0, K2 = 1.004 K1 by 1 - 1 / 1.004 from K1, and the
+    /// composition is K2's drift from K0, 1 - 1 / (1.25 * 1.004) (the
+    /// bounds' other end is 0: a bound is never on the inner side of 0);
+    /// the step is small and estimated in STEP_STEPS solves, exact but for
+    /// the inflation.
+    #[test]
+    fn composed_scalings_give_the_drift_of_the_product() {
+        let k0 = laplacian(40, 1.0, 0..0, 1.0);
+        let k1 = laplacian(40, 1.25, 0..0, 1.0);
+        let k2 = laplacian(40, 1.25 * 1.004, 0..0, 1.0);
+        let f1 = Factor::new(&k1).unwrap();
+        let d1 = drift(&f1, &f1.single_values().unwrap(), &k1, &k0.values, 10.0);
+        assert!(d1.mu_min == 0.0 && (d1.mu_max - 0.2).abs() < 1e-6, "{d1:?}");
+        let f2 = Factor::new(&k2).unwrap();
+        let step = step_drift(&f2, &f2.single_values().unwrap(), &k2, &k1.values).unwrap();
+        assert!(step.is_small() && step.solves <= STEP_STEPS, "{step:?}");
+        let one = 1.0 - 1.0 / 1.004;
+        assert!(
+            step.mu_min == 0.0 && (step.mu_max - STEP_INFLATION * one).abs() < 1e-6,
+            "{step:?}"
+        );
+        // Exact bounds compose to the exact drift of K2 from K0.
+        let exact_step = Drift {
+            mu_min: 0.0,
+            mu_max: one,
+            solves: 1,
+        };
+        let both = d1.then(&exact_step);
+        let want = 1.0 - 1.0 / (1.25 * 1.004);
+        assert!(
+            both.mu_min == 0.0 && (both.mu_max - want).abs() < 1e-6,
+            "{both:?}"
+        );
+        assert_eq!(both.solves, 1);
+        // A change of 2 % is not tried as a step.
+        let k3 = laplacian(40, 1.25 * 1.02, 0..0, 1.0);
+        let f3 = Factor::new(&k3).unwrap();
+        assert!(step_drift(&f3, &f3.single_values().unwrap(), &k3, &k1.values).is_none());
+    }
+
+    /// A zone made stiffer by 10 %, then by 0.3 % more: the full estimate of
+    /// the first composed with the two-step estimate of the second contains
+    /// the exact spectrum of the last K's drift from the first, and lies
+    /// within a few hundredths of it.
+    #[test]
+    fn a_small_step_composed_with_the_known_drift_contains_the_spectrum() {
+        let n = 60;
+        let k_ref = laplacian(n, 1.0, 0..0, 1.0);
+        let k1 = laplacian(n, 1.0, 20..35, 1.1);
+        let k2 = laplacian(n, 1.0, 20..35, 1.1 * 1.003);
+        let f1 = Factor::new(&k1).unwrap();
+        let d1 = drift(&f1, &f1.single_values().unwrap(), &k1, &k_ref.values, 10.0);
+        let f2 = Factor::new(&k2).unwrap();
+        let step = step_drift(&f2, &f2.single_values().unwrap(), &k2, &k1.values).unwrap();
+        assert!(step.is_small(), "{step:?}");
+        let both = d1.then(&step);
+        let (lo, hi) = exact_spectrum(&k2, &k_ref);
+        assert!(
+            both.mu_min <= lo + 1e-6 && both.mu_max >= hi - 1e-6,
+            "{both:?} {lo} {hi}"
+        );
+        assert!(
+            both.mu_max <= hi + 0.05 && both.mu_min >= lo - 0.05,
+            "{both:?} {lo} {hi}"
         );
     }
 

@@ -102,6 +102,10 @@ struct KeptBlocks {
     k_values: Vec<f64>,
     /// Refactors since they were computed (at least 1).
     refactors: usize,
+    /// The drift of the K last refactored from the one they were computed
+    /// on: the next refactor composes it with a small step
+    /// ([`crate::drift::Drift::then`]).
+    drift: crate::drift::Drift,
     /// The bytes of `k_values` on the factor's ledger.
     _claim: memory::Claim,
 }
@@ -678,12 +682,14 @@ impl ContactProblem {
                 Some(match before {
                     Some(kept) => KeptBlocks {
                         refactors: kept.refactors + 1,
+                        drift,
                         ..kept
                     },
                     None => KeptBlocks {
                         _claim: fresh.ledger().claim_f64(old_k.values.len()),
                         k_values: old_k.values.clone(),
                         refactors: 1,
+                        drift,
                     },
                 })
             }
@@ -718,11 +724,27 @@ impl ContactProblem {
         if old_k.col_ptr != k.col_ptr || old_k.row_idx != k.row_idx {
             return None;
         }
+        // Where the blocks were kept by the last refactor too, its drift is
+        // known: a small step from the K it left (a host's Newton loop
+        // settling) is estimated in two solves and composed with it, else
+        // the drift from the blocks' K is estimated afresh.
+        let mut spent = 0;
+        if let Some(kept) = &self.kept_blocks
+            && let Some(step) = crate::drift::step_drift(fresh, single, k, &old_k.values)
+        {
+            spent = step.solves;
+            let drift = kept.drift.then(&step);
+            if step.is_small() && drift.err_factor() <= KEEP_BLOCKS_MAX_ERR_FACTOR {
+                return Some((blocks.to_vec(), drift));
+            }
+        }
         let values = match &self.kept_blocks {
             Some(kept) => &kept.k_values,
             None => &old_k.values,
         };
-        let drift = crate::drift::drift(fresh, single, k, values, KEEP_BLOCKS_MAX_ERR_FACTOR);
+        let mut drift = crate::drift::drift(fresh, single, k, values, KEEP_BLOCKS_MAX_ERR_FACTOR);
+        // The solves of a step tried and not taken count too.
+        drift.solves += spent;
         (drift.err_factor() <= KEEP_BLOCKS_MAX_ERR_FACTOR).then(|| (blocks.to_vec(), drift))
     }
 
