@@ -266,9 +266,10 @@ pub unsafe extern "C" fn ds_problem_free(problem: *mut DsProblem) {
 ///
 /// A matrix-free dual keeps the contacts' diagonal blocks of the K they were
 /// computed on (they cost 0.7-1.4 factorisations to compute afresh) where a
-/// few Lanczos steps (at most 8 single-precision solves with the new K; 2
+/// few Lanczos steps (at most 10 single-precision solves with the new K; 2
 /// where K moved by at most 1 % from the K of the last refactor, which kept
-/// them too) estimate that they drifted so little that err, with rho from them, is at
+/// them too, and that step is small) estimate that they drifted so little
+/// that err, with rho from them, is at
 /// most 3 times err on the new K's own blocks; err is then reported
 /// multiplied by that estimated factor (DsInfo.err_factor), so that it
 /// bounds the err of the new K as far as the estimate holds, and

@@ -588,7 +588,11 @@ impl ContactProblem {
     /// (`drift.rs`), bounds err's growth by at most 3 (an estimate, not a
     /// certified bound): err is then multiplied by that estimated bound
     /// ([`Info::err_factor`], [`Info::blocks_age`]); else they are computed
-    /// afresh.
+    /// afresh. Where the last refactor kept them too and K moved by at most
+    /// 1 % from that refactor's K, the step from it is estimated in 2
+    /// Lanczos steps and composed with that refactor's drift where it is
+    /// small (`Drift::then`); a step tried and not taken adds its 2 solves
+    /// to the full estimate's (10 at most).
     ///
     /// Errors: those of `new`, and `BadArgument` if the pattern differs.
     pub fn refactor(&mut self, k: &MatrixView<'_>) -> Result<()> {
@@ -743,7 +747,9 @@ impl ContactProblem {
             None => &old_k.values,
         };
         let mut drift = crate::drift::drift(fresh, single, k, values, KEEP_BLOCKS_MAX_ERR_FACTOR);
-        // The solves of a step tried and not taken count too.
+        // The solves of a step tried and not taken count too (reported
+        // where the blocks are kept; a refactor that drops them reports
+        // none).
         drift.solves += spent;
         (drift.err_factor() <= KEEP_BLOCKS_MAX_ERR_FACTOR).then(|| (blocks.to_vec(), drift))
     }
