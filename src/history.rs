@@ -167,9 +167,7 @@ impl History {
         let (Some(s), Some((prev, _))) = (self.factor_for(load), self.prev.as_ref()) else {
             return 0.0;
         };
-        for (x, p) in lam.iter_mut().zip(prev) {
-            *x += s * (*x - p);
-        }
+        along_line(lam, prev, s);
         project(lam, law, d);
         s
     }
@@ -184,26 +182,19 @@ impl History {
             return Some(alam.clone());
         }
         let prev = self.alam_prev.as_ref()?;
-        Some(
-            alam.iter()
-                .zip(prev)
-                .map(|(a, p)| a + s * (a - p))
-                .collect(),
-        )
+        let mut ax = alam.clone();
+        along_line(&mut ax, prev, s);
+        Some(ax)
     }
 
     /// x = lambda_k + s (lambda_k - lambda_k-1), the line's point before its
     /// projection (lambda_k where no line is known).
     pub fn line_point(&self, s: f64) -> Vec<f64> {
-        match (&self.prev, s > 0.0) {
-            (Some((prev, _)), true) => self
-                .lam
-                .iter()
-                .zip(prev)
-                .map(|(l, p)| l + s * (l - p))
-                .collect(),
-            _ => self.lam.clone(),
+        let mut x = self.lam.clone();
+        if let (Some((prev, _)), true) = (&self.prev, s > 0.0) {
+            along_line(&mut x, prev, s);
         }
+        x
     }
 
     /// Records a converged step: its total displacement `u`, multipliers `lam`
@@ -241,6 +232,14 @@ impl History {
         };
         self.lam.copy_from_slice(lam);
         self.load = Some(load);
+    }
+}
+
+/// x := x + s (x - prev): the point at s on the line through prev and x
+/// (the predictions of [`History`] and [`Increments`], and A times them).
+fn along_line(x: &mut [f64], prev: &[f64], s: f64) {
+    for (v, p) in x.iter_mut().zip(prev) {
+        *v += s * (*v - p);
     }
 }
 
@@ -316,9 +315,7 @@ impl Increments {
         let Some(s) = line_factor(q.iter().copied(), last_q) else {
             return 0.0;
         };
-        for (x, p) in lam.iter_mut().zip(prev) {
-            *x += s * (*x - p);
-        }
+        along_line(lam, prev, s);
         project(lam, law, d);
         s
     }

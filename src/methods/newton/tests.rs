@@ -462,6 +462,20 @@ fn lattice_slab(
     (k, factor, nm, tm)
 }
 
+/// A matrix-free dual on `factor` (of `k`) for the contacts `nm`, `tm` (3D),
+/// with the lumped preconditioner (and the layered one where it pays).
+fn lumped_free(
+    k: &Csc,
+    factor: &std::sync::Arc<crate::factor::Factor>,
+    nm: &Csc,
+    tm: &Csc,
+) -> crate::dual::Dual {
+    use crate::dual::{Condensation, Dual};
+    let mut dual = Dual::build_with(factor, nm, tm, 3, Condensation::MatrixFree).unwrap();
+    dual.set_lumped(k, None);
+    dual
+}
+
 /// The slab's contact-space load: the gap closed in a round central
 /// patch, b_N = 0.1 - curve r^2, and a shear `shear` along x.
 fn patch_load(nx: usize, ny: usize, curve: f64, shear: f64) -> Vec<f64> {
@@ -590,11 +604,9 @@ fn the_layered_dirichlet_preconditioner_saves_products() {
         let (out, _) = drive_newton(dual, &b, Friction::Tresca(&p), &mut lam, |_| {});
         (lam, out.inner)
     };
-    let mut lumped = Dual::build_with(&factor, &nm, &tm, 3, Condensation::MatrixFree).unwrap();
-    lumped.set_lumped(&k, None);
+    let mut lumped = lumped_free(&k, &factor, &nm, &tm);
     lumped.drop_dirichlet();
-    let mut layered = Dual::build_with(&factor, &nm, &tm, 3, Condensation::MatrixFree).unwrap();
-    layered.set_lumped(&k, None);
+    let mut layered = lumped_free(&k, &factor, &nm, &tm);
     assert!(layered.force_dirichlet(&k));
     let dense = Dual::build_with(&factor, &nm, &tm, 3, Condensation::Solves).unwrap();
     let (l_dense, _) = solve(&dense);
@@ -662,8 +674,7 @@ fn the_combined_product_is_a_times_the_step() {
         Arc::new(Factor::with_last(&k, &[], Ordering::Amd, Arc::new(Threads::new(1))).unwrap());
     let m = nx * ny;
     let jacobi = Dual::build_with(&factor, &nm, &tm, 3, Condensation::MatrixFree).unwrap();
-    let mut lumped = Dual::build_with(&factor, &nm, &tm, 3, Condensation::MatrixFree).unwrap();
-    lumped.set_lumped(&k, None);
+    let lumped = lumped_free(&k, &factor, &nm, &tm);
     let p = vec![0.01; m];
     let mu = vec![0.3; m];
     let b = patch_load(nx, ny, 0.0005, 0.02);
@@ -718,8 +729,7 @@ fn a_step_s_product_is_combined_from_its_reduced_solve() {
     let (nx, ny, nz) = (16, 16, 4);
     let (k, factor, nm, tm) = lattice_slab(nx, ny, nz);
     let m = nx * ny;
-    let mut free = Dual::build_with(&factor, &nm, &tm, 3, Condensation::MatrixFree).unwrap();
-    free.set_lumped(&k, None);
+    let free = lumped_free(&k, &factor, &nm, &tm);
     let dense = Dual::build_with(&factor, &nm, &tm, 3, Condensation::Solves).unwrap();
     let p = vec![0.01; m];
     let mu = vec![0.3; m];
@@ -782,12 +792,10 @@ fn w_is_recomputed_where_its_drift_matters() {
 /// iterate it returns, measured caller or not.
 #[test]
 fn a_drifted_convergence_is_left_to_a_caller_that_measures() {
-    use crate::dual::{Condensation, Dual};
     let (nx, ny, nz) = (16, 16, 4);
     let (k, factor, nm, tm) = lattice_slab(nx, ny, nz);
     let m = nx * ny;
-    let mut free = Dual::build_with(&factor, &nm, &tm, 3, Condensation::MatrixFree).unwrap();
-    free.set_lumped(&k, None);
+    let free = lumped_free(&k, &factor, &nm, &tm);
     let p = vec![0.01; m];
     let mu = vec![0.3; m];
     let b1 = patch_load(nx, ny, 0.0005, 0.02);
@@ -899,8 +907,7 @@ fn the_restricted_preconditioner_saves_products_in_gross_slip() {
     let mu = vec![0.3; m];
     let dense = Dual::build_with(&factor, &nm, &tm, 3, Condensation::Solves).unwrap();
     let formed = |restricted: bool| {
-        let mut dual = Dual::build_with(&factor, &nm, &tm, 3, Condensation::MatrixFree).unwrap();
-        dual.set_lumped(&k, None);
+        let mut dual = lumped_free(&k, &factor, &nm, &tm);
         assert!(dual.force_dirichlet(&k));
         if !restricted {
             dual.drop_restricted();
@@ -965,8 +972,7 @@ fn coulomb_steps_narrow_their_products_to_the_contact_zone() {
         let (out, newton) = drive_newton(dual, &b, Friction::Coulomb(&mu), &mut lam, |_| {});
         (lam, out.outer, newton.krylov.narrowed)
     };
-    let mut free = Dual::build_with(&factor, &nm, &tm, 3, Condensation::MatrixFree).unwrap();
-    free.set_lumped(&k, None);
+    let free = lumped_free(&k, &factor, &nm, &tm);
     let dense = Dual::build_with(&factor, &nm, &tm, 3, Condensation::Solves).unwrap();
     let (l_dense, _, _) = solve(&dense);
     let (l_free, outer, narrowed) = solve(&free);
@@ -1343,15 +1349,13 @@ fn the_backtracking_keeps_the_best_length_that_decreases_enough() {
 /// the multipliers stay feasible for the bound.
 #[test]
 fn the_fallback_stops_once_its_residual_halves() {
-    use crate::dual::{Condensation, Dual};
     use crate::methods::mprgp::ConvexQp;
     let (nx, ny, nz) = (16, 16, 3);
     let m = nx * ny;
     let (k, factor, nm, tm) = lattice_slab(nx, ny, nz);
     let b = patch_load(nx, ny, 0.004, 0.005);
     let mu = vec![0.3; m];
-    let mut dual = Dual::build_with(&factor, &nm, &tm, 3, Condensation::MatrixFree).unwrap();
-    dual.set_lumped(&k, None);
+    let dual = lumped_free(&k, &factor, &nm, &tm);
     let problem = plain(&dual, &b, Friction::Coulomb(&mu));
     // A start with some normal force, so that Coulomb's bound is not zero.
     let mut lam = vec![0.0; dual.c];
