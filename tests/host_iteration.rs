@@ -840,7 +840,9 @@ fn a_refactor_keeps_the_contact_blocks_while_they_drift_little() {
     // Onto 1.1 * 1.004 K, 0.4 % from the last K: the step from it is
     // estimated in two solves and composed with its drift; the factor
     // bounds the exact 1.2 / (1.1 * 1.004), the step's margin (its bounds
-    // times 4) costing under 3 %.
+    // times 4) costing 1-3 % (a full estimate, exact in one step on a
+    // scaled K, would give the exact factor: the margin shows the
+    // composition ran).
     let exact = 1.2 / (1.1 * 1.004);
     pb.refactor(&scaled(&sc.k, 1.1 * 1.004).view())
         .expect("refactor onto 1.1 * 1.004 K");
@@ -849,7 +851,7 @@ fn a_refactor_keeps_the_contact_blocks_while_they_drift_little() {
     let info = pb.info(&o);
     assert_eq!(info.blocks_age, 3);
     assert!(
-        info.err_factor >= exact - 1e-9 && info.err_factor <= 1.03 * exact,
+        info.err_factor >= 1.01 * exact && info.err_factor <= 1.03 * exact,
         "{} against {exact}",
         info.err_factor
     );
