@@ -71,8 +71,9 @@
 //! single precision on a large dual (`sweeps::Rough`, `sweeps::ROUGH_MIN_C`). A
 //! matrix-free dual has no entries to sweep: a cold solve starts instead at the projection of alpha G b, G = B K B^T
 //! the lumped estimate of A^-1 (alpha minimising the dual energy along G b),
-//! when that lowers |F|; its reduced systems are solved by CG / GMRES
-//! preconditioned with G too (`krylov_step`).
+//! when that lowers |F|, and its steps sort and linearise with rho scaled by
+//! COLD_C, leaning on the multipliers of that start; its reduced systems are
+//! solved by CG / GMRES preconditioned with G too (`krylov_step`).
 //!
 //! Warm start: the first step of a warm-started solve sorts the components by the
 //! multipliers (see WARM_C), not by the natural map, so that a history step starts
@@ -183,6 +184,26 @@ const ARMIJO: f64 = 1e-4;
 /// friction force at every step) before it finds the sticking zone again.
 const WARM_C: f64 = 1e-6;
 
+/// Every step of a cold solve on a matrix-free dual sorts and linearises with
+/// rho scaled by COLD_C (the same zeros, as for WARM_C): between the
+/// multipliers of the lumped start and the natural map's trial. With rho
+/// itself, the trial of a cold gross slip's first steps overshoots: the
+/// slabs' Coulomb increments spent three or four steps at half length with
+/// the stick and slip zones already settled (3d-64x64x6g, proportional, 17
+/// degrees: err 8e-2, 4e-2, 1.7e-2, 3e-3). On the load-path family's
+/// matrix-free slabs (3d-24x24x4 to 3d-116x116x4, uniform and graded faces,
+/// three paths, both laws: 42 cold increments at full load) 0.5 took the
+/// Newton steps from 250 to 218 and the Krylov products from 924 to 859:
+/// Tresca fewer on 19 of 21 rows, none more; Coulomb fewer on 11 (that row
+/// 9 -> 6 steps, 38 -> 29 products), more on 6 by one step or 1-3 products
+/// at most. 0.3 and 0.1 took Tresca lower still and some Coulomb rows
+/// higher (BENCHMARKS.md, "The load paths hosts take"). A warm solve keeps
+/// rho after its first step: 0.3 there took 1-3 more Newton steps on four
+/// of six Coulomb histories of 3d-32x32x4. A dense dual's cold solve starts
+/// from Gauss-Seidel sweeps instead; its counts did not move with the scale
+/// (3d-16x16x8, 3d-24x24x12, 2d-400x50).
+const COLD_C: f64 = 0.5;
+
 /// The solve gives up when the best |F| has not dropped by STALL_DROP (relative)
 /// within STALL_WINDOW outer iterations.
 const STALL_WINDOW: usize = 50;
@@ -253,6 +274,9 @@ pub(super) struct Newton {
     /// systems with A's inverse (`dense::Complement`); off only in the
     /// test of the kept factor.
     inverse_on: bool,
+    /// The scale of rho in a cold solve's steps on a matrix-free dual
+    /// (COLD_C; 1 only in the test that measures what it buys).
+    cold_c: f64,
     step: Vec<f64>,
     f: Vec<f64>,
     ae0: Vec<f64>,
@@ -295,6 +319,7 @@ impl Newton {
             warm_sort: true,
             lumped_start_on: true,
             inverse_on: true,
+            cold_c: COLD_C,
             step: vec![0.0; c],
             f: vec![0.0; c],
             ae0: vec![0.0; c],
@@ -396,10 +421,13 @@ impl OuterStep for Newton {
             return Flow::Stalled;
         }
         // A warm start's first step takes its active set from the multipliers
-        // (see WARM_C); every later step from the natural map.
+        // (see WARM_C), a cold one's steps on a matrix-free dual lean on the
+        // lumped start's (COLD_C); every other step sorts by the natural map.
         let cscale = if self.warm && self.warm_sort && !problem.predicted && !problem.near && k == 0
         {
             WARM_C
+        } else if !self.warm && problem.dual.is_matrix_free() {
+            self.cold_c
         } else {
             1.0
         };
