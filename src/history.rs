@@ -187,6 +187,12 @@ impl History {
         Some(ax)
     }
 
+    /// A lambda_k where the last step kept it ([`History::advance`]).
+    #[cfg(test)]
+    pub(crate) fn alam(&self) -> Option<&[f64]> {
+        self.alam.as_deref()
+    }
+
     /// x = lambda_k + s (lambda_k - lambda_k-1), the line's point before its
     /// projection (lambda_k where no line is known).
     pub fn line_point(&self, s: f64) -> Vec<f64> {

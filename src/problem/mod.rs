@@ -26,6 +26,8 @@ use std::time::{Duration, Instant};
 mod iteration;
 mod solve;
 mod stiffness;
+#[cfg(test)]
+mod tests;
 
 pub use iteration::HostIteration;
 

@@ -1,0 +1,99 @@
+//! Unit tests of what a history step keeps for the next one.
+use super::*;
+use crate::friction::Friction;
+use crate::options::DualForm;
+
+/// A 2D strip of `nodes` contact nodes (u_x, u_y each), tied to a rigid top
+/// by vertical and shear springs and to each other by bars; contact i: N =
+/// -e_y, T = e_x, gap 1e-3 (i - c)^2 / c^2 around the centre c. The problem
+/// with the dual form `form`, and the gaps.
+fn strip(nodes: usize, form: DualForm) -> (ContactProblem, Vec<f64>) {
+    let n = 2 * nodes;
+    let mut k = Vec::new();
+    for i in 0..nodes {
+        let (x, y) = (2 * i, 2 * i + 1);
+        k.push((x, x, 0.02));
+        k.push((y, y, 1.0));
+        if i + 1 < nodes {
+            for (a, b, s) in [(x, x + 2, 2.0), (y, y + 2, 0.5)] {
+                k.push((a, a, s));
+                k.push((b, b, s));
+                k.push((a, b, -s));
+                k.push((b, a, -s));
+            }
+        }
+    }
+    let nmat: Vec<_> = (0..nodes).map(|i| (i, 2 * i + 1, -1.0)).collect();
+    let tmat: Vec<_> = (0..nodes).map(|i| (i, 2 * i, 1.0)).collect();
+    let c = (nodes - 1) as f64 / 2.0;
+    let g: Vec<f64> = (0..nodes)
+        .map(|i| 1e-3 * (i as f64 - c).powi(2) / (c * c))
+        .collect();
+    let opts = Options {
+        dual_form: form,
+        ..Options::default()
+    };
+    let pb = ContactProblem::from_csc_with(
+        2,
+        Csc::from_triplets(n, n, &k),
+        Csc::from_triplets(nodes, n, &nmat),
+        Csc::from_triplets(nodes, n, &tmat),
+        &opts,
+    )
+    .unwrap();
+    (pb, g)
+}
+
+/// A converged history step keeps A lambda of its answer (b - v on the
+/// recovered u), from which the next step's gradient at its start is
+/// combined without a product: it equals A lambda computed afresh, on a
+/// dense and a matrix-free dual, Tresca and Coulomb, at every step of a
+/// proportional press and shear that closes more contacts step by step
+/// (Tresca's slip from the third step, Coulomb's in the first three).
+#[test]
+fn a_history_step_keeps_a_times_its_multipliers() {
+    let nodes = 40;
+    for form in [DualForm::Dense, DualForm::MatrixFree] {
+        let p = vec![2e-4; nodes];
+        let mu = vec![0.3; nodes];
+        for law in [Friction::Tresca(&p), Friction::Coulomb(&mu)] {
+            let (mut pb, g) = strip(nodes, form);
+            let opts = Options::default();
+            let mut slipped = 0;
+            for step in 1..=5 {
+                let s = step as f64 / 5.0;
+                let f: Vec<f64> = (0..2 * nodes)
+                    .map(|j| s * if j % 2 == 0 { 4e-4 } else { -2e-3 })
+                    .collect();
+                let sol = pb.step(&f, &g, law, &opts).unwrap();
+                assert_eq!(sol.report.status, SolveStatus::Converged);
+                let lam = pb.history.lam.clone();
+                let kept = pb.history.alam().expect("A lambda kept").to_vec();
+                let mut exact = vec![0.0; lam.len()];
+                pb.dual.apply(&lam, &mut exact);
+                let scale = exact.iter().fold(0.0f64, |a, v| a.max(v.abs()));
+                let diff = kept
+                    .iter()
+                    .zip(&exact)
+                    .fold(0.0f64, |a, (x, y)| a.max((x - y).abs()));
+                let closed = lam[..nodes].iter().filter(|&&v| v > 0.0).count();
+                let slipping = (0..nodes)
+                    .filter(|&i| {
+                        lam[i] > 0.0 && lam[nodes + i].abs() >= law.bound(i, lam[i]) * (1.0 - 1e-8)
+                    })
+                    .count();
+                println!(
+                    "{form:?} step {step}: {closed} closed, {slipping} slip, \
+                     |kept - A lambda| {diff:.1e} of {scale:.1e}"
+                );
+                assert!(closed > 0 && scale > 0.0);
+                slipped += slipping;
+                assert!(
+                    diff <= 1e-12 * scale,
+                    "{form:?} step {step}: {diff:.2e} of {scale:.2e}"
+                );
+            }
+            assert!(slipped > 0, "{form:?}: no contact slipped");
+        }
+    }
+}
