@@ -184,24 +184,25 @@ const ARMIJO: f64 = 1e-4;
 /// friction force at every step) before it finds the sticking zone again.
 const WARM_C: f64 = 1e-6;
 
-/// Every step of a cold solve on a matrix-free dual sorts and linearises with
-/// rho scaled by COLD_C (the same zeros, as for WARM_C): between the
-/// multipliers of the lumped start and the natural map's trial. With rho
-/// itself, the trial of a cold gross slip's first steps overshoots: the
-/// slabs' Coulomb increments spent three or four steps at half length with
-/// the stick and slip zones already settled (3d-64x64x6g, proportional, 17
-/// degrees: err 8e-2, 4e-2, 1.7e-2, 3e-3). On the load-path family's
-/// matrix-free slabs (3d-24x24x4 to 3d-116x116x4, uniform and graded faces,
-/// three paths, both laws: 42 cold increments at full load) 0.5 took the
-/// Newton steps from 250 to 218 and the Krylov products from 924 to 859:
-/// Tresca fewer on 19 of 21 rows, none more; Coulomb fewer on 11 (that row
-/// 9 -> 6 steps, 38 -> 29 products), more on 6 by one step or 1-3 products
-/// at most. 0.3 and 0.1 took Tresca lower still and some Coulomb rows
-/// higher (BENCHMARKS.md, "The load paths hosts take"). A warm solve keeps
-/// rho after its first step: 0.3 there took 1-3 more Newton steps on four
-/// of six Coulomb histories of 3d-32x32x4. A dense dual's cold solve starts
-/// from Gauss-Seidel sweeps instead; its counts did not move with the scale
-/// (3d-16x16x8, 3d-24x24x12, 2d-400x50).
+/// Every step of a solve that began at the lumped start (a cold solve on a
+/// matrix-free dual, `Newton::lumped_start`) sorts and linearises with rho
+/// scaled by COLD_C (the same zeros, as for WARM_C): between the multipliers of
+/// that start and the natural map's trial. With rho itself the trial overshoots
+/// in a cold gross slip: on 3d-64x64x6g (Coulomb, proportional, 17 degrees,
+/// full load) the first four steps took lengths 0.25, 1, 0.5 and 0.5 and
+/// lowered |F| by 1.4-2.3 times each (err 1.7e-1, 8.0e-2, 4.0e-2, 1.7e-2), the
+/// stick and slip zones settled after the second; 9 steps in all, 6 with 0.5.
+/// On the load-path family's matrix-free slabs (3d-24x24x4 to 3d-116x116x4,
+/// uniform and graded faces, three paths, both laws: 42 cold increments at full
+/// load) 0.5 took the Newton steps from 250 to 218 and the Krylov products from
+/// 924 to 859: Tresca fewer steps or products on 19 of 21 rows, more on none;
+/// Coulomb fewer on 11 (the row above 9 -> 6 steps, 38 -> 29 products), more on
+/// 6 by one step or 1-3 products at most. 0.3 and 0.1 took Tresca lower still
+/// and some Coulomb rows higher (BENCHMARKS.md, "The load paths hosts take"). A
+/// warm solve keeps rho after its first step: 0.3 there took 1-3 more Newton
+/// steps on four of six Coulomb histories of 3d-32x32x4. A dense dual's cold
+/// solve starts from Gauss-Seidel sweeps instead; its counts did not move with
+/// the scale (3d-16x16x8, 3d-24x24x12, 2d-400x50).
 const COLD_C: f64 = 0.5;
 
 /// The solve gives up when the best |F| has not dropped by STALL_DROP (relative)
@@ -274,9 +275,12 @@ pub(super) struct Newton {
     /// systems with A's inverse (`dense::Complement`); off only in the
     /// test of the kept factor.
     inverse_on: bool,
-    /// The scale of rho in a cold solve's steps on a matrix-free dual
-    /// (COLD_C; 1 only in the test that measures what it buys).
+    /// The scale of rho in the steps of a solve that began at the lumped
+    /// start (COLD_C; 1 only in the test that measures what it buys).
     cold_c: f64,
+    /// Whether this solve began at the lumped start (a cold solve on a
+    /// matrix-free dual whose lumped estimate lowered |F|).
+    from_lumped: bool,
     step: Vec<f64>,
     f: Vec<f64>,
     ae0: Vec<f64>,
@@ -320,6 +324,7 @@ impl Newton {
             lumped_start_on: true,
             inverse_on: true,
             cold_c: COLD_C,
+            from_lumped: false,
             step: vec![0.0; c],
             f: vec![0.0; c],
             ae0: vec![0.0; c],
@@ -389,11 +394,12 @@ impl OuterStep for Newton {
         }
         // No sweeps on a matrix-free dual: a cold start begins at the lumped
         // estimate instead, when it is better than zero.
+        self.from_lumped = false;
         if let Some(g) = problem.dual.lumped()
             && !self.warm
             && self.lumped_start_on
         {
-            self.lumped_start(problem, g, lam, w);
+            self.from_lumped = self.lumped_start(problem, g, lam, w);
         }
         self.res = residual_norm(problem, lam, w);
         self.res0 = self.res;
@@ -421,12 +427,13 @@ impl OuterStep for Newton {
             return Flow::Stalled;
         }
         // A warm start's first step takes its active set from the multipliers
-        // (see WARM_C), a cold one's steps on a matrix-free dual lean on the
-        // lumped start's (COLD_C); every other step sorts by the natural map.
+        // (see WARM_C), the steps of a solve that began at the lumped start
+        // lean on its multipliers (COLD_C); every other step sorts by the
+        // natural map.
         let cscale = if self.warm && self.warm_sort && !problem.predicted && !problem.near && k == 0
         {
             WARM_C
-        } else if !self.warm && problem.dual.is_matrix_free() {
+        } else if self.from_lumped {
             self.cold_c
         } else {
             1.0
@@ -586,15 +593,15 @@ impl Newton {
     /// A cold start on a matrix-free dual: lam = P(alpha G b), the projection
     /// onto the feasible set of the minimiser of the dual energy along G b
     /// (G = B K B^T ~ A^-1: the lumped estimate of the unconstrained
-    /// multipliers), kept when it lowers |F| below its value at lam = 0. Two
-    /// products with A.
+    /// multipliers), kept when it lowers |F| below its value at lam = 0
+    /// (then true). Two products with A.
     fn lumped_start(
         &mut self,
         problem: &DualProblem<'_>,
         g: &crate::sparse::Csc,
         lam: &mut [f64],
         w: &mut [f64],
-    ) {
+    ) -> bool {
         let dual = problem.dual;
         let (m, d, c) = (dual.m, dual.d, dual.c);
         let (y, ay) = (&mut self.trial, &mut self.wt);
@@ -603,7 +610,7 @@ impl Newton {
         let yay: f64 = y.iter().zip(ay.iter()).map(|(a, b)| a * b).sum();
         let by: f64 = y.iter().zip(problem.b).map(|(a, b)| a * b).sum();
         if !(yay > 0.0 && by > 0.0 && yay.is_finite()) {
-            return;
+            return false;
         }
         let alpha = by / yay;
         y.iter_mut().for_each(|v| *v *= alpha);
@@ -618,7 +625,9 @@ impl Newton {
         if r < residual_norm(problem, lam, w) {
             lam[..c].copy_from_slice(&y[..c]);
             w[..c].copy_from_slice(&ay[..c]);
+            return true;
         }
+        false
     }
 
     /// The fallback on a matrix-free dual (no Gauss-Seidel without entries of A):

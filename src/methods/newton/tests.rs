@@ -1391,9 +1391,9 @@ fn the_fallback_stops_once_its_residual_halves() {
 
 /// A cold matrix-free solve of gross slip on a 3D lattice slab (pressed over
 /// about 70 % of its face, sheared 17 degrees off the x rows beyond the
-/// slip bound everywhere): with rho scaled by COLD_C its steps reach dense
-/// Newton's multipliers (1e-10 relative) in fewer Newton steps than with
-/// rho itself, for Tresca and Coulomb.
+/// slip bound everywhere): begun at the lumped start, with rho scaled by
+/// COLD_C its steps reach dense Newton's multipliers (1e-10 relative) in
+/// fewer Newton steps than with rho itself, for Tresca and Coulomb.
 #[test]
 fn a_cold_matrix_free_solve_leans_on_its_lumped_start() {
     use crate::dual::{Condensation, Dual};
@@ -1417,7 +1417,8 @@ fn a_cold_matrix_free_solve_leans_on_its_lumped_start() {
     for law in [Friction::Tresca(&p), Friction::Coulomb(&mu)] {
         let solve = |dual: &Dual, cold_c: f64| {
             let mut lam = vec![0.0; dual.c];
-            let (out, _) = drive_newton(dual, &b, law, &mut lam, |n| n.cold_c = cold_c);
+            let (out, newton) = drive_newton(dual, &b, law, &mut lam, |n| n.cold_c = cold_c);
+            assert_eq!(newton.from_lumped, dual.is_matrix_free());
             (lam, out.outer, out.inner)
         };
         let (l_dense, _, _) = solve(&dense, COLD_C);
