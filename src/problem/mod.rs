@@ -27,7 +27,7 @@ mod iteration;
 mod solve;
 mod stiffness;
 #[cfg(test)]
-mod tests;
+pub(crate) mod tests;
 
 pub use iteration::HostIteration;
 

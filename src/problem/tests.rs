@@ -1,4 +1,5 @@
-//! Unit tests of what a history step keeps for the next one.
+//! Unit tests of what a history step keeps for the next one, and the 2D
+//! strip they and Newton's tests solve.
 use super::*;
 use crate::friction::Friction;
 use crate::options::DualForm;
@@ -7,7 +8,7 @@ use crate::options::DualForm;
 /// by vertical and shear springs and to each other by bars; contact i: N =
 /// -e_y, T = e_x, gap 1e-3 (i - c)^2 / c^2 around the centre c. The problem
 /// with the dual form `form`, and the gaps.
-fn strip(nodes: usize, form: DualForm) -> (ContactProblem, Vec<f64>) {
+pub(crate) fn strip(nodes: usize, form: DualForm) -> (ContactProblem, Vec<f64>) {
     let n = 2 * nodes;
     let mut k = Vec::new();
     for i in 0..nodes {

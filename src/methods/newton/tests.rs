@@ -5,40 +5,12 @@ use crate::options::{Method, Options};
 use crate::problem::ContactProblem;
 use crate::sparse::Csc;
 
-/// A 2D strip of `nodes` contact nodes (u_x, u_y each), tied to a rigid top
-/// by vertical and shear springs and to each other by bars: pressed down by
-/// `press` and sheared by `shear` through the top; contact i: N = -e_y, T = e_x,
-/// gap 1e-3 (i - c)^2 / c^2 around the centre c.
+/// The 2D strip of `crate::problem::tests::strip` (`nodes` contact nodes,
+/// N = -e_y, T = e_x, gap 1e-3 (i - c)^2 / c^2 around the centre c) in the
+/// default dual form, pressed down by `press` and sheared by `shear`
+/// through the top ([`rhs`]), and its gaps.
 fn strip(nodes: usize) -> (ContactProblem, Vec<f64>) {
-    let n = 2 * nodes;
-    let mut k = Vec::new();
-    for i in 0..nodes {
-        let (x, y) = (2 * i, 2 * i + 1);
-        k.push((x, x, 0.02));
-        k.push((y, y, 1.0));
-        if i + 1 < nodes {
-            for (a, b, s) in [(x, x + 2, 2.0), (y, y + 2, 0.5)] {
-                k.push((a, a, s));
-                k.push((b, b, s));
-                k.push((a, b, -s));
-                k.push((b, a, -s));
-            }
-        }
-    }
-    let nmat: Vec<_> = (0..nodes).map(|i| (i, 2 * i + 1, -1.0)).collect();
-    let tmat: Vec<_> = (0..nodes).map(|i| (i, 2 * i, 1.0)).collect();
-    let c = (nodes - 1) as f64 / 2.0;
-    let g: Vec<f64> = (0..nodes)
-        .map(|i| 1e-3 * (i as f64 - c).powi(2) / (c * c))
-        .collect();
-    let pb = ContactProblem::from_csc(
-        2,
-        Csc::from_triplets(n, n, &k),
-        Csc::from_triplets(nodes, n, &nmat),
-        Csc::from_triplets(nodes, n, &tmat),
-    )
-    .unwrap();
-    (pb, g)
+    crate::problem::tests::strip(nodes, crate::options::DualForm::Auto)
 }
 
 /// b = B K^-1 f - [g; 0] of the strip under the top's load.
@@ -555,6 +527,14 @@ fn one_step(
     (out, step, ae0, krylov)
 }
 
+/// "Tresca" or "Coulomb", for the tests' messages.
+fn law_name(law: Friction<'_>) -> &'static str {
+    match law {
+        Friction::Tresca(_) => "Tresca",
+        Friction::Coulomb(_) => "Coulomb",
+    }
+}
+
 /// |a - b|_2.
 fn norm_diff(a: &[f64], b: &[f64]) -> f64 {
     a.iter()
@@ -942,10 +922,7 @@ fn the_restricted_preconditioner_saves_products_in_gross_slip() {
             let diff = max_diff(l, &l_dense);
             assert!(diff <= 1e-10 * scale, "{what}: {diff:.2e}");
         }
-        let name = match law {
-            Friction::Tresca(_) => "Tresca",
-            Friction::Coulomb(_) => "Coulomb",
-        };
+        let name = law_name(law);
         println!("{name}: products restricted {its_with}, general {its_without}");
         assert!(
             (its_with as f64) < 0.7 * its_without as f64,
@@ -1436,10 +1413,7 @@ fn a_cold_matrix_free_solve_leans_on_its_lumped_start() {
             })
             .count();
         let closed = (0..m).filter(|&i| l_dense[i] > 0.0).count();
-        let name = match law {
-            Friction::Tresca(_) => "Tresca",
-            Friction::Coulomb(_) => "Coulomb",
-        };
+        let name = law_name(law);
         println!(
             "{name}: {closed} closed, {slipping} slip; Newton steps / products: \
              COLD_C {steps_scaled} / {its_scaled}, rho {steps_plain} / {its_plain}"
