@@ -286,9 +286,8 @@ typedef enum DsDualForm {
 typedef enum DsOrdering {
   /*
    In 2D: AMD, and METIS as well where AMD's factor has large fronts (more
-   than 500 flops per entry of L); in 3D: METIS, and AMD as well where
-   METIS's factor has small fronts (at most 500 flops per entry of L). The one
-   with fewer flops kept. The default.
+   than 500 flops per entry of L), the one with fewer flops kept; in 3D:
+   METIS (AMD where METIS fails). The default.
    */
   DS_ORDERING_AUTO = 0,
   /*

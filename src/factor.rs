@@ -171,9 +171,9 @@ impl Factor {
     }
 
     /// The analysis of `Factor::with_last` alone (ordering and symbolic
-    /// factorisation, no numeric work), where `nd_first` makes `Auto` start
-    /// with METIS (3D problems; AMD as well where METIS's fronts are small)
-    /// rather than AMD: the factor's size is known
+    /// factorisation, no numeric work), where `nd_first` makes `Auto` take
+    /// METIS alone (3D problems; AMD where METIS fails) rather than AMD and
+    /// METIS where AMD's fronts are large: the factor's size is known
     /// ([`Factor::nnz_and_flops`], [`Factor::factor_scratch_bytes`]) and
     /// [`Factor::refactor`] computes its values. Allocations of the numeric
     /// factor and its workspace are counted on `ledger`.
@@ -232,21 +232,22 @@ impl Factor {
         };
         let mut symbolic = analyse(k, &fwd, &inv)?;
         let (mut ordering_used, mut fwd) = (first, fwd);
-        // AUTO: the other ordering too where the first one's factor says it may
-        // pay: METIS after AMD where AMD's factor has large fronts (flops per
-        // entry of L, about the mean front size, above METIS_FLOPS_PER_ENTRY: 3D
-        // meshes), AMD after METIS (`nd_first`) where METIS's fronts are small;
-        // the cheaper kept. Elsewhere the second analysis costs more than it can
-        // save. A failed METIS leaves AMD.
+        // AUTO in 2D: METIS after AMD too where AMD's factor has large fronts
+        // (flops per entry of L, about the mean front size, above
+        // METIS_FLOPS_PER_ENTRY), the cheaper kept; elsewhere the second
+        // analysis costs more than it can save. In 3D (`nd_first`) METIS alone:
+        // AMD's factor needed 1.7 to 3 times METIS's flops on every 3D mesh
+        // measured, small fronts included (3d-24x24x4 to 3d-48x48x4, 230-460
+        // flops per entry of L), and its analysis cost 0.15-0.22 of a
+        // factorisation there (BENCHMARKS.md, "Orderings, threads and
+        // CHOLMOD"). A failed METIS leaves AMD.
         let (nnz, flops) = symbolic_size(&symbolic);
         let large = flops > METIS_FLOPS_PER_ENTRY * nnz as f64;
-        let second = match first {
-            Ordering::Amd => Ordering::Metis,
-            _ => Ordering::Amd,
-        };
+        let second = Ordering::Metis;
         if ordering == Ordering::Auto
             && !fell_back
-            && large == (first == Ordering::Amd)
+            && first == Ordering::Amd
+            && large
             && let Some((fwd_2, inv_2)) = order(second)
         {
             let symbolic_2 = analyse(k, &fwd_2, &inv_2)?;

@@ -105,13 +105,12 @@ impl DualForm {
 #[derive(Copy, Clone, Debug, PartialEq, Eq)]
 pub enum Ordering {
     /// In 2D (d = 2): AMD, and METIS as well where AMD's factor has large fronts
-    /// (more than 500 flops per entry of L, as CHOLMOD's default policy decides);
-    /// in 3D (d = 3): METIS, and AMD as well where METIS's factor has small
-    /// fronts (at most 500 flops per entry of L). The one whose symbolic factor
-    /// needs fewer flops is kept (AMD on a tie). In 2D AMD's fronts are small and
-    /// METIS's analysis would cost more than it saves; 3D meshes with large fronts
-    /// are where nested dissection needs a fraction of AMD's flops, and AMD's
-    /// analysis would only be thrown away.
+    /// (more than 500 flops per entry of L, as CHOLMOD's default policy decides),
+    /// the one whose symbolic factor needs fewer flops kept (AMD on a tie); in
+    /// 3D (d = 3): METIS (AMD where METIS fails). In 2D AMD's fronts
+    /// are small and METIS's analysis would cost more than it saves; on 3D
+    /// meshes nested dissection needs a fraction of AMD's flops, small fronts
+    /// included, and AMD's analysis would only be thrown away.
     Auto,
     /// Approximate minimum degree (faer's AMD).
     Amd,

@@ -90,19 +90,45 @@ fn amd_and_metis_agree_and_auto_keeps_the_cheaper_one() {
         let (fa, fm) = (sa.report.factor_flops, sm.report.factor_flops);
         let per_entry = fa / sa.report.factor_nnz as f64;
         println!("{name}: flops AMD {fa:.3e} ({per_entry:.0} per entry of L), METIS {fm:.3e}");
-        // AUTO's rule: METIS is tried only where AMD's fronts are large (more
-        // than 500 flops per entry of L), and then the cheaper is kept.
-        let auto = if per_entry > 500.0 && fm < fa {
+        // AUTO's rule: in 3D METIS alone (AMD where METIS fails); in 2D METIS
+        // is tried only where AMD's fronts are large (more than 500 flops per
+        // entry of L), and then the cheaper is kept.
+        let auto = if sc.d == 3 || (per_entry > 500.0 && fm < fa) {
             Ordering::Metis
         } else {
             Ordering::Amd
         };
+        if sc.d == 3 {
+            assert!(fm < fa, "{name}: AMD {fa:.3e} flops, METIS {fm:.3e}");
+        }
         assert_eq!(so.report.ordering, auto, "{name}: AUTO's rule");
         let kept = if auto == Ordering::Metis { fm } else { fa };
         assert_eq!(so.report.factor_flops, kept);
         assert_eq!(auto, want, "{name}: AMD {fa:.3e} flops, METIS {fm:.3e}");
         agree(name, &sa, &sm, 1e-12);
     }
+}
+
+/// In 3D AUTO takes METIS alone, also where METIS's fronts are small (a
+/// thin slab: fewer than 500 flops per entry of L, where AMD used to be
+/// analysed as well): the report names METIS, the factor is METIS's (the
+/// same flops, and the same answer to the last bit), and METIS's factor needs
+/// fewer flops than AMD's, the fact the rule rests on.
+#[test]
+fn auto_in_3d_is_metis_on_small_fronts_too() {
+    let sc = block3d(24, 4);
+    let mu = vec![0.3; sc.m()];
+    let sa = solve(&sc, &mut problem(&sc, Ordering::Amd, 1), &mu);
+    let sm = solve(&sc, &mut problem(&sc, Ordering::Metis, 1), &mu);
+    let so = solve(&sc, &mut problem(&sc, Ordering::Auto, 1), &mu);
+    let (fa, fm) = (sa.report.factor_flops, sm.report.factor_flops);
+    let per_entry = fm / sm.report.factor_nnz as f64;
+    println!("3D slab: flops AMD {fa:.3e}, METIS {fm:.3e} ({per_entry:.0} per entry of L)");
+    assert!(per_entry < 500.0, "small fronts: {per_entry:.0}");
+    assert!(fm < fa, "AMD {fa:.3e} flops, METIS {fm:.3e}");
+    assert_eq!(so.report.ordering, Ordering::Metis);
+    assert_eq!(so.report.factor_flops, fm);
+    agree("3D slab, AUTO and METIS", &so, &sm, 0.0);
 }
 
 #[test]

@@ -115,9 +115,8 @@ pub enum DsDualForm {
 #[derive(Copy, Clone, Debug, PartialEq, Eq)]
 pub enum DsOrdering {
     /// In 2D: AMD, and METIS as well where AMD's factor has large fronts (more
-    /// than 500 flops per entry of L); in 3D: METIS, and AMD as well where
-    /// METIS's factor has small fronts (at most 500 flops per entry of L). The one
-    /// with fewer flops kept. The default.
+    /// than 500 flops per entry of L), the one with fewer flops kept; in 3D:
+    /// METIS (AMD where METIS fails). The default.
     Auto = 0,
     /// Approximate minimum degree.
     Amd = 1,
