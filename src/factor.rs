@@ -236,11 +236,13 @@ impl Factor {
         // (flops per entry of L, about the mean front size, above
         // METIS_FLOPS_PER_ENTRY), the cheaper kept; elsewhere the second
         // analysis costs more than it can save. In 3D (`nd_first`) METIS alone:
-        // AMD's factor needed 1.7 to 3 times METIS's flops on every 3D mesh
-        // measured, small fronts included (3d-24x24x4 to 3d-48x48x4, 230-460
-        // flops per entry of L), and its analysis cost 0.15-0.22 of a
-        // factorisation there (BENCHMARKS.md, "Orderings, threads and
-        // CHOLMOD"). A failed METIS leaves AMD.
+        // AMD's factor needed 1.1 to 3.8 times METIS's flops on every 3D mesh
+        // of the benchmark (3d-10x10x5 to 3d-64x64x6), small fronts included
+        // (the thin slabs 3d-24x24x4 to 3d-48x48x4, 230-370 flops per entry of
+        // L: 1.9-3.0 times), and its analysis, thrown away, cost 0.15-0.22 of
+        // a factorisation on those slabs; AMD won only on tiny, nearly dense
+        // K (FCLib's 162-DOF cubes, by up to 10 %; BENCHMARKS.md, "Orderings,
+        // threads and CHOLMOD"). A failed METIS leaves AMD.
         let (nnz, flops) = symbolic_size(&symbolic);
         let large = flops > METIS_FLOPS_PER_ENTRY * nnz as f64;
         let second = Ordering::Metis;
@@ -252,13 +254,8 @@ impl Factor {
         {
             let symbolic_2 = analyse(k, &fwd_2, &inv_2)?;
             let (f1, f2) = (flops, symbolic_size(&symbolic_2).1);
-            // Ties to AMD, as before METIS came first.
-            let take = if second == Ordering::Metis {
-                f2 < f1
-            } else {
-                f2 <= f1
-            };
-            if take {
+            // Ties to AMD (the first).
+            if f2 < f1 {
                 (symbolic, ordering_used, fwd) = (symbolic_2, second, fwd_2);
             }
         }

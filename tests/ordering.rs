@@ -2,9 +2,10 @@
 //! the two) and the problem's own threads (`Options::threads`).
 //!
 //! Checked: AMD and METIS give the same solution (to 1e-12, and each one passes
-//! the KKT check) on a 3D block and a 2D strip; AUTO keeps the ordering with fewer
-//! flops and that is METIS on the 3D block, AMD on the 2D strip (asserted on the
-//! symbolic flop counts the report carries, not on times); one and two threads
+//! the KKT check) on a 3D block and a 2D strip; AUTO follows its rule, METIS on
+//! the 3D block, AMD on the 2D strip (asserted on the symbolic flop counts the
+//! report carries, not on times), and in 3D METIS alone, also where AMD's factor
+//! would need fewer flops (FCLib's small cubes); one and two threads
 //! give the same answer to rounding, one thread has no pool and two threads
 //! have one of two; bad values are refused through the C interface with
 //! DS_STATUS_BAD_ARGUMENT.
@@ -111,9 +112,10 @@ fn amd_and_metis_agree_and_auto_keeps_the_cheaper_one() {
 
 /// In 3D AUTO takes METIS alone, also where METIS's fronts are small (a
 /// thin slab: fewer than 500 flops per entry of L, where AMD used to be
-/// analysed as well): the report names METIS, the factor is METIS's (the
-/// same flops, and the same answer to the last bit), and METIS's factor needs
-/// fewer flops than AMD's, the fact the rule rests on.
+/// analysed as well and lost): the report names METIS, the factor is METIS's
+/// (the same flops, and the same answer to the last bit), and METIS's factor
+/// needs fewer flops than AMD's, the fact the rule rests on. (The choice on
+/// this slab was METIS before too; the next test tells the rules apart.)
 #[test]
 fn auto_in_3d_is_metis_on_small_fronts_too() {
     let sc = block3d(24, 4);
@@ -129,6 +131,57 @@ fn auto_in_3d_is_metis_on_small_fronts_too() {
     assert_eq!(so.report.ordering, Ordering::Metis);
     assert_eq!(so.report.factor_flops, fm);
     agree("3D slab, AUTO and METIS", &so, &sm, 0.0);
+}
+
+/// AUTO in 3D analyses METIS alone, so it keeps METIS even where AMD's
+/// factor would need fewer flops: FCLib's 3D problems (tests/data/fclib,
+/// analysed only: `ContactProblem::analyse_csc`), at least one of which
+/// (a 162-DOF cube, nearly dense) is such a case. Where the rule analysed
+/// AMD as well (METIS's fronts small, as on these), AUTO would have kept
+/// AMD there.
+#[test]
+fn auto_in_3d_keeps_metis_where_amd_would_be_cheaper() {
+    let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/fclib");
+    let mut names: Vec<_> = std::fs::read_dir(&dir)
+        .expect("tests/data/fclib")
+        .filter_map(|e| e.ok())
+        .map(|e| e.path())
+        .filter(|p| p.join("K.mtx").exists())
+        .collect();
+    names.sort();
+    let (mut three_d, mut amd_cheaper) = (0, 0);
+    for path in names {
+        let pf = dualsplit::mtx::read_problem(&path).expect("an FCLib folder");
+        if pf.d != 3 {
+            continue;
+        }
+        three_d += 1;
+        let info = |ordering: Ordering| {
+            let opts = Options {
+                ordering,
+                threads: 1,
+                ..Options::default()
+            };
+            ContactProblem::analyse_csc(pf.d, &pf.k, &pf.n, &pf.t, &opts).expect("analysis")
+        };
+        let (amd, metis, auto) = (
+            info(Ordering::Amd),
+            info(Ordering::Metis),
+            info(Ordering::Auto),
+        );
+        let name = path.file_name().unwrap().to_string_lossy().into_owned();
+        println!(
+            "{name}: flops AMD {:.3e}, METIS {:.3e}, AUTO {:?} {:.3e}",
+            amd.factor_flops, metis.factor_flops, auto.ordering, auto.factor_flops
+        );
+        assert_eq!(auto.ordering, Ordering::Metis, "{name}");
+        assert_eq!(auto.factor_flops, metis.factor_flops, "{name}");
+        if amd.factor_flops < metis.factor_flops {
+            amd_cheaper += 1;
+        }
+    }
+    assert!(three_d >= 5, "{three_d} 3D FCLib problems");
+    assert!(amd_cheaper >= 1, "no 3D problem where AMD is cheaper");
 }
 
 #[test]

@@ -72,7 +72,8 @@ OPTIONS:
                       A is assembled (dense while d m <= 8000) or applied through K's
                       factor; matrix-free runs with --method auto, newton or mprgp
     --ordering O      auto (default), amd or metis: the fill-reducing ordering of K
-                      (auto keeps whichever needs fewer flops)
+                      (auto: in 2D AMD, METIS as well on large fronts, the
+                      one with fewer flops kept; in 3D METIS)
     --threads N       threads for the factorisation and the dense kernels: 0 for all
                       cores (default), 1 for this thread only
     --max-memory B    the most bytes the library's large allocations may take (K's

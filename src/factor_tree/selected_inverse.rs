@@ -24,11 +24,14 @@
 //!
 //! Every large product is a plain dense one, where the dense kernels run
 //! fastest: L_ss^-1 is formed first (Z_ss needs it) and U taken as the product
-//! L_Rs L_ss^-1, and Z_RR is gathered whole (both triangles, mirrored by tiles)
-//! into one scratch buffer per thread, so that Z_Rs is a single product. On the
-//! benchmark's 3d-64x64x6 (single precision, 1 thread) that took the recurrence
-//! from 0.83 s to 0.64 s against two triangular products on Z_RR's lower
-//! triangle, a triangular solve for U and a fresh Z_RR per supernode.
+//! L_Rs L_ss^-1 (2 r w^2 flops where a triangular solve takes r w^2; the cost
+//! model above counts the recurrence's own r w^2), and Z_RR is gathered whole
+//! (both triangles, mirrored by tiles) into one scratch buffer, reused from
+//! supernode to supernode (one for the top, one per subtree visit), so that
+//! Z_Rs is a single product. On the benchmark's 3d-64x64x6 (single precision,
+//! 1 thread) that took the recurrence from 0.83 s to 0.63 s against two
+//! triangular products on Z_RR's lower triangle, a triangular solve for U and
+//! a fresh Z_RR per supernode.
 
 use crate::factor::Factor;
 use crate::factor_tree::supernode_tree::Tree;
@@ -184,7 +187,8 @@ impl Selection {
     }
 
     /// Bytes [`Selection::sums`] works in: the terms, the top's blocks of Z, and
-    /// per thread the blocks along the deepest path of a subtree with one
+    /// per thread (the top's scratch is dropped before the subtrees are
+    /// visited) the blocks along the deepest path of a subtree with one
     /// supernode's U (twice over: room for the dense kernels' packing) and
     /// L_ss^-1, and the Z_RR scratch (kept from supernode to
     /// supernode, so as large as the largest r^2).
@@ -275,14 +279,17 @@ impl Selection {
             // The top, root first, every block kept for the subtrees.
             let mut held: Vec<Option<Mat<T>>> = (0..tree.len()).map(|_| None).collect();
             let mut top_part = Vec::new();
-            let mut buf = Vec::new();
-            for &s in &top {
-                let z = {
-                    let find = |t: usize| held[t].as_ref().expect("ancestor in the top");
-                    node_block(llt, tree, s, &find, par, &mut buf)
-                };
-                self.collect(s, &z, &mut top_part);
-                held[s] = Some(z);
+            {
+                // The top's Z_RR scratch, dropped before the subtrees take theirs.
+                let mut buf = Vec::new();
+                for &s in &top {
+                    let z = {
+                        let find = |t: usize| held[t].as_ref().expect("ancestor in the top");
+                        node_block(llt, tree, s, &find, par, &mut buf)
+                    };
+                    self.collect(s, &z, &mut top_part);
+                    held[s] = Some(z);
+                }
             }
             let held = &held;
             let visit = |root: usize| self.visit_subtree(llt, tree, root, held);
