@@ -245,18 +245,17 @@ impl Factor {
         // threads and CHOLMOD"). A failed METIS leaves AMD.
         let (nnz, flops) = symbolic_size(&symbolic);
         let large = flops > METIS_FLOPS_PER_ENTRY * nnz as f64;
-        let second = Ordering::Metis;
         if ordering == Ordering::Auto
             && !fell_back
             && first == Ordering::Amd
             && large
-            && let Some((fwd_2, inv_2)) = order(second)
+            && let Some((fwd_2, inv_2)) = order(Ordering::Metis)
         {
             let symbolic_2 = analyse(k, &fwd_2, &inv_2)?;
             let (f1, f2) = (flops, symbolic_size(&symbolic_2).1);
             // Ties to AMD (the first).
             if f2 < f1 {
-                (symbolic, ordering_used, fwd) = (symbolic_2, second, fwd_2);
+                (symbolic, ordering_used, fwd) = (symbolic_2, Ordering::Metis, fwd_2);
             }
         }
         drop(sym);
