@@ -1428,3 +1428,82 @@ fn a_cold_matrix_free_solve_leans_on_its_lumped_start() {
         );
     }
 }
+
+/// The increment solve catches a drifted convergence that went unseen: with
+/// the fault of `driver::fault` on, the first run of every matrix-free
+/// solve (whose error is measured on the recovered u) claims convergence
+/// at its first drifted gradient, far from the answer. The solve measures
+/// the error on the recovered u, finds it above the tolerance and goes on
+/// from there with every convergence confirmed on an exact gradient: it
+/// ends converged within the tolerance, at the multipliers of the dense
+/// route without the fault (the lattice slab pressed and sheared, Tresca
+/// and Coulomb). A tightened target instead (the rounding path) would run
+/// again with the error left to the recovered u, be cut short by the fault
+/// again and end above the tolerance.
+#[test]
+fn the_increment_solve_confirms_a_drifted_convergence_it_catches() {
+    use super::super::driver::fault;
+    use crate::options::DualForm;
+    let (nx, ny, nz) = (16, 16, 4);
+    let k = lattice(nx, ny, nz, 0.05);
+    let (nm, tm) = slab_contacts(nx, ny, k.nrows);
+    let m = nx * ny;
+    let centre = (nx as f64 - 1.0) / 2.0;
+    let g: Vec<f64> = (0..m)
+        .map(|i| {
+            let (x, y) = ((i % nx) as f64 - centre, (i / nx) as f64 - centre);
+            1e-3 * (x * x + y * y)
+        })
+        .collect();
+    // Pressed up into the foundation (N = e_z) and sheared along x, at
+    // the bottom nodes.
+    let f: Vec<f64> = (0..k.nrows)
+        .map(|j| match (j / 3 < m, j % 3) {
+            (true, 2) => 0.01,
+            (true, 0) => 0.003,
+            _ => 0.0,
+        })
+        .collect();
+    let p = vec![0.002; m];
+    let mu = vec![0.3; m];
+    let make = |form| {
+        let opts = Options {
+            dual_form: form,
+            ..Options::default()
+        };
+        ContactProblem::from_csc_with(3, k.clone(), nm.clone(), tm.clone(), &opts).unwrap()
+    };
+    let opts = Options {
+        method: Method::Newton,
+        ..Options::default()
+    };
+    for law in [Friction::Tresca(&p), Friction::Coulomb(&mu)] {
+        let name = law_name(law);
+        let reference = make(DualForm::Dense).solve(&f, &g, law, &opts).unwrap();
+        assert_eq!(reference.report.status, crate::SolveStatus::Converged);
+        let mut pb = make(DualForm::MatrixFree);
+        assert!(pb.is_matrix_free());
+        fault::claim_drifted(true);
+        let sol = pb.solve(&f, &g, law, &opts);
+        let claimed = fault::claim_drifted(false);
+        let sol = sol.unwrap();
+        let closed = reference.lambda_n.iter().filter(|&&v| v > 0.0).count();
+        println!(
+            "{name}: {closed} of {m} closed; {claimed} convergence(s) claimed by the fault, \
+             err {:.2e}, {} outer",
+            sol.report.err, sol.report.outer_iterations
+        );
+        assert!(closed > 0 && closed < m, "{name}: {closed} closed");
+        assert!(claimed > 0, "{name}: the fault never fired");
+        assert_eq!(sol.report.status, crate::SolveStatus::Converged, "{name}");
+        assert!(sol.report.err <= opts.tol, "{name}: {:.2e}", sol.report.err);
+        let scale = norm(&reference.lambda_n);
+        for (a, b) in [
+            (&sol.lambda_n, &reference.lambda_n),
+            (&sol.lambda_t, &reference.lambda_t),
+        ] {
+            let diff = max_diff(a, b);
+            assert!(diff <= 1e-7 * scale, "{name}: {diff:.2e} of {scale:.2e}");
+        }
+    }
+}
