@@ -5,10 +5,11 @@
 //! the ordering and the symbolic analysis and is factored by dense Cholesky.
 
 use crate::error::{ErrorKind, Result, fail};
+use crate::factor_tree::numeric::Plan as TreePlan;
 use crate::memory::{Claim, Ledger};
 use crate::options::Ordering;
 use crate::sparse::Csc;
-use crate::threads::Threads;
+use crate::threads::{PARALLEL_MIN_ENTRIES, Threads};
 use faer::dyn_stack::{MemBuffer, MemStack, StackReq};
 use faer::linalg::cholesky::llt::factor::LltRegularization;
 use faer::linalg::triangular_solve::{
@@ -32,11 +33,12 @@ use std::time::Instant;
 /// would lose every digit.
 pub const PIVOT_TOL: f64 = 1e-14;
 
-/// The numeric factorisation runs on faer's global parallelism (rayon, all cores
-/// unless RAYON_NUM_THREADS says otherwise) when its flops per entry of L, about
-/// the mean front size, exceed this; sequentially below, where the work is in
-/// small supernodes and threads only add overhead (measurements: BENCHMARKS.md,
-/// "Tuning measurements").
+/// The solves with the factor hand its threads to faer's dense kernels when
+/// its flops per entry of L, about the mean front size, exceed this; they run
+/// sequentially below, where the work is in small supernodes and threads only
+/// add overhead (measurements: BENCHMARKS.md, "Tuning measurements"). The
+/// numeric factorisation on several threads goes by the elimination tree
+/// instead (`Factor::tree_plan`), small fronts included.
 const PARALLEL_FLOPS_PER_ENTRY: f64 = 500.0;
 
 /// `Ordering::Auto` tries METIS besides AMD when AMD's factor needs more flops per
@@ -74,7 +76,8 @@ pub struct Factor {
     pub factor_seconds: f64,
     /// The problem's threads.
     threads: Arc<Threads>,
-    /// Whether the factorisation and the solves use them (see
+    /// Whether the solves, a dense factorisation and faer's factorisation of
+    /// an L too small for the tree split hand them to the dense kernels (see
     /// PARALLEL_FLOPS_PER_ENTRY).
     parallel: bool,
 }
@@ -399,15 +402,28 @@ impl Factor {
     pub(crate) fn factor_scratch_bytes(&self) -> usize {
         match &self.layout {
             Layout::Supernodal(symbolic) => {
-                symbolic.factorize_numeric_llt_scratch::<f64>(self.par(), Default::default())
+                let faer = symbolic
+                    .factorize_numeric_llt_scratch::<f64>(self.par(), Default::default())
+                    .size_bytes();
+                // Split by the tree (`Factor::tree_plan`): P K P^T's lower
+                // triangle as faer forms it, and the plan and the threads'
+                // scratch on top.
+                match symbolic.raw() {
+                    SymbolicCholeskyRaw::Supernodal(sym)
+                        if self.threads.count() >= 2 && sym.len_val() >= PARALLEL_MIN_ENTRIES =>
+                    {
+                        faer + crate::factor_tree::numeric::bytes_bound(sym, self.threads.count())
+                    }
+                    _ => faer,
+                }
             }
             Layout::Dense => faer::linalg::cholesky::llt::factor::cholesky_in_place_scratch::<f64>(
                 self.n(),
                 self.par(),
                 Default::default(),
-            ),
+            )
+            .size_bytes(),
         }
-        .size_bytes()
     }
 
     /// The threads the factorisation and the solves use.
@@ -621,6 +637,9 @@ impl Factor {
             SymbolicSparseColMatRef::new_checked(n, n, &self.col_ptr, None, &self.row_idx),
             &k.values,
         );
+        if let Some(plan) = self.tree_plan(symbolic) {
+            return self.factor_on_tree(symbolic, a, &plan);
+        }
         self.threads.run(self.parallel, |par| {
             let req = symbolic.factorize_numeric_llt_scratch::<f64>(par, Default::default());
             let mut mem = workspace(req)?;
@@ -637,6 +656,67 @@ impl Factor {
             let result = result.map(|_| ()).map_err(|e| format!("{e:?}"));
             Ok((values, result))
         })
+    }
+
+    /// The split of the numeric factorisation between the factor's threads
+    /// by its elimination tree (`factor_tree::numeric`), where there are
+    /// several, L has PARALLEL_MIN_ENTRIES entries at least and the tree
+    /// splits into subtrees. Small fronts too: the subtrees are what the
+    /// threads share, not the dense kernels (measured on 2 threads: 1.5 x
+    /// on the thin slab 3d-48x48x4, 1.7 x on 2d-2000x250, whose fronts are
+    /// small; BENCHMARKS.md, "Orderings, threads and CHOLMOD").
+    fn tree_plan(&self, symbolic: &SymbolicCholesky<usize>) -> Option<TreePlan> {
+        let SymbolicCholeskyRaw::Supernodal(sym) = symbolic.raw() else {
+            return None;
+        };
+        if self.threads.count() < 2 || sym.len_val() < PARALLEL_MIN_ENTRIES {
+            return None;
+        }
+        TreePlan::of(sym, self.threads.count())
+    }
+
+    /// [`Factor::factor_supernodal`] split by `plan`: P K P^T's lower
+    /// triangle formed as faer forms it (in its scratch's place), then the
+    /// subtrees on the threads and the top on all of them.
+    fn factor_on_tree(
+        &self,
+        symbolic: &SymbolicCholesky<usize>,
+        a: SparseColMatRef<'_, usize, f64>,
+        plan: &TreePlan,
+    ) -> Result<(Vec<f64>, std::result::Result<(), String>)> {
+        let SymbolicCholeskyRaw::Supernodal(sym) = symbolic.raw() else {
+            unreachable!("a tree plan is made for a supernodal factor only");
+        };
+        let n = self.n();
+        let nnz = a.compute_nnz();
+        let oom = || crate::Error::new(ErrorKind::OutOfMemory, "K: the factorisation's scratch");
+        let mut new_values = zeros::<f64>(nnz).ok_or_else(oom)?;
+        let mut new_col_ptr = zeros::<usize>(n + 1).ok_or_else(oom)?;
+        let mut new_row_idx = zeros::<usize>(nnz).ok_or_else(oom)?;
+        let mut mem = workspace(StackReq::new::<usize>(n))?;
+        let permuted;
+        let lower = match symbolic.perm() {
+            Some(perm) => {
+                permuted = faer::sparse::utils::permute_self_adjoint_to_unsorted(
+                    &mut new_values,
+                    &mut new_col_ptr,
+                    &mut new_row_idx,
+                    a,
+                    perm,
+                    Side::Lower,
+                    Side::Lower,
+                    MemStack::new(&mut mem),
+                );
+                faer::reborrow::Reborrow::rb(&permuted)
+            }
+            None => a,
+        };
+        let mut values = self.values_vec()?;
+        let result = self.threads.run(true, |par| {
+            crate::factor_tree::numeric::factor(plan, sym, lower, &mut values, par)
+        });
+        let result = result.map_err(|index| format!("NonPositivePivot {{ index: {index} }}"));
+        Ok((values, result))
     }
 
     /// The dense Cholesky factorisation of P K P^T (k stores every entry): as
@@ -1037,6 +1117,15 @@ impl Factor {
     }
 }
 
+/// `len` default values in a new vector, None where the allocator refuses
+/// them.
+fn zeros<T: Clone + Default>(len: usize) -> Option<Vec<T>> {
+    let mut v = Vec::new();
+    v.try_reserve_exact(len).ok()?;
+    v.resize(len, T::default());
+    Some(v)
+}
+
 /// The factorisation's workspace, or `OutOfMemory`.
 fn workspace(req: StackReq) -> Result<MemBuffer> {
     MemBuffer::try_new(req)
@@ -1213,5 +1302,199 @@ mod tests {
         let mut kz = vec![0.0; n];
         k.mul_vec(&z, &mut kz);
         assert!((0..n).all(|i| (kz[i] - x[i]).abs() <= 1e-13));
+    }
+}
+
+#[cfg(test)]
+mod tree_tests {
+    use super::*;
+
+    /// A 3D block of nx x ny x nz nodes with 3 DOFs each, a 27-point
+    /// coupling of varied weights between the DOFs of neighbouring nodes
+    /// (each DOF with the same component of its 26 neighbours), diagonally
+    /// dominant: SPD, with the fronts of a 3D mesh (symmetric weights: the
+    /// factor reads one triangle). `shift` is taken off the diagonal (0:
+    /// SPD; large: indefinite).
+    fn block(nx: usize, ny: usize, nz: usize, shift: f64) -> Csc {
+        let id = |i: usize, j: usize, l: usize| i + nx * (j + ny * l);
+        let mut t = Vec::new();
+        for l in 0..nz {
+            for j in 0..ny {
+                for i in 0..nx {
+                    let a = id(i, j, l);
+                    let mut diag = 0.0;
+                    for off in 0..27usize {
+                        let o = [off % 3, (off / 3) % 3, off / 9].map(|v| v as i64 - 1);
+                        let (i2, j2, l2) = (i as i64 + o[0], j as i64 + o[1], l as i64 + o[2]);
+                        if off == 13 || i2 < 0 || j2 < 0 || l2 < 0 {
+                            continue;
+                        }
+                        let (i2, j2, l2) = (i2 as usize, j2 as usize, l2 as usize);
+                        if i2 >= nx || j2 >= ny || l2 >= nz {
+                            continue;
+                        }
+                        let b = id(i2, j2, l2);
+                        let w = 1.0 + 0.25 * (((a + b) * 7 + (a * b) % 3) % 5) as f64;
+                        diag += w;
+                        for r in 0..3 {
+                            t.push((3 * a + r, 3 * b + r, -w));
+                        }
+                    }
+                    for r in 0..3 {
+                        t.push((3 * a + r, 3 * a + r, 1.05 * diag + 0.1 - shift));
+                    }
+                }
+            }
+        }
+        let n = 3 * nx * ny * nz;
+        Csc::from_triplets(n, n, &t)
+    }
+
+    /// The factor of `k` as faer computes it on one thread, and as the tree
+    /// split computes it on `threads` threads (the factor's values, or the
+    /// failure's message).
+    fn both(
+        k: &Csc,
+        ordering: Ordering,
+        threads: usize,
+    ) -> (
+        std::result::Result<Vec<f64>, String>,
+        std::result::Result<Vec<f64>, String>,
+    ) {
+        let run = |t: usize| {
+            let mut f = Factor::analyse(
+                k,
+                &[],
+                ordering,
+                true,
+                Arc::new(Threads::new(t)),
+                Ledger::new(),
+            )
+            .unwrap();
+            let Layout::Supernodal(symbolic) = &f.layout else {
+                panic!("a sparse K");
+            };
+            let symbolic = symbolic.clone();
+            let planned = f.tree_plan(&symbolic).is_some();
+            assert_eq!(planned, t >= 2, "the tree split taken on {t} threads");
+            let (values, result) = f.factor_supernodal(&symbolic, k).unwrap();
+            f.l_values = Vec::new();
+            result.map(|()| values)
+        };
+        (run(1), run(threads))
+    }
+
+    /// Split by the tree on 2, 3 and 4 threads, the factor of an SPD 3D block
+    /// is faer's sequential one to rounding (every supernode's updates are
+    /// summed in the same order, by other kernels), under METIS (large
+    /// fronts) and AMD (small ones), and the tree split is what a factor
+    /// with several threads takes.
+    #[test]
+    fn the_factor_split_by_the_tree_is_faers() {
+        let k = block(16, 16, 8, 0.0);
+        for ordering in [Ordering::Metis, Ordering::Amd] {
+            for threads in [2, 3, 4] {
+                let (faer, tree) = both(&k, ordering, threads);
+                let (faer, tree) = (faer.unwrap(), tree.unwrap());
+                assert!(faer.len() >= PARALLEL_MIN_ENTRIES, "{}", faer.len());
+                let scale = faer.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+                let diff = faer
+                    .iter()
+                    .zip(&tree)
+                    .fold(0.0f64, |m, (a, b)| m.max((a - b).abs()));
+                println!(
+                    "{ordering:?}, {threads} threads: max |difference| {diff:.1e} of {scale:.1e}"
+                );
+                assert!(diff <= 1e-13 * scale, "{ordering:?}, {threads}: {diff:.2e}");
+            }
+        }
+    }
+
+    /// An indefinite K fails on the tree split at the column where faer's
+    /// sequential factorisation fails, whatever the number of threads: a
+    /// diagonal entry made negative at one column of the factor's order (a
+    /// subtree's, or the top's: the last column), at two (the first met is
+    /// reported, though a later one may lie in a subtree another thread
+    /// finishes first), and the whole diagonal shifted down.
+    #[test]
+    fn the_tree_split_meets_the_first_non_positive_pivot_faer_meets() {
+        let spd = block(16, 16, 8, 0.0);
+        let n = spd.nrows;
+        let fwd = Factor::analyse(
+            &spd,
+            &[],
+            Ordering::Metis,
+            true,
+            Arc::new(Threads::new(2)),
+            Ledger::new(),
+        )
+        .unwrap()
+        .fwd;
+        let negative = |cols: &[usize]| {
+            let mut k = spd.clone();
+            for &col in cols {
+                let old = fwd[col];
+                let at = k.col_ptr[old]
+                    + k.row_idx[k.col_ptr[old]..k.col_ptr[old + 1]]
+                        .binary_search(&old)
+                        .unwrap();
+                k.values[at] = -1.0;
+            }
+            k
+        };
+        let cases = [
+            (negative(&[n / 3]), Some(n / 3)),
+            (negative(&[n - 1]), Some(n - 1)),
+            (negative(&[n / 5, 3 * n / 5]), Some(n / 5)),
+            (negative(&[3 * n / 5, n - 2]), Some(3 * n / 5)),
+            (block(16, 16, 8, 40.0), None),
+        ];
+        for (k, col) in cases {
+            for threads in [2, 4] {
+                let (faer, tree) = both(&k, Ordering::Metis, threads);
+                let (faer, tree) = (faer.unwrap_err(), tree.unwrap_err());
+                if let Some(col) = col {
+                    assert_eq!(faer, format!("NonPositivePivot {{ index: {col} }}"));
+                }
+                assert_eq!(faer, tree, "{threads} threads");
+            }
+        }
+    }
+
+    /// A refactor on several threads is the refactor on one: the same
+    /// solves to rounding, and the same result on one thread after.
+    #[test]
+    fn a_factor_on_threads_solves_as_on_one() {
+        let k = block(16, 16, 8, 0.0);
+        let n = k.nrows;
+        let b: Vec<f64> = (0..n).map(|i| ((i * 37) % 11) as f64 - 5.0).collect();
+        let solve = |threads: usize| {
+            let f = Factor::with_last(&k, &[], Ordering::Metis, Arc::new(Threads::new(threads)))
+                .unwrap();
+            let mut x = b.clone();
+            let mut mem = MemBuffer::new(f.solve_scratch(1));
+            f.solve_in_place(
+                MatMut::from_column_major_slice_mut(&mut x, n, 1),
+                MemStack::new(&mut mem),
+            );
+            x
+        };
+        let (one, two) = (solve(1), solve(2));
+        let mut r = vec![0.0; n];
+        k.mul_vec(&two, &mut r);
+        let res = r
+            .iter()
+            .zip(&b)
+            .fold(0.0f64, |m, (a, c)| m.max((a - c).abs()));
+        assert!(
+            res <= 1e-10 * b.iter().fold(0.0f64, |m, v| m.max(v.abs())),
+            "{res:.2e}"
+        );
+        let scale = one.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+        let diff = one
+            .iter()
+            .zip(&two)
+            .fold(0.0f64, |m, (a, c)| m.max((a - c).abs()));
+        assert!(diff <= 1e-12 * scale, "{diff:.2e} of {scale:.2e}");
     }
 }

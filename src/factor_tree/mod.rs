@@ -3,6 +3,9 @@
 //!
 //! - `supernode_tree`: the tree itself (per column its supernode, per supernode
 //!   its columns and parent);
+//! - `numeric`: the numeric factorisation on several threads, independent
+//!   subtrees on different threads (`factor` calls it; it works on the
+//!   symbolic structure alone);
 //! - `tree_solve`: solves restricted to the paths of a set of DOFs, split
 //!   between threads (the products of the matrix-free dual);
 //! - `selected_inverse`: entries of K^-1 on the factor's pattern (Takahashi's
@@ -15,6 +18,7 @@
 //! This layer sits on `factor` and below `dual`.
 
 pub(crate) mod contact_blocks;
+pub(crate) mod numeric;
 #[cfg(any(test, feature = "internals"))]
 pub(crate) mod row_solves;
 pub(crate) mod selected_inverse;
