@@ -33,12 +33,15 @@ use std::time::Instant;
 /// would lose every digit.
 pub const PIVOT_TOL: f64 = 1e-14;
 
-/// The solves with the factor hand its threads to faer's dense kernels when
-/// its flops per entry of L, about the mean front size, exceed this; they run
-/// sequentially below, where the work is in small supernodes and threads only
-/// add overhead (measurements: BENCHMARKS.md, "Tuning measurements"). The
-/// numeric factorisation on several threads goes by the elimination tree
-/// instead (`Factor::tree_plan`), small fronts included.
+/// The solves with the factor, a dense factorisation and faer's supernodal
+/// factorisation (where the tree split is not taken: L below
+/// PARALLEL_MIN_ENTRIES entries, or a tree that does not split) hand the
+/// threads to faer's dense kernels when the flops per entry of L, about the
+/// mean front size, exceed this; they run sequentially below, where the work
+/// is in small supernodes and threads only add overhead (measurements:
+/// BENCHMARKS.md, "Tuning measurements"). The numeric factorisation of a
+/// larger L on several threads goes by the elimination tree instead
+/// (`Factor::tree_plan`), small fronts included.
 const PARALLEL_FLOPS_PER_ENTRY: f64 = 500.0;
 
 /// `Ordering::Auto` tries METIS besides AMD when AMD's factor needs more flops per
@@ -76,9 +79,9 @@ pub struct Factor {
     pub factor_seconds: f64,
     /// The problem's threads.
     threads: Arc<Threads>,
-    /// Whether the solves, a dense factorisation and faer's factorisation of
-    /// an L too small for the tree split hand them to the dense kernels (see
-    /// PARALLEL_FLOPS_PER_ENTRY).
+    /// Whether the solves, a dense factorisation and faer's factorisation
+    /// (where the tree split is not taken) hand them to the dense kernels
+    /// (see PARALLEL_FLOPS_PER_ENTRY).
     parallel: bool,
 }
 
@@ -1430,18 +1433,7 @@ mod tree_tests {
         )
         .unwrap()
         .fwd;
-        let negative = |cols: &[usize]| {
-            let mut k = spd.clone();
-            for &col in cols {
-                let old = fwd[col];
-                let at = k.col_ptr[old]
-                    + k.row_idx[k.col_ptr[old]..k.col_ptr[old + 1]]
-                        .binary_search(&old)
-                        .unwrap();
-                k.values[at] = -1.0;
-            }
-            k
-        };
+        let negative = |cols: &[usize]| negative_at(&spd, &fwd, cols);
         let cases = [
             (negative(&[n / 3]), Some(n / 3)),
             (negative(&[n - 1]), Some(n - 1)),
@@ -1459,6 +1451,65 @@ mod tree_tests {
                 assert_eq!(faer, tree, "{threads} threads");
             }
         }
+    }
+
+    /// `k` with the diagonal entries of the factor's columns `cols` (`fwd`:
+    /// the factor's order, new -> old) set to -1.
+    fn negative_at(k: &Csc, fwd: &[usize], cols: &[usize]) -> Csc {
+        let mut k = k.clone();
+        for &col in cols {
+            let old = fwd[col];
+            let at = k.col_ptr[old]
+                + k.row_idx[k.col_ptr[old]..k.col_ptr[old + 1]]
+                    .binary_search(&old)
+                    .unwrap();
+            k.values[at] = -1.0;
+        }
+        k
+    }
+
+    /// A top supernode numbered before a subtree of a bin fails first where
+    /// both fail: the top's supernodes before the bins' first failure are
+    /// still factored (their descendants all come before them), on every
+    /// split of the block that has such a pair (2, 3 and 4 threads).
+    #[test]
+    fn a_top_supernode_before_a_failing_subtree_is_met_first() {
+        let spd = block(16, 16, 8, 0.0);
+        let mut checked = 0;
+        for threads in [2, 3, 4] {
+            let f = Factor::analyse(
+                &spd,
+                &[],
+                Ordering::Metis,
+                true,
+                Arc::new(Threads::new(threads)),
+                Ledger::new(),
+            )
+            .unwrap();
+            let Layout::Supernodal(symbolic) = &f.layout else {
+                panic!("a sparse K");
+            };
+            let SymbolicCholeskyRaw::Supernodal(sym) = symbolic.raw() else {
+                panic!("supernodal");
+            };
+            let plan = TreePlan::of(sym, threads).expect("the block splits");
+            let (bins, top) = plan.split();
+            let pair = top
+                .iter()
+                .find_map(|&a| bins.iter().flatten().find(|&&b| b > a).map(|&b| (a, b)));
+            let Some((a, b)) = pair else {
+                continue;
+            };
+            let begin = sym.supernode_begin();
+            let k = negative_at(&spd, &f.fwd, &[begin[a], begin[b]]);
+            let (faer, tree) = both(&k, Ordering::Metis, threads);
+            let (faer, tree) = (faer.unwrap_err(), tree.unwrap_err());
+            println!("{threads} threads: top supernode {a} before bin supernode {b}: {tree}");
+            assert_eq!(faer, format!("NonPositivePivot {{ index: {} }}", begin[a]));
+            assert_eq!(tree, faer, "{threads} threads");
+            checked += 1;
+        }
+        assert!(checked > 0, "no split put a top supernode before a bin's");
     }
 
     /// A refactor on several threads is the refactor on one: the same

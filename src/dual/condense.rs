@@ -65,7 +65,7 @@ pub(super) fn a_from_trailing_block(factor: &Factor, b: &Csc, a: &mut [f64]) -> 
     let what = "the inverse of the trailing block";
     let mut x = try_mat(nc, nc, what)?;
     // On the problem's threads: the inverse is dense c^3/3 work (the sparse
-    // factorisation decides for itself, see factor::PARALLEL_FLOPS_PER_ENTRY).
+    // factorisation decides for itself, see `Factor::tree_plan`).
     factor
         .threads()
         .run(nc * nc >= PARALLEL_MIN_ENTRIES, |par| {

@@ -1,5 +1,6 @@
-//! Work on the elimination tree of K's supernodal Cholesky factor: what the
-//! matrix-free dual needs from the factor besides its plain solves.
+//! Work on the elimination tree of K's supernodal Cholesky factor: its
+//! numeric factorisation on several threads, and what the matrix-free dual
+//! needs from the factor besides its plain solves.
 //!
 //! - `supernode_tree`: the tree itself (per column its supernode, per supernode
 //!   its columns and parent);
@@ -15,7 +16,8 @@
 //! - `row_solves`: K^-1 on sparse right-hand sides wanted on their own rows,
 //!   as a host's direct solver gives it (the benchmark's and tests' hosts).
 //!
-//! This layer sits on `factor` and below `dual`.
+//! This layer sits on `factor` and below `dual`; `numeric` works on the
+//! symbolic structure alone, and `factor` calls it.
 
 pub(crate) mod contact_blocks;
 pub(crate) mod numeric;

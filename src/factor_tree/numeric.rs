@@ -3,7 +3,7 @@
 //!
 //! faer's supernodal factorisation visits the supernodes one after the other
 //! and hands its threads to the dense kernels of each: on a thin 3D slab
-//! (fronts of a few hundred columns) a second thread took nothing off it
+//! (fronts of a few hundred columns) a second thread took 4 % off it
 //! (BENCHMARKS.md, "Orderings, threads and CHOLMOD"). The work of a
 //! left-looking factorisation splits along the tree instead: supernode s is
 //! formed from K's entries in its columns and the updates of the supernodes
@@ -46,24 +46,28 @@ const TASKS_PER_THREAD: usize = 2;
 
 /// How the factorisation of one symbolic structure is split between threads.
 pub(crate) struct Plan {
+    /// Where each supernode's updates start in `updates`.
+    update_ptr: Vec<usize>,
     /// Per supernode s, the supernodes below it whose patterns meet its
     /// columns (the updates s receives), ascending:
     /// `updates[update_ptr[s]..update_ptr[s + 1]]`.
-    update_ptr: Vec<usize>,
     updates: Vec<usize>,
     /// Per thread, its subtrees' supernodes, children first (ascending).
     bins: Vec<Vec<usize>>,
     /// The top supernodes, children first (ascending), factored after the
     /// bins with the kernels on all threads.
     top: Vec<usize>,
-    /// The longest pattern below a supernode, and the widest supernode.
+    /// The longest pattern below a supernode.
     longest: usize,
+    /// The widest supernode (columns).
     widest: usize,
 }
 
 impl Plan {
     /// The plan of `sym` for `threads` threads; None where the tree does not
-    /// split into two subtrees at least (one thread, or a chain).
+    /// split into two subtrees at least (one thread, or a chain), or where an
+    /// update would cross from one bin to another (never, in a supernodal
+    /// elimination tree; checked, since the split's soundness rests on it).
     pub(crate) fn of(sym: &SymbolicSupernodalCholesky<usize>, threads: usize) -> Option<Plan> {
         if threads < 2 {
             return None;
@@ -154,6 +158,22 @@ impl Plan {
             updates[count[s]] = d;
             count[s] += 1;
         });
+        // What makes the split free of races (see Shared): every update comes
+        // from a supernode before its destination and in the same bin, or
+        // goes to the top. (Supernodal elimination trees give it; a structure
+        // that did not is factored sequentially instead.)
+        let mut owner = vec![NONE; ns];
+        for (b, bin) in bins.iter().enumerate() {
+            bin.iter().for_each(|&s| owner[s] = b);
+        }
+        let safe = (0..ns).all(|s| {
+            updates[update_ptr[s]..update_ptr[s + 1]]
+                .iter()
+                .all(|&d| d < s && (owner[s] == NONE || owner[s] == owner[d]))
+        });
+        if !safe {
+            return None;
+        }
         Some(Plan {
             update_ptr,
             updates,
@@ -162,6 +182,14 @@ impl Plan {
             longest: (0..ns).map(|s| pattern(s).len()).max().unwrap_or(0),
             widest: tree.width.iter().copied().max().unwrap_or(0),
         })
+    }
+}
+
+#[cfg(test)]
+impl Plan {
+    /// The bins and the top.
+    pub(crate) fn split(&self) -> (&[Vec<usize>], &[usize]) {
+        (&self.bins, &self.top)
     }
 }
 
@@ -227,12 +255,14 @@ impl Work {
 }
 
 /// Factors P K P^T into `values` (zeroed, of `sym`'s length) as `plan` splits
-/// it, on the pool of the caller (a rayon pool of `par`'s threads, installed):
-/// `a` holds the lower triangle of P K P^T (rows in any order within a
-/// column). Err(column) at the first non-positive pivot, in the factor's
-/// order, as a sequential factorisation would meet it: each bin stops at
-/// its own first, and every supernode before the first overall is
-/// factored whatever the split.
+/// it, on the pool of the caller (a rayon pool of `par`'s threads, installed;
+/// `Par::Seq`: every bin on the calling thread, where the pool could not be
+/// started): `a` holds the lower triangle of P K P^T (rows in any order
+/// within a column). Err(column) at the first non-positive pivot, in the
+/// factor's order, as a sequential factorisation would meet it: each bin
+/// stops at its own first, then the top's supernodes before the first of the
+/// bins are factored (their descendants all come before them, so no bin
+/// stopped short of one), and the first of all is reported.
 pub(crate) fn factor(
     plan: &Plan,
     sym: &SymbolicSupernodalCholesky<usize>,
@@ -241,10 +271,15 @@ pub(crate) fn factor(
     par: Par,
 ) -> Result<(), usize> {
     assert_eq!(values.len(), sym.len_val());
+    assert_eq!(
+        plan.update_ptr.len(),
+        sym.n_supernodes() + 1,
+        "a plan of this structure"
+    );
     let n = sym.nrows();
     let shared = Shared(values.as_mut_ptr());
     let failed = AtomicUsize::new(NONE);
-    plan.bins.par_iter().for_each(|bin| {
+    let bin = |bin: &Vec<usize>| {
         let mut work = Work::new(n, plan, Par::Seq);
         for &s in bin {
             if let Err(col) = supernode(s, plan, sym, a, shared, &mut work, Par::Seq) {
@@ -252,16 +287,21 @@ pub(crate) fn factor(
                 break;
             }
         }
-    });
-    match failed.into_inner() {
-        NONE => {}
-        col => return Err(col),
+    };
+    match par {
+        Par::Seq => plan.bins.iter().for_each(bin),
+        _ => plan.bins.par_iter().for_each(bin),
     }
+    let failed = failed.into_inner();
+    let begin = sym.supernode_begin();
     let mut work = Work::new(n, plan, par);
-    for &s in &plan.top {
+    for &s in plan.top.iter().take_while(|&&s| begin[s] < failed) {
         supernode(s, plan, sym, a, shared, &mut work, par)?;
     }
-    Ok(())
+    match failed {
+        NONE => Ok(()),
+        col => Err(col),
+    }
 }
 
 /// Forms and factors supernode s: K's entries of its columns, minus the

@@ -39,26 +39,41 @@ pub(crate) mod fault {
 
     #[cfg(test)]
     thread_local! {
-        /// Whether the fault is on (this thread's runs only), and the
-        /// convergences it claimed.
-        static CLAIM: std::cell::Cell<(bool, usize)> = const { std::cell::Cell::new((false, 0)) };
+        /// Whether the fault is on (this thread's runs only), the
+        /// convergences it claimed, and the runs that confirm every
+        /// convergence on an exact gradient (`measured_after` false) begun
+        /// while it was on.
+        static CLAIM: std::cell::Cell<(bool, usize, usize)> =
+            const { std::cell::Cell::new((false, 0, 0)) };
     }
 
     /// Turns the fault on or off for this thread's runs and returns the
-    /// convergences claimed since it was last set.
+    /// convergences claimed and the confirming runs begun since it was last
+    /// set.
     #[cfg(test)]
-    pub(crate) fn claim_drifted(on: bool) -> usize {
-        CLAIM.with(|c| c.replace((on, 0)).1)
+    pub(crate) fn claim_drifted(on: bool) -> (usize, usize) {
+        let (_, claimed, confirming) = CLAIM.with(|c| c.replace((on, 0, 0)));
+        (claimed, confirming)
     }
 
     /// Whether the run ends converged here by the injected fault.
     #[cfg(test)]
     pub(super) fn claims(gradient: Gradient, measured_after: bool) -> bool {
-        let hit = gradient == Gradient::Drifted && measured_after && CLAIM.with(|c| c.get().0);
+        let (on, claimed, confirming) = CLAIM.with(|c| c.get());
+        let hit = on && gradient == Gradient::Drifted && measured_after;
         if hit {
-            CLAIM.with(|c| c.set((true, c.get().1 + 1)));
+            CLAIM.with(|c| c.set((on, claimed + 1, confirming)));
         }
         hit
+    }
+
+    /// Counts a run that begins, where it confirms every convergence.
+    #[cfg(test)]
+    pub(super) fn begins(measured_after: bool) {
+        let (on, claimed, confirming) = CLAIM.with(|c| c.get());
+        if on && !measured_after {
+            CLAIM.with(|c| c.set((on, claimed, confirming + 1)));
+        }
     }
 
     /// Never, outside the unit tests.
@@ -67,6 +82,11 @@ pub(crate) mod fault {
     pub(super) fn claims(_: Gradient, _: bool) -> bool {
         false
     }
+
+    /// Nothing, outside the unit tests.
+    #[cfg(not(test))]
+    #[inline(always)]
+    pub(super) fn begins(_: bool) {}
 }
 
 /// What a method run reports back.
@@ -279,6 +299,7 @@ pub(super) fn drive(
     method: &mut dyn OuterStep,
 ) -> Outcome {
     let (m, c) = (problem.dual.m, problem.dual.c);
+    fault::begins(problem.measured_after);
     let mut out = Outcome::default();
     let mut w = vec![0.0; c];
     let mut p = vec![0.0; m];

@@ -1485,16 +1485,20 @@ fn the_increment_solve_confirms_a_drifted_convergence_it_catches() {
         assert!(pb.is_matrix_free());
         fault::claim_drifted(true);
         let sol = pb.solve(&f, &g, law, &opts);
-        let claimed = fault::claim_drifted(false);
+        let (claimed, confirming) = fault::claim_drifted(false);
         let sol = sol.unwrap();
         let closed = reference.lambda_n.iter().filter(|&&v| v > 0.0).count();
         println!(
             "{name}: {closed} of {m} closed; {claimed} convergence(s) claimed by the fault, \
-             err {:.2e}, {} outer",
+             {confirming} confirming run(s), err {:.2e}, {} outer",
             sol.report.err, sol.report.outer_iterations
         );
         assert!(closed > 0 && closed < m, "{name}: {closed} closed");
         assert!(claimed > 0, "{name}: the fault never fired");
+        assert!(
+            confirming > 0,
+            "{name}: no run confirmed on an exact gradient"
+        );
         assert_eq!(sol.report.status, crate::SolveStatus::Converged, "{name}");
         assert!(sol.report.err <= opts.tol, "{name}: {:.2e}", sol.report.err);
         let scale = norm(&reference.lambda_n);
