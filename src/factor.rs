@@ -5,11 +5,11 @@
 //! the ordering and the symbolic analysis and is factored by dense Cholesky.
 
 use crate::error::{ErrorKind, Result, fail};
-use crate::factor_tree::numeric::Plan as TreePlan;
 use crate::memory::{Claim, Ledger};
 use crate::options::Ordering;
 use crate::sparse::Csc;
 use crate::threads::{PARALLEL_MIN_ENTRIES, Threads};
+use crate::tree_cholesky::Plan as TreePlan;
 use faer::dyn_stack::{MemBuffer, MemStack, StackReq};
 use faer::linalg::cholesky::llt::factor::LltRegularization;
 use faer::linalg::triangular_solve::{
@@ -415,7 +415,7 @@ impl Factor {
                     SymbolicCholeskyRaw::Supernodal(sym)
                         if self.threads.count() >= 2 && sym.len_val() >= PARALLEL_MIN_ENTRIES =>
                     {
-                        faer + crate::factor_tree::numeric::bytes_bound(sym, self.threads.count())
+                        faer + crate::tree_cholesky::bytes_bound(sym, self.threads.count())
                     }
                     _ => faer,
                 }
@@ -662,7 +662,7 @@ impl Factor {
     }
 
     /// The split of the numeric factorisation between the factor's threads
-    /// by its elimination tree (`factor_tree::numeric`), where there are
+    /// by its elimination tree (`tree_cholesky`), where there are
     /// several, L has PARALLEL_MIN_ENTRIES entries at least and the tree
     /// splits into subtrees. Small fronts too: the subtrees are what the
     /// threads share, not the dense kernels (measured on 2 threads: 1.5 x
@@ -716,7 +716,7 @@ impl Factor {
         };
         let mut values = self.values_vec()?;
         let result = self.threads.run(true, |par| {
-            crate::factor_tree::numeric::factor(plan, sym, lower, &mut values, par)
+            crate::tree_cholesky::factor(plan, sym, lower, &mut values, par)
         });
         let result = result.map_err(|index| format!("NonPositivePivot {{ index: {index} }}"));
         Ok((values, result))

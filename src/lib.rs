@@ -40,6 +40,7 @@ mod restricted;
 mod sizes;
 mod sparse;
 mod threads;
+mod tree_cholesky;
 
 pub use error::{Error, ErrorKind, Result};
 pub use friction::Friction;

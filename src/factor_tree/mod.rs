@@ -1,12 +1,8 @@
-//! Work on the elimination tree of K's supernodal Cholesky factor: its
-//! numeric factorisation on several threads, and what the matrix-free dual
-//! needs from the factor besides its plain solves.
+//! Work on the elimination tree of K's supernodal Cholesky factor: what the
+//! matrix-free dual needs from the factor besides its plain solves.
 //!
 //! - `supernode_tree`: the tree itself (per column its supernode, per supernode
 //!   its columns and parent);
-//! - `numeric`: the numeric factorisation on several threads, independent
-//!   subtrees on different threads (`factor` calls it; it works on the
-//!   symbolic structure alone);
 //! - `tree_solve`: solves restricted to the paths of a set of DOFs, split
 //!   between threads (the products of the matrix-free dual);
 //! - `selected_inverse`: entries of K^-1 on the factor's pattern (Takahashi's
@@ -16,11 +12,9 @@
 //! - `row_solves`: K^-1 on sparse right-hand sides wanted on their own rows,
 //!   as a host's direct solver gives it (the benchmark's and tests' hosts).
 //!
-//! This layer sits on `factor` and below `dual`; `numeric` works on the
-//! symbolic structure alone, and `factor` calls it.
+//! This layer sits on `factor` and below `dual`.
 
 pub(crate) mod contact_blocks;
-pub(crate) mod numeric;
 #[cfg(any(test, feature = "internals"))]
 pub(crate) mod row_solves;
 pub(crate) mod selected_inverse;

@@ -21,16 +21,10 @@ pub(crate) struct Tree {
 
 impl Tree {
     pub(crate) fn of(factor: &Factor) -> Tree {
-        Tree::of_symbolic(factor.supernodal_symbolic())
-    }
-
-    /// The tree of the supernodal structure `sym`.
-    pub(crate) fn of_symbolic(
-        sym: &faer::sparse::linalg::cholesky::supernodal::SymbolicSupernodalCholesky<usize>,
-    ) -> Tree {
+        let sym = factor.supernodal_symbolic();
         let ns = sym.n_supernodes();
         let (begin, end) = (sym.supernode_begin(), sym.supernode_end());
-        let mut of_col = vec![0usize; sym.nrows()];
+        let mut of_col = vec![0usize; factor.n()];
         for s in 0..ns {
             of_col[begin[s]..end[s]].fill(s);
         }

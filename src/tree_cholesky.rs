@@ -19,7 +19,6 @@
 //! are summed in the same order, by other kernels); a subtree's supernodes
 //! come out the same whichever thread factors them.
 
-use crate::factor_tree::supernode_tree::Tree;
 use faer::dyn_stack::{MemBuffer, MemStack};
 use faer::linalg::cholesky::llt::factor::{cholesky_in_place, cholesky_in_place_scratch};
 use faer::linalg::matmul::matmul;
@@ -72,21 +71,31 @@ impl Plan {
         if threads < 2 {
             return None;
         }
-        let tree = Tree::of_symbolic(sym);
-        let ns = tree.len();
+        let ns = sym.n_supernodes();
+        let (begin, end) = (sym.supernode_begin(), sym.supernode_end());
         let pattern = |s: usize| sym.supernode(s).pattern();
+        // The supernodal elimination tree: each column's supernode, and each
+        // supernode's parent (the one holding its pattern's first row).
+        let mut of_col = vec![0usize; sym.nrows()];
+        for s in 0..ns {
+            of_col[begin[s]..end[s]].fill(s);
+        }
+        let parent: Vec<usize> = (0..ns)
+            .map(|s| pattern(s).first().map_or(NONE, |&row| of_col[row]))
+            .collect();
+        let width: Vec<usize> = (0..ns).map(|s| end[s] - begin[s]).collect();
         // Per supernode its flops as a right-looking step (factor, solve
         // below, the update it sends), summed over each subtree.
         let mut weight: Vec<f64> = (0..ns)
             .map(|s| {
-                let (w, r) = (tree.width[s] as f64, pattern(s).len() as f64);
+                let (w, r) = (width[s] as f64, pattern(s).len() as f64);
                 w * w * w / 3.0 + w * w * r + w * r * r
             })
             .collect();
         let mut children = vec![Vec::new(); ns];
         let mut roots = Vec::new();
         for s in 0..ns {
-            match tree.parent[s] {
+            match parent[s] {
                 NONE => roots.push(s),
                 p => {
                     children[p].push(s);
@@ -140,7 +149,7 @@ impl Plan {
             for d in 0..ns {
                 let mut last = NONE;
                 for &row in pattern(d) {
-                    let s = tree.of_col[row];
+                    let s = of_col[row];
                     if s != last {
                         visit(s, d);
                         last = s;
@@ -180,7 +189,7 @@ impl Plan {
             bins,
             top,
             longest: (0..ns).map(|s| pattern(s).len()).max().unwrap_or(0),
-            widest: tree.width.iter().copied().max().unwrap_or(0),
+            widest: width.iter().copied().max().unwrap_or(0),
         })
     }
 }
@@ -208,7 +217,7 @@ pub(crate) fn bytes_bound(sym: &SymbolicSupernodalCholesky<usize>, threads: usiz
         .unwrap_or(0);
     let (begin, end) = (sym.supernode_begin(), sym.supernode_end());
     let widest = (0..ns).map(|s| end[s] - begin[s]).max().unwrap_or(0);
-    let tree = (n + 5 * ns) * word;
+    let tree = (n + 3 * ns) * word;
     let plan = (sym.row_idx().len() + 3 * ns + 1) * word;
     let per_thread = (n + longest) * word
         + longest * CHUNK * std::mem::size_of::<f64>()
