@@ -115,10 +115,12 @@ impl Sizes {
     /// A matrix-free dual may keep its contact blocks: the values of the K
     /// they were computed on are then held (at most `k_bytes`), and the
     /// estimate of their drift works in a few n-vectors
-    /// (`drift::work_bytes`) before the dual is rebuilt.
+    /// (`drift::work_bytes`) and, on several threads, a split of the solves
+    /// by the tree (at most what the dual's own solves hold) before the dual
+    /// is rebuilt.
     pub fn refactor(&self, how: Condensation, k_bytes: usize) -> usize {
         let keep = if how == Condensation::MatrixFree {
-            k_bytes + crate::drift::work_bytes(self.n)
+            k_bytes + crate::drift::work_bytes(self.n) + self.own_solves
         } else {
             0
         };
