@@ -692,10 +692,10 @@ impl Factor {
         };
         let n = self.n();
         let nnz = a.compute_nnz();
-        let oom = || crate::Error::new(ErrorKind::OutOfMemory, "K: the factorisation's scratch");
-        let mut new_values = zeros::<f64>(nnz).ok_or_else(oom)?;
-        let mut new_col_ptr = zeros::<usize>(n + 1).ok_or_else(oom)?;
-        let mut new_row_idx = zeros::<usize>(nnz).ok_or_else(oom)?;
+        let what = "K: the factorisation's scratch";
+        let mut new_values = crate::memory::try_zeros::<f64>(nnz, what)?;
+        let mut new_col_ptr = crate::memory::try_zeros::<usize>(n + 1, what)?;
+        let mut new_row_idx = crate::memory::try_zeros::<usize>(nnz, what)?;
         let mut mem = workspace(StackReq::new::<usize>(n))?;
         let permuted;
         let lower = match symbolic.perm() {
@@ -1118,15 +1118,6 @@ impl Factor {
         let m = faer::MatMut::from_column_major_slice_mut(x, n, 1);
         self.solve_in_place(m, MemStack::new(&mut mem));
     }
-}
-
-/// `len` default values in a new vector, None where the allocator refuses
-/// them.
-fn zeros<T: Clone + Default>(len: usize) -> Option<Vec<T>> {
-    let mut v = Vec::new();
-    v.try_reserve_exact(len).ok()?;
-    v.resize(len, T::default());
-    Some(v)
 }
 
 /// The factorisation's workspace, or `OutOfMemory`.
