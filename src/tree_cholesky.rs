@@ -107,41 +107,12 @@ impl Plan {
         // The heaviest subtree is moved to the top, its children becoming
         // tasks, while it holds more than its share.
         let limit = total / (TASKS_PER_THREAD * threads) as f64;
-        let (mut top, mut tasks) = (Vec::new(), roots);
-        while let Some((at, &s)) = tasks
-            .iter()
-            .enumerate()
-            .max_by(|a, b| weight[*a.1].total_cmp(&weight[*b.1]))
-        {
-            if weight[s] <= limit || children[s].is_empty() {
-                break;
-            }
-            tasks.swap_remove(at);
-            top.push(s);
-            tasks.extend(&children[s]);
-        }
+        let (mut top, tasks) = split_top(|s| weight[s], &children, roots, limit);
         if tasks.len() < 2 {
             return None;
         }
         top.sort_unstable();
-        tasks.sort_unstable_by(|a, b| weight[*b].total_cmp(&weight[*a]));
-        let mut bins: Vec<Vec<usize>> = vec![Vec::new(); threads];
-        let mut load = vec![0.0f64; threads];
-        for root in tasks {
-            let b = (0..threads)
-                .min_by(|x, y| load[*x].total_cmp(&load[*y]))
-                .expect("threads >= 2");
-            load[b] += weight[root];
-            let mut stack = vec![root];
-            while let Some(s) = stack.pop() {
-                bins[b].push(s);
-                stack.extend(&children[s]);
-            }
-        }
-        for bin in &mut bins {
-            bin.sort_unstable();
-        }
-        bins.retain(|b| !b.is_empty());
+        let bins = fill_bins(|s| weight[s], &children, tasks, threads);
         // The updates: d updates every supernode holding a row of its
         // pattern (the rows are sorted, so each one's rows come together).
         let mut count = vec![0usize; ns + 1];
@@ -223,6 +194,63 @@ pub(crate) fn bytes_bound(sym: &SymbolicSupernodalCholesky<usize>, threads: usiz
         + longest * CHUNK * std::mem::size_of::<f64>()
         + cholesky_in_place_scratch::<f64>(widest, Par::Seq, Default::default()).size_bytes();
     tree + plan + threads * per_thread
+}
+
+/// The top of a forest's split between threads (this factorisation's, the
+/// tree solves' and the selected inversion's): while the heaviest task (by
+/// `weight`, its subtree's) weighs more than `limit` and has children, it
+/// moves to the top and its children become tasks, starting from `roots`.
+/// Returns the top, in the order moved, and the tasks.
+pub(crate) fn split_top(
+    weight: impl Fn(usize) -> f64,
+    children: &[Vec<usize>],
+    roots: Vec<usize>,
+    limit: f64,
+) -> (Vec<usize>, Vec<usize>) {
+    let (mut top, mut tasks) = (Vec::new(), roots);
+    while let Some((at, &s)) = tasks
+        .iter()
+        .enumerate()
+        .max_by(|a, b| weight(*a.1).total_cmp(&weight(*b.1)))
+    {
+        if weight(s) <= limit || children[s].is_empty() {
+            break;
+        }
+        tasks.swap_remove(at);
+        top.push(s);
+        tasks.extend(&children[s]);
+    }
+    (top, tasks)
+}
+
+/// The tasks' subtrees in `threads` bins, heaviest first into the lightest
+/// (by `weight`), each bin's supernodes ascending (children first); empty
+/// bins dropped.
+pub(crate) fn fill_bins(
+    weight: impl Fn(usize) -> f64,
+    children: &[Vec<usize>],
+    mut tasks: Vec<usize>,
+    threads: usize,
+) -> Vec<Vec<usize>> {
+    tasks.sort_unstable_by(|a, b| weight(*b).total_cmp(&weight(*a)));
+    let mut bins: Vec<Vec<usize>> = vec![Vec::new(); threads];
+    let mut load = vec![0.0f64; threads];
+    for root in tasks {
+        let b = (0..threads)
+            .min_by(|x, y| load[*x].total_cmp(&load[*y]))
+            .expect("at least one bin");
+        load[b] += weight(root);
+        let mut stack = vec![root];
+        while let Some(s) = stack.pop() {
+            bins[b].push(s);
+            stack.extend(&children[s]);
+        }
+    }
+    for bin in &mut bins {
+        bin.sort_unstable();
+    }
+    bins.retain(|b| !b.is_empty());
+    bins
 }
 
 /// L's values shared by the threads of a factorisation, each writing only

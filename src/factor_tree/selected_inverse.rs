@@ -164,24 +164,13 @@ impl Selection {
     /// visited in parallel, one thread each. With one thread: no top, the whole
     /// forest as subtrees.
     fn split(&self, threads: usize) -> (Vec<usize>, Vec<usize>) {
-        let mut top = Vec::new();
-        let mut tasks = self.roots.clone();
-        if threads > 1 {
+        let (mut top, tasks) = if threads > 1 {
             let sub = self.subtree_flops();
             let limit = self.flops() / (4 * threads) as f64;
-            while let Some((at, &s)) = tasks
-                .iter()
-                .enumerate()
-                .max_by(|a, b| sub[*a.1].total_cmp(&sub[*b.1]))
-            {
-                if sub[s] <= limit || self.children[s].is_empty() {
-                    break;
-                }
-                tasks.swap_remove(at);
-                top.push(s);
-                tasks.extend(&self.children[s]);
-            }
-        }
+            crate::tree_cholesky::split_top(|s| sub[s], &self.children, self.roots.clone(), limit)
+        } else {
+            (Vec::new(), self.roots.clone())
+        };
         top.sort_unstable_by(|a, b| b.cmp(a));
         (top, tasks)
     }

@@ -158,20 +158,16 @@ impl TreeSolve {
         let total: usize = roots.iter().map(|&r| weight[r]).sum();
         // The top: the heaviest subtree is split while it holds more than its
         // share (as the selected inversion's split).
-        let mut top = Vec::new();
-        let mut tasks = roots;
+        // (Entry counts as f64: exact below 2^53, so the comparisons, the
+        // integer limit and the bins' loads are those of the counts.)
+        let as_f64 = |s: usize| weight[s] as f64;
         let split = threads >= 2 && total >= MIN_ENTRIES;
-        if split {
+        let (mut top, tasks) = if split {
             let limit = total / (TASKS_PER_THREAD * threads);
-            while let Some((at, &s)) = tasks.iter().enumerate().max_by_key(|(_, s)| weight[**s]) {
-                if weight[s] <= limit || children[s].is_empty() {
-                    break;
-                }
-                tasks.swap_remove(at);
-                top.push(s);
-                tasks.extend(&children[s]);
-            }
-        }
+            crate::tree_cholesky::split_top(as_f64, &children, roots, limit as f64)
+        } else {
+            (Vec::new(), roots)
+        };
         if !split || tasks.len() < 2 {
             // No split: every supernode taken, in one bin.
             return TreeSolve {
@@ -193,22 +189,7 @@ impl TreeSolve {
             top_at[col] = i;
         }
         // Heaviest first into the lightest bin.
-        tasks.sort_unstable_by_key(|&s| std::cmp::Reverse(weight[s]));
-        let mut bins: Vec<Vec<usize>> = (0..threads).map(|_| Vec::new()).collect();
-        let mut load = vec![0usize; threads];
-        for root in tasks {
-            let b = (0..threads).min_by_key(|&b| load[b]).expect("threads >= 2");
-            load[b] += weight[root];
-            let mut stack = vec![root];
-            while let Some(s) = stack.pop() {
-                bins[b].push(s);
-                stack.extend(&children[s]);
-            }
-        }
-        for bin in &mut bins {
-            bin.sort_unstable();
-        }
-        bins.retain(|b| !b.is_empty());
+        let bins = crate::tree_cholesky::fill_bins(as_f64, &children, tasks, threads);
         TreeSolve {
             bins,
             top,
