@@ -1197,16 +1197,39 @@ fn the_forcing_term_reads_the_last_step() {
         ..poor
     };
     assert_eq!(forcing(0.9, 1.0, target, lam, Some(damped), 0.0), 0.1);
+    // A whole step that shrank |F| only at a linear rate (0.2): no tighter
+    // than SEEN_GAMMA 0.2^2 = 0.036, where |F| / |F_0| asks for 1e-3.
+    let linear = LastStep {
+        ratio: 0.2,
+        full: true,
+    };
+    let seen = forcing(1e-3, 1.0, target, lam, Some(linear), 0.0);
+    assert!((seen - 0.036).abs() < 1e-15, "{seen}");
+    // A backtracked one keeps |F| / |F_0|.
+    let linear_damped = LastStep {
+        full: false,
+        ..linear
+    };
+    assert_eq!(
+        forcing(1e-3, 1.0, target, lam, Some(linear_damped), 0.0),
+        1e-3
+    );
+    // A superlinear step (1e-3) leaves |F| / |F_0|: 0.9e-6 < 1e-4.
+    let fast = LastStep {
+        ratio: 1e-3,
+        full: true,
+    };
+    assert_eq!(forcing(1e-4, 1.0, target, lam, Some(fast), 0.0), 1e-4);
     // Never tighter than a step leaving |F| at ENOUGH of the target.
-    let enough = ENOUGH * target * lam / 1e-6;
-    assert!((forcing(1e-6, 1.0, target, lam, Some(good), 0.0) - enough).abs() < 1e-18);
+    let enough = ENOUGH * target * lam / 1e-8;
+    assert!((forcing(1e-8, 1.0, target, lam, Some(fast), 0.0) - enough).abs() < 1e-18);
     // Nor than the floor (rough products), whatever |F| and the target ask.
     assert_eq!(
-        forcing(1e-6, 1.0, target, lam, Some(good), ROUGH_ETA),
+        forcing(1e-6, 1.0, target, lam, Some(fast), ROUGH_ETA),
         ROUGH_ETA
     );
     // A looser term is kept as it is.
-    assert_eq!(forcing(1e-3, 1.0, target, lam, Some(good), ROUGH_ETA), 1e-3);
+    assert_eq!(forcing(1e-3, 1.0, target, lam, Some(fast), ROUGH_ETA), 1e-3);
 }
 
 /// A contact that closes in a Newton step (lambda_N = 0, y_N > 0) has the
