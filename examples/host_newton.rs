@@ -17,12 +17,15 @@
 //! ```text
 //! cargo run --release --example host_newton -- [--scenes A,B,..] [--threads K]
 //!     [--iterations J] [--laws tresca,coulomb] [--form auto|dense|matrix-free]
-//!     [--host-loop 1|0]
+//!     [--host-loop 1|0] [--trace J]
 //! cargo run --release --example host_newton -- --baseline-of DIR [--threads K]
 //! ```
 //!
 //! The handles are made with `Options::host_loop` (`--host-loop 0`: without,
 //! as a handle for `ds_step` would be).
+//!
+//! `--trace J` prints iteration J's Newton steps (err, contact states,
+//! seconds) as they are taken.
 //!
 //! `--baseline-of DIR` only times the best plain factorisation of the K of the
 //! problem folder DIR (as `c_examples/hyperelastic_host.c --dump DIR` writes
@@ -55,6 +58,7 @@ fn main() {
     let mut form = DualForm::Auto;
     let mut baseline_of: Option<String> = None;
     let mut host_loop = true;
+    let mut trace: Option<usize> = None;
     let args: Vec<String> = std::env::args().skip(1).collect();
     let mut k = 0;
     while k < args.len() {
@@ -64,6 +68,7 @@ fn main() {
             "--threads" => threads = value().parse().expect("--threads K"),
             "--iterations" => iterations = value().parse().expect("--iterations J"),
             "--host-loop" => host_loop = value() == "1",
+            "--trace" => trace = Some(value().parse().expect("--trace J")),
             "--laws" => laws = value().split(',').map(str::to_string).collect(),
             "--form" => form = DualForm::from_name(&value()).expect("a dual form"),
             "--baseline-of" => baseline_of = Some(value()),
@@ -98,7 +103,15 @@ fn main() {
             } else {
                 Friction::Coulomb(&sc.mu)
             };
-            run(name, &sc, friction, law, &opts, t_factor, iterations);
+            run(
+                name,
+                &sc,
+                friction,
+                law,
+                &opts,
+                t_factor,
+                (iterations, trace),
+            );
         }
     }
 }
@@ -134,7 +147,7 @@ fn run(
     law: &str,
     opts: &Options,
     t_factor: f64,
-    iterations: usize,
+    (iterations, trace): (usize, Option<usize>),
 ) {
     let eps: Vec<f64> = (0..iterations)
         .map(|j| 0.04 * (-0.25f64).powi(j as i32))
@@ -193,8 +206,17 @@ fn run(
             lt_start: None,
         };
         let t0 = Instant::now();
+        let mut show = |p: &dualsplit::Progress| {
+            println!(
+                "    iteration {j}, Newton step {}: err {:.2e}, open / stick / slip {} / {} / {}, {:.3} s",
+                p.iteration, p.err, p.n_open, p.n_stick, p.n_slip, p.elapsed_seconds
+            );
+            true
+        };
+        let monitor: Option<dualsplit::Monitor<'_>> =
+            (trace == Some(j)).then_some(&mut show as dualsplit::Monitor<'_>);
         let sol = pb
-            .solve_iteration(&it, friction, opts)
+            .solve_iteration_monitored(&it, friction, opts, monitor)
             .expect("the iteration");
         let t_solve = t0.elapsed().as_secs_f64();
         let rep = &sol.report;
