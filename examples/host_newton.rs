@@ -25,7 +25,8 @@
 //! as a handle for `ds_step` would be).
 //!
 //! `--trace J` prints iteration J's Newton steps (err, contact states,
-//! seconds) as they are taken.
+//! seconds) as they are taken; J counts from 0 as the table's iteration
+//! column does, and the printing is inside that solve's time.
 //!
 //! `--baseline-of DIR` only times the best plain factorisation of the K of the
 //! problem folder DIR (as `c_examples/hyperelastic_host.c --dump DIR` writes

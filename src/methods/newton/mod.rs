@@ -710,8 +710,9 @@ const POOR: f64 = 0.5;
 const LOOSE: f64 = 0.5;
 
 /// Eisenstat and Walker's second choice of forcing term, as a floor after a
-/// whole step that shrank |F| by `ratio`: eta >= SEEN_GAMMA ratio^2 (their
-/// gamma = 0.9, alpha = 2; see [`forcing`]).
+/// whole step that shrank |F| by `ratio` (at most POOR): eta >=
+/// min(SEEN_GAMMA ratio^2, 0.1) (their gamma = 0.9, alpha = 2; see
+/// [`forcing`]).
 const SEEN_GAMMA: f64 = 0.9;
 
 /// The forcing term of an inexact Newton step on a matrix-free dual, and of
@@ -728,19 +729,20 @@ const SEEN_GAMMA: f64 = 0.9;
 ///   steps. After a backtracked step the direction itself fell short and
 ///   the default holds: loose directions there took up to twice the steps
 ///   on the lattice slabs of the tests.
-/// - After a whole step that shrank |F| by `ratio`, never tighter than
-///   SEEN_GAMMA ratio^2 (capped at 0.1; Eisenstat and Walker's second
+/// - After a whole step that shrank |F| by `ratio` (at most POOR), never
+///   tighter than SEEN_GAMMA ratio^2 (capped at 0.1; Eisenstat and Walker's second
 ///   choice, SIAM J. Sci. Comput. 17, 1996, as a floor). Where the steps
 ///   converge only linearly, a few contacts changing state at each, the
 ///   default asks every reduced solve for |F| / |F_0| (1e-3 to 1e-4 late
 ///   in a warm step) while the step can shrink |F| by its linear rate only
 ///   (about 0.2 on the 64 x 64 x 6 slab's proportional Coulomb history).
-///   Measured on the load-path family's matrix-free slabs (3d-32x32x4,
-///   3d-64x64x6, 3d-116x116x4, uniform and graded; products counted):
-///   Coulomb histories' warm steps took 0-7 % fewer products (234 -> 220,
-///   233 -> 218, 188 -> 181 over nine steps), their cold increments 30 ->
-///   29, 29 -> 26, 23 -> 19 and 26 -> 25; Tresca's, which converge
-///   superlinearly, and the dense duals' the same counts.
+///   Measured on eight rows of the load-path family's matrix-free slabs
+///   (3d-32x32x4 and its graded face, 3d-64x64x6 and its graded face,
+///   3d-116x116x4; products counted): Coulomb histories' warm steps took
+///   up to 6 % fewer products (234 -> 220, 233 -> 218, 188 -> 181 over
+///   nine steps; one row 1 more), their cold increments 0-4 fewer (30 ->
+///   29, 29 -> 26, 23 -> 19); Tresca's, which converge superlinearly, and
+///   the dense duals' the same counts.
 /// - Never tighter than a step whose error leaves |F| at ENOUGH of the
 ///   target (err's scale taken as |lambda|; the history benchmark's last
 ///   steps then end at err 1e-12 to 8e-11 for the target 1e-10, and a

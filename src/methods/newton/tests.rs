@@ -1205,6 +1205,12 @@ fn the_forcing_term_reads_the_last_step() {
     };
     let seen = forcing(1e-3, 1.0, target, lam, Some(linear), 0.0);
     assert!((seen - 0.036).abs() < 1e-15, "{seen}");
+    // Capped at 0.1: after 0.45, 0.9 0.45^2 = 0.182 would be looser.
+    let slow = LastStep {
+        ratio: 0.45,
+        full: true,
+    };
+    assert_eq!(forcing(1e-3, 1.0, target, lam, Some(slow), 0.0), 0.1);
     // A backtracked one keeps |F| / |F_0|.
     let linear_damped = LastStep {
         full: false,
