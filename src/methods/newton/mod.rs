@@ -730,12 +730,13 @@ const SEEN_GAMMA: f64 = 0.9;
 ///   the default holds: loose directions there took up to twice the steps
 ///   on the lattice slabs of the tests.
 /// - After a whole step that shrank |F| by `ratio` (at most POOR), never
-///   tighter than SEEN_GAMMA ratio^2 (capped at 0.1; Eisenstat and Walker's second
-///   choice, SIAM J. Sci. Comput. 17, 1996, as a floor). Where the steps
-///   converge only linearly, a few contacts changing state at each, the
-///   default asks every reduced solve for |F| / |F_0| (1e-3 to 1e-4 late
-///   in a warm step) while the step can shrink |F| by its linear rate only
-///   (about 0.2 on the 64 x 64 x 6 slab's proportional Coulomb history).
+///   tighter than SEEN_GAMMA ratio^2 (capped at 0.1; Eisenstat and
+///   Walker's second choice, SIAM J. Sci. Comput. 17, 1996, as a floor).
+///   Where the steps converge only linearly, a few contacts changing
+///   state at each, the default asks every reduced solve for |F| / |F_0|
+///   (1e-3 to 1e-4 late in a warm step) while the step can shrink |F| by
+///   its linear rate only (about 0.2 on the 64 x 64 x 6 slab's
+///   proportional Coulomb history).
 ///   Measured on eight rows of the load-path family's matrix-free slabs
 ///   (3d-32x32x4 and its graded face, 3d-64x64x6 and its graded face,
 ///   3d-116x116x4; products counted): Coulomb histories' warm steps took
