@@ -742,8 +742,9 @@ const SEEN_GAMMA: f64 = 0.9;
 ///   3d-116x116x4; products counted): Coulomb histories' warm steps took
 ///   up to 6 % fewer products (234 -> 220, 233 -> 218, 188 -> 181 over
 ///   nine steps; one row 1 more), their cold increments 0-4 fewer (30 ->
-///   29, 29 -> 26, 23 -> 19); Tresca's, which converge superlinearly, and
-///   the dense duals' the same counts.
+///   29, 29 -> 26, 23 -> 19); Tresca's, which converge superlinearly,
+///   the same counts on the uniform slabs and 1-2 fewer products on the
+///   graded one, the dense duals' the same counts.
 /// - Never tighter than a step whose error leaves |F| at ENOUGH of the
 ///   target (err's scale taken as |lambda|; the history benchmark's last
 ///   steps then end at err 1e-12 to 8e-11 for the target 1e-10, and a
