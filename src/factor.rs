@@ -1344,6 +1344,29 @@ mod tree_tests {
         Csc::from_triplets(n, n, &t)
     }
 
+    /// The analysis of `k` in `ordering` for `threads` threads, and its
+    /// supernodal symbolic factor.
+    fn analysed(
+        k: &Csc,
+        ordering: Ordering,
+        threads: usize,
+    ) -> (Factor, Arc<SymbolicCholesky<usize>>) {
+        let f = Factor::analyse(
+            k,
+            &[],
+            ordering,
+            true,
+            Arc::new(Threads::new(threads)),
+            Ledger::new(),
+        )
+        .unwrap();
+        let Layout::Supernodal(symbolic) = &f.layout else {
+            panic!("a sparse K");
+        };
+        let symbolic = symbolic.clone();
+        (f, symbolic)
+    }
+
     /// The factor of `k` as faer computes it on one thread, and as the tree
     /// split computes it on `threads` threads (the factor's values, or the
     /// failure's message).
@@ -1356,19 +1379,7 @@ mod tree_tests {
         std::result::Result<Vec<f64>, String>,
     ) {
         let run = |t: usize| {
-            let mut f = Factor::analyse(
-                k,
-                &[],
-                ordering,
-                true,
-                Arc::new(Threads::new(t)),
-                Ledger::new(),
-            )
-            .unwrap();
-            let Layout::Supernodal(symbolic) = &f.layout else {
-                panic!("a sparse K");
-            };
-            let symbolic = symbolic.clone();
+            let (mut f, symbolic) = analysed(k, ordering, t);
             let planned = f.tree_plan(&symbolic).is_some();
             assert_eq!(planned, t >= 2, "the tree split taken on {t} threads");
             let (values, result) = f.factor_supernodal(&symbolic, k).unwrap();
@@ -1414,16 +1425,7 @@ mod tree_tests {
     fn the_tree_split_meets_the_first_non_positive_pivot_faer_meets() {
         let spd = block(16, 16, 8, 0.0);
         let n = spd.nrows;
-        let fwd = Factor::analyse(
-            &spd,
-            &[],
-            Ordering::Metis,
-            true,
-            Arc::new(Threads::new(2)),
-            Ledger::new(),
-        )
-        .unwrap()
-        .fwd;
+        let fwd = analysed(&spd, Ordering::Metis, 2).0.fwd;
         let negative = |cols: &[usize]| negative_at(&spd, &fwd, cols);
         let cases = [
             (negative(&[n / 3]), Some(n / 3)),
@@ -1468,18 +1470,7 @@ mod tree_tests {
         let spd = block(16, 16, 8, 0.0);
         let mut checked = 0;
         for threads in [2, 3, 4] {
-            let f = Factor::analyse(
-                &spd,
-                &[],
-                Ordering::Metis,
-                true,
-                Arc::new(Threads::new(threads)),
-                Ledger::new(),
-            )
-            .unwrap();
-            let Layout::Supernodal(symbolic) = &f.layout else {
-                panic!("a sparse K");
-            };
+            let (f, symbolic) = analysed(&spd, Ordering::Metis, threads);
             let SymbolicCholeskyRaw::Supernodal(sym) = symbolic.raw() else {
                 panic!("supernodal");
             };
