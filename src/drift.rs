@@ -209,12 +209,11 @@ fn lanczos(
     let mut basis: Vec<(Vec<f64>, Vec<f64>)> = Vec::with_capacity(MAX_STEPS + 1);
     let (mut alpha, mut beta) = (Vec::new(), Vec::new());
     let (mut p, mut kp) = (vec![0.0; n], vec![0.0; n]);
-    let mut mem = faer::dyn_stack::MemBuffer::new(factor.solve_scratch_single());
     // On several threads the solves go by the elimination tree: faer's
     // single-column solve slowed down on two (a 3D slab's factor with 4.7e7
     // entries, single precision: 0.048 s against 0.038 s on one thread, the
     // tree's split 0.023 s; the same to rounding on one thread).
-    let mut tree = match factor.threads().count() {
+    let tree = match factor.threads().count() {
         1 => None,
         _ => {
             let all: Vec<usize> = (0..n).collect();
@@ -224,6 +223,9 @@ fn lanczos(
             })
         }
     };
+    // Either the tree's split with its scratch, or faer's solve scratch.
+    let mut solves =
+        tree.ok_or_else(|| faer::dyn_stack::MemBuffer::new(factor.solve_scratch_single()));
     let mut rhs = vec![0.0f32; n];
     let mut last = Drift {
         mu_min: 0.0,
@@ -237,14 +239,14 @@ fn lanczos(
         // rounding: kept instead of a product with K.
         kp.copy_from_slice(&p);
         rhs.iter_mut().zip(&p).for_each(|(r, x)| *r = *x as f32);
-        match &mut tree {
-            Some((ts, scratch)) => {
+        match &mut solves {
+            Ok((ts, scratch)) => {
                 ts.solve_single(factor, single, &mut rhs, scratch, factor.threads())
             }
-            None => factor.solve_single(
+            Err(mem) => factor.solve_single(
                 single,
                 faer::MatMut::from_column_major_slice_mut(&mut rhs, n, 1),
-                faer::dyn_stack::MemStack::new(&mut mem),
+                faer::dyn_stack::MemStack::new(mem),
             ),
         }
         p.iter_mut().zip(&rhs).for_each(|(x, r)| *x = f64::from(*r));
