@@ -119,7 +119,7 @@ pub(crate) fn info_of(
         solve_form: form_of(next),
         setup_bytes: sizes.setup(now),
         resident_bytes: sizes.resident(now),
-        refactor_bytes: sizes.refactor(now, k.bytes()),
+        refactor_bytes: sizes.refactor(now, k.bytes(), factor.threads().count()),
         solve_bytes: sizes.solve(
             now,
             next,

@@ -115,12 +115,13 @@ impl Sizes {
     /// A matrix-free dual may keep its contact blocks: the values of the K
     /// they were computed on are then held (at most `k_bytes`), and the
     /// estimate of their drift works in a few n-vectors
-    /// (`drift::work_bytes`) and, on several threads, a split of the solves
-    /// by the tree (at most what the dual's own solves hold) before the dual
-    /// is rebuilt.
-    pub fn refactor(&self, how: Condensation, k_bytes: usize) -> usize {
+    /// (`drift::work_bytes`) and, on several `threads`, a split of the
+    /// solves by the tree (at most what the dual's own solves hold) before
+    /// the dual is rebuilt.
+    pub fn refactor(&self, how: Condensation, k_bytes: usize, threads: usize) -> usize {
+        let split = if threads > 1 { self.own_solves } else { 0 };
         let keep = if how == Condensation::MatrixFree {
-            k_bytes + crate::drift::work_bytes(self.n) + self.own_solves
+            k_bytes + crate::drift::work_bytes(self.n) + split
         } else {
             0
         };

@@ -622,7 +622,8 @@ impl ContactProblem {
             );
         }
         memory::check(
-            self.sizes.refactor(self.dual.condensation, k.bytes()),
+            self.sizes
+                .refactor(self.dual.condensation, k.bytes(), self.threads()),
             memory::limit(self.max_memory),
             self.max_memory,
             "refactoring K (the old and the new factor are held at once)",
