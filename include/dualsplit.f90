@@ -947,7 +947,9 @@ contains
    !> a finite k_t). Returns the correction du and the TOTAL contact forces;
    !> starts from the last converged iteration's multipliers (the first
    !> iteration of an increment, slip absent, from their extrapolation along
-   !> the last two increments where they lie on a line). opts and report
+   !> the last two increments where they lie on a line; from the third
+   !> iteration on, from the line of the last two iterations where it lowers
+   !> the residual). opts and report
    !> optional; outputs written as ds_solve. The optional slip and
    !> lambda_t_start come last here (in C they come before du): pass them by
    !> keyword.

@@ -335,6 +335,13 @@ impl Increments {
 }
 
 /// Projects [lambda_N; lambda_T] onto lambda_N >= 0, |lambda_T,i| <= the
+/// friction bound of contact i (of the projected lambda_N), for the
+/// predictors outside this module (a host iteration's line).
+pub(crate) fn project_point(lam: &mut [f64], law: Friction<'_>, d: usize) {
+    project(lam, law, d)
+}
+
+/// Projects [lambda_N; lambda_T] onto lambda_N >= 0, |lambda_T,i| <= the
 /// friction bound of contact i (of the projected lambda_N).
 fn project(lam: &mut [f64], law: Friction<'_>, d: usize) {
     let m = lam.len() / d;

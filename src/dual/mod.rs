@@ -771,6 +771,35 @@ impl Dual {
         }
     }
 
+    /// f := K^-1 f with the factor `factor` and `ys[i] := A xs[i]` (length c
+    /// each), in one block solve where the dual is matrix-free on that
+    /// factor ([`Operator::solve_with_products`]); false, with nothing
+    /// written, otherwise (an assembled dual, the host's solves, another
+    /// factor).
+    ///
+    /// Errors: `OutOfMemory`.
+    pub(crate) fn solve_with_products(
+        &self,
+        factor: &Arc<Factor>,
+        f: &mut [f64],
+        xs: &[&[f64]],
+        ys: &mut [Vec<f64>],
+    ) -> Result<bool> {
+        let Some(op) = &self.free else {
+            return Ok(false);
+        };
+        if !op.factor().is_some_and(|own| Arc::ptr_eq(own, factor)) {
+            return Ok(false);
+        }
+        if !op.solve_with_products(f, xs, ys)? {
+            return Ok(false);
+        }
+        for (x, y) in xs.iter().zip(ys.iter_mut()) {
+            self.add_shift(x, y);
+        }
+        Ok(true)
+    }
+
     /// y := A x. x and y may be shorter than c: then y is the leading block of A
     /// (rows 0..len(y), columns 0..len(x)) times x, e.g. A_NN x_N for the normal
     /// unknowns alone.

@@ -349,7 +349,12 @@ pub unsafe extern "C" fn ds_step(
 /// starts, where the load changes of the last two increments lie on one
 /// line, from the extrapolation of the multipliers that ended them (at
 /// most two products more; not with an interface compliance; docs/design.md
-/// section 9). A host that cuts an increment back retries it from the
+/// section 9). A later iteration of an increment, from the third on, starts
+/// on the line through the last two iterations' multipliers where that
+/// lowers the natural map's residual (its products ride along the
+/// right-hand side's solve; not with an interface compliance); new
+/// contacts, a new compliance and ds_history_reset forget that line. A
+/// host that cuts an increment back retries it from the
 /// failed try's last multipliers and line (the answer does not depend on
 /// the start; ds_history_reset starts it from zero). The history of ds_step
 /// is neither used nor changed.

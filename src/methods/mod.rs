@@ -93,6 +93,12 @@ pub struct DualProblem<'a> {
     /// tolerance. False: every convergence is confirmed on an exact
     /// gradient.
     pub measured_after: bool,
+    /// The natural residual |F| of the point the start was predicted from,
+    /// where a host iteration's line moved it there (`solve::iteration_line`;
+    /// None otherwise): Newton's forcing terms are taken relative to it, as
+    /// after a step (the line is a step along the loop's own direction that
+    /// left the contacts sorted as they were).
+    pub start_from: Option<f64>,
 }
 
 impl<'a> DualProblem<'a> {
@@ -110,6 +116,7 @@ impl<'a> DualProblem<'a> {
             near: false,
             start_gradient: Cell::new(None),
             measured_after: false,
+            start_from: None,
         }
     }
     /// w := A lam - b (the negative of v = [N u - g; T u]).

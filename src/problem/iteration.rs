@@ -24,7 +24,12 @@
 //! through the multipliers that ended the last two increments, where the
 //! load changes of the two increments lie on one line
 //! (`history::Increments`): under a proportional load the increment's
-//! answer lies near it, where the last one's is a whole increment away.
+//! answer lies near it, where the last one's is a whole increment away. A
+//! later iteration, from the third of an increment on, starts on the line
+//! through the last two iterations' answers, at the point that best cancels
+//! the natural map there (`solve::iteration_line`), where that lowers |F|:
+//! a loop whose tangent settles moves its multipliers along nearly one
+//! direction.
 
 use super::*;
 
@@ -57,9 +62,13 @@ impl ContactProblem {
     /// before the first, after [`ContactProblem::reset_history`] or a change
     /// of m), or, for the first iteration of an increment (`it.slip` None),
     /// from the line through the multipliers that ended the last two
-    /// increments (module docs). They are kept only when this one
-    /// converges. The history of [`ContactProblem::step`] is neither used
-    /// nor changed.
+    /// increments (module docs); from the third iteration of an increment
+    /// on, from the line through the last two iterations' answers where
+    /// that lowers the natural map's residual (module docs; not with an
+    /// interface compliance). They are kept only when this one converges;
+    /// `set_contacts`, `set_compliance` and
+    /// [`ContactProblem::reset_history`] forget the line. The history of
+    /// [`ContactProblem::step`] is neither used nor changed.
     ///
     /// `opts.tol` may follow the host's residual, loose in the early
     /// iterations and `tol` in the last (an inexact Newton step; docs/design.md
@@ -119,8 +128,11 @@ impl ContactProblem {
         // after; a panic inside forgets it (no prediction for the next
         // increment).
         let increments = std::mem::take(&mut self.increments);
+        let before = std::mem::take(&mut self.iteration_before);
         let warm = if first {
             solve::Warm::Increment(&increments)
+        } else if before.len() == c {
+            solve::Warm::Line(&before)
         } else {
             solve::Warm::Given
         };
@@ -139,7 +151,16 @@ impl ContactProblem {
         let solve::Solved { sol, load, .. } = solved?;
         let converged = sol.report.status == SolveStatus::Converged;
         if converged {
+            // The line of the next iteration: through this answer and the
+            // last one of the same increment (none after a first iteration).
+            self.iteration_before = if first {
+                Vec::new()
+            } else {
+                std::mem::take(&mut self.iteration_start)
+            };
             self.iteration_start = lam;
+        } else {
+            self.iteration_before = before;
         }
         // An increment's first iteration records its start and load change
         // for the next one; where it records nothing the line is forgotten,

@@ -74,6 +74,10 @@ pub struct ContactProblem {
     /// The multipliers of the last converged host iteration (c; empty before
     /// the first), where the next one starts (`iteration.rs`).
     iteration_start: Vec<f64>,
+    /// The multipliers of the converged host iteration before that, in the
+    /// same increment (empty: none), the other end of the line a later
+    /// iteration starts on (`solve::iteration_line`).
+    iteration_before: Vec<f64>,
     /// The predictor of a host's increments (`history::Increments`).
     increments: Increments,
     /// What the last `refactor` cost (zero before the first).
@@ -388,6 +392,7 @@ impl ContactProblem {
             compliance: Compliance::rigid(m),
             loads: LoadSpan::default(),
             iteration_start: Vec::new(),
+            iteration_before: Vec::new(),
             increments: Increments::default(),
             last_refactor: RefactorCost::default(),
             kept_blocks: None,
@@ -493,6 +498,7 @@ impl ContactProblem {
             compliance: Compliance::rigid(m),
             loads: LoadSpan::default(),
             iteration_start: Vec::new(),
+            iteration_before: Vec::new(),
             increments: Increments::default(),
             last_refactor: RefactorCost::default(),
             kept_blocks: None,
@@ -846,6 +852,7 @@ impl ContactProblem {
         if self.iteration_start.len() != dual.c {
             self.iteration_start.clear();
         }
+        self.iteration_before.clear();
         self.increments.forget();
         self.compliance = compliance;
         self.sizes = next;
@@ -901,6 +908,7 @@ impl ContactProblem {
         // The predictors' loads were those of the old A + D.
         self.history.forget_loads();
         self.increments.forget();
+        self.iteration_before.clear();
         self.compliance = law;
         Ok(())
     }
@@ -1137,6 +1145,7 @@ impl ContactProblem {
     pub fn reset_history(&mut self) {
         self.history.reset();
         self.iteration_start.clear();
+        self.iteration_before.clear();
         self.increments.forget();
     }
 

@@ -38,6 +38,10 @@ pub(super) enum Warm<'a> {
     /// The first iteration of a host's increment, from lambda_n given: from
     /// the increments' prediction (`history::Increments`).
     Increment(&'a Increments),
+    /// A later iteration of a host's increment, from the last iteration's
+    /// answer given, with the answer of the iteration before it: from the
+    /// best point of their line (`iteration_line`).
+    Line(&'a [f64]),
 }
 
 /// What an increment solve gives: the solution, and for a step of the
@@ -219,14 +223,16 @@ impl ContactProblem {
         tol: f64,
         y_f: &mut Vec<f64>,
         u0: &mut [f64],
-    ) -> Result<()> {
+        ride: &[&[f64]],
+    ) -> Result<Option<Vec<Vec<f64>>>> {
         let amp = max_amplification(tol);
         if !self.dual.trailing {
             y_f.clear();
             if self.loads.combine(Map::Solve, f_total, u_k, u0, amp) {
-                return Ok(());
+                return Ok(None);
             }
         }
+        let mut rode = None;
         match &self.stiff {
             Stiffness::Own { factor, .. } if self.dual.trailing => {
                 // L^-1 P (f_total - K u_k) = L^-1 P f_total - L^T P u_k.
@@ -250,11 +256,18 @@ impl ContactProblem {
                 for (&j, &v) in last.iter().zip(&u_last) {
                     u0[j] = v;
                 }
-                return Ok(());
+                return Ok(None);
             }
             Stiffness::Own { factor, .. } => {
                 u0.copy_from_slice(f);
-                factor.solve_vec(u0);
+                let mut ys = vec![vec![0.0; self.dual.c]; ride.len()];
+                let rides =
+                    !ride.is_empty() && self.dual.solve_with_products(factor, u0, ride, &mut ys)?;
+                if rides {
+                    rode = Some(ys);
+                } else {
+                    factor.solve_vec(u0);
+                }
             }
             Stiffness::Host { host, .. } => {
                 u0.copy_from_slice(f);
@@ -267,7 +280,7 @@ impl ContactProblem {
         }
         let ledger = self.stiff.ledger().clone();
         self.loads.keep(Map::Solve, f_total, x, &ledger);
-        Ok(())
+        Ok(rode)
     }
 
     /// The increment solve of the load `f` (in a history f = f_total - K u_k,
@@ -316,7 +329,26 @@ impl ContactProblem {
             u_k,
             lu,
         };
-        self.solve_load(load, opts.tol, &mut y_f, &mut u0)?;
+        // The products at a given start (A lambda; a host iteration's A d
+        // along its line too) ride along the right-hand side's solve where
+        // the dual is matrix-free on K's own factor
+        // (`Dual::solve_with_products`): one block solve instead of two or
+        // three solves.
+        let plain = self.dual.shift().is_empty() && self.dual.is_matrix_free();
+        let dir: Option<Vec<f64>> = match warm {
+            Warm::Line(before) if before.len() == c => {
+                Some(lam.iter().zip(before).map(|(l, p)| l - p).collect())
+            }
+            _ => None,
+        };
+        let mut ride: Vec<&[f64]> = Vec::new();
+        let given = matches!(warm, Warm::Given | Warm::Line(_) | Warm::Increment(_));
+        if plain && given && lam.iter().any(|&x| x != 0.0) {
+            ride.push(lam);
+            ride.extend(dir.as_deref());
+        }
+        let rode = self.solve_load(load, opts.tol, &mut y_f, &mut u0, &ride)?;
+        drop(ride);
         let mut b = vec![0.0; c];
         self.dual.rows.mul_vec(&u0, &mut b);
         // g: the gaps of the normal rows (m), or of every row (c: a host
@@ -329,8 +361,16 @@ impl ContactProblem {
         // computed it or a history step's combines it from the A lambda the
         // last steps kept (the driver then takes no product for it).
         let mut start_w: Option<Vec<f64>> = None;
+        // |F| where a host iteration's line moved the start (the driver's
+        // forcing terms start from it).
+        let mut line_from: Option<f64> = None;
         let load = match warm {
-            Warm::Given => None,
+            Warm::Given => {
+                if let Some(al) = rode.as_ref().and_then(|p| p.first()) {
+                    start_w = Some(al.iter().zip(&b).map(|(a, bj)| a - bj).collect());
+                }
+                None
+            }
             Warm::History(h) => {
                 let mut bu = vec![0.0; c];
                 self.dual.rows.mul_vec(&h.u, &mut bu);
@@ -367,6 +407,15 @@ impl ContactProblem {
                 }
                 Some(load)
             }
+            Warm::Line(_) if !self.dual.shift().is_empty() => None,
+            Warm::Line(before) => {
+                let at = DualProblem::new(&self.dual, &b, friction);
+                let (w, from) = iteration_line(&at, before, self.d, lam, rode);
+                extrapolated = from.is_some();
+                line_from = from;
+                start_w = Some(w);
+                None
+            }
             // Not with an interface compliance: A + D would mix D lambda_n
             // into q, and the solve's b is shifted below.
             Warm::Increment(_) if !self.dual.shift().is_empty() => None,
@@ -375,7 +424,14 @@ impl ContactProblem {
                 // w = A lambda_n - b and q = b + [g; 0] - A lambda_n = [g; 0]
                 // - w (`history::Increments`).
                 let mut w = vec![0.0; c];
-                at.gradient(lam, &mut w);
+                match rode.as_ref().and_then(|p| p.first()) {
+                    Some(al) => w
+                        .iter_mut()
+                        .zip(al)
+                        .zip(&b)
+                        .for_each(|((x, a), bj)| *x = a - bj),
+                    None => at.gradient(lam, &mut w),
+                }
                 let q: Vec<f64> = g.iter().zip(&w).map(|(gj, wj)| gj - wj).collect();
                 let mut start = lam.to_vec();
                 if incs.start(&q, friction, self.d, &mut start) > 0.0 {
@@ -498,6 +554,7 @@ impl ContactProblem {
                     near: rounds > 0,
                     start_gradient: std::cell::Cell::new(first.as_deref()),
                     measured_after: !confirm,
+                    start_from: line_from.filter(|_| first.is_some()),
                 };
                 let local = Options {
                     max_outer: opts.max_outer.saturating_sub(outer),
@@ -817,3 +874,106 @@ fn equilibrium_residual(k: &Csc, u: &[f64], f: &[f64], bt_lam: &[f64]) -> f64 {
     let rn = norm(&res);
     if rn == 0.0 { 0.0 } else { rn / denom }
 }
+
+/// The start of a host iteration on the line through the last iteration's
+/// answer `lam` and the answer of the one before, `before` (docs/design.md
+/// section 9): a converging host loop moves its multipliers along nearly
+/// one direction from iteration to iteration (on host_newton's material
+/// updates the last two changes were collinear to 4e-5 and 8e-3 of their
+/// size). With d = lam - before, w = A lam - b and a = A d (two products),
+/// s minimises the natural map's linear part along d, sum rho_i^2 (w_i +
+/// s a_i)^2 over the components the start holds free (closed normals,
+/// sticking tangential pairs); the point P(lam + s d) is taken where its
+/// natural residual is below lam's (one more product where the projection
+/// moved it). `products`: A lam and A d where the caller has them (else
+/// computed here). Returns w at the start, and |F| at lam where the start
+/// moved.
+pub(super) fn iteration_line(
+    at: &DualProblem<'_>,
+    before: &[f64],
+    dim: usize,
+    lam: &mut [f64],
+    products: Option<Vec<Vec<f64>>>,
+) -> (Vec<f64>, Option<f64>) {
+    let dual = at.dual;
+    let (m, c) = (dual.m, dual.c);
+    let dir: Vec<f64> = lam.iter().zip(before).map(|(l, p)| l - p).collect();
+    // A lam and A d where they rode along the right-hand side's solve.
+    let mut given = products.unwrap_or_default().into_iter();
+    let mut w = given.next().unwrap_or_else(|| {
+        let mut w = vec![0.0; c];
+        dual.apply(lam, &mut w);
+        w
+    });
+    let a = given.next();
+    w.iter_mut().zip(at.b).for_each(|(wi, bi)| *wi -= bi);
+    if before.len() != c || dir.iter().all(|&x| x == 0.0) {
+        return (w, None);
+    }
+    let a = a.unwrap_or_else(|| {
+        let mut a = vec![0.0; c];
+        dual.apply(&dir, &mut a);
+        a
+    });
+    let rho = &dual.rho;
+    let (mut num, mut den) = (0.0, 0.0);
+    let mut add = |j: usize, r: f64| {
+        num += r * r * w[j] * a[j];
+        den += r * r * a[j] * a[j];
+    };
+    for i in 0..m {
+        // Sorted as Newton sorts (`newton::step`): closed where the trial
+        // normal force is positive, sticking where the trial tangential
+        // force lies inside the disk (a slipping contact's w_T is its slip,
+        // not an error).
+        if lam[i] - rho[i] * w[i] <= 0.0 {
+            continue;
+        }
+        add(i, rho[i]);
+        let jt = m + (dim - 1) * i;
+        let bound = at.law.bound(i, lam[i]);
+        let t2: f64 = (jt..jt + dim - 1)
+            .map(|j| (lam[j] - rho[i] * w[j]).powi(2))
+            .sum();
+        if t2.sqrt() < bound {
+            for j in jt..jt + dim - 1 {
+                add(j, rho[i]);
+            }
+        }
+    }
+    let s = -num / den;
+    if !(den > 0.0 && s.is_finite() && s != 0.0) {
+        return (w, None);
+    }
+    let s = s.clamp(-LINE_S_MAX, LINE_S_MAX);
+    let mut x: Vec<f64> = lam.iter().zip(&dir).map(|(l, d)| l + s * d).collect();
+    let line = x.clone();
+    crate::history::project_point(&mut x, at.law, dim);
+    let mut wx: Vec<f64> = w.iter().zip(&a).map(|(wi, ai)| wi + s * ai).collect();
+    let delta: Vec<f64> = x
+        .iter()
+        .zip(&line)
+        .map(|(&l, &p)| {
+            let d = l - p;
+            if d.abs() <= 8.0 * f64::EPSILON * l.abs().max(p.abs()) {
+                0.0
+            } else {
+                d
+            }
+        })
+        .collect();
+    if delta.iter().any(|&d| d != 0.0) {
+        let mut ad = vec![0.0; c];
+        dual.apply(&delta, &mut ad);
+        wx.iter_mut().zip(&ad).for_each(|(a, d)| *a += d);
+    }
+    let res = at.natural_residual(lam, &w);
+    if at.natural_residual(&x, &wx) < res {
+        lam.copy_from_slice(&x);
+        return (wx, Some(res));
+    }
+    (w, None)
+}
+
+/// The largest |s| of a host iteration's line (`iteration_line`).
+const LINE_S_MAX: f64 = 4.0;

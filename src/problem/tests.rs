@@ -98,3 +98,112 @@ fn a_history_step_keeps_a_times_its_multipliers() {
         }
     }
 }
+
+/// A host iteration's line (`solve::iteration_line`) through two starts
+/// whose errors are collinear, lambda* + e and lambda* + 2 e (e: a
+/// thousandth of lambda* at the closed contacts, where that keeps the
+/// sort: Tresca's slipping tangential pairs left alone), lands on lambda*
+/// (s = 1 on the components the start holds free, where w* = 0), on a
+/// dense and a matrix-free dual, Tresca and Coulomb. With a third error
+/// that the line carries out of the feasible set (an open contact's normal
+/// force, +eps at the start and +3 eps at the point before: -eps on the
+/// line), the projection moves it back onto lambda*, and the gradient
+/// handed back is A x - b at the moved point, computed afresh.
+#[test]
+fn a_host_iterations_line_lands_on_collinear_errors_answer() {
+    let nodes = 40;
+    for form in [DualForm::Dense, DualForm::MatrixFree] {
+        let p = vec![2e-4; nodes];
+        let mu = vec![1.0; nodes];
+        for (name, law) in [
+            ("Tresca", Friction::Tresca(&p)),
+            ("Coulomb", Friction::Coulomb(&mu)),
+        ] {
+            let (mut pb, g) = strip(nodes, form);
+            let opts = Options {
+                tol: 1e-13,
+                ..Options::default()
+            };
+            // A fifth of the strip tests' press, a shear growing along the
+            // strip: the edges stay open, contacts stick at one end and
+            // slip at the other.
+            let f: Vec<f64> = (0..2 * nodes)
+                .map(|j| {
+                    if j % 2 == 0 {
+                        3e-4 * (j / 2) as f64 / nodes as f64
+                    } else {
+                        -4e-4
+                    }
+                })
+                .collect();
+            let sol = pb.solve(&f, &g, law, &opts).unwrap();
+            assert_eq!(sol.report.status, SolveStatus::Converged);
+            let star: Vec<f64> = sol.lambda_n.iter().chain(&sol.lambda_t).copied().collect();
+            let c = star.len();
+            let mut u0 = f.clone();
+            pb.factor().solve_vec(&mut u0);
+            let mut b = vec![0.0; c];
+            pb.dual.rows().mul_vec(&u0, &mut b);
+            b[..nodes].iter_mut().zip(&g).for_each(|(x, gi)| *x -= gi);
+            let mut e = vec![0.0; c];
+            let mut open = None;
+            let slipping = (0..nodes)
+                .filter(|&i| {
+                    star[i] > 0.0 && star[nodes + i].abs() >= law.bound(i, star[i]) * (1.0 - 1e-9)
+                })
+                .count();
+            let closed = star[..nodes].iter().filter(|&&v| v > 0.0).count();
+            println!("{form:?} {name}: {closed} closed, {slipping} slipping");
+            assert!(slipping > 0 && slipping < closed && closed < nodes);
+            for i in 0..nodes {
+                if star[i] == 0.0 {
+                    open.get_or_insert(i);
+                    continue;
+                }
+                let bound = law.bound(i, star[i]);
+                let lt = star[nodes + i];
+                let slipping = lt.abs() >= bound * (1.0 - 1e-9);
+                e[i] = 1e-3 * star[i];
+                // Coulomb's rim grows with lambda_N: a slipping pair scaled
+                // with it stays on the rim; a sticking one scaled stays
+                // inside where it keeps a margin.
+                let scaled = law.bound(i, star[i] + 2.0 * e[i]);
+                if matches!(law, Friction::Coulomb(_)) && slipping
+                    || !slipping && (1.002 * lt).abs() < scaled
+                {
+                    e[nodes + i] = 1e-3 * lt;
+                }
+            }
+            for moved in [false, true] {
+                let mut lam: Vec<f64> = star.iter().zip(&e).map(|(s, x)| s + x).collect();
+                let mut before: Vec<f64> = star.iter().zip(&e).map(|(s, x)| s + 2.0 * x).collect();
+                let what = format!("{form:?} {name}, moved {moved}");
+                if moved {
+                    let i = open.expect("an open contact");
+                    let eps = 1e-3 * star.iter().fold(0.0f64, |a, v| a.max(v.abs()));
+                    lam[i] = eps;
+                    before[i] = 3.0 * eps;
+                }
+                let at = DualProblem::new(&pb.dual, &b, law);
+                let (w, from) = solve::iteration_line(&at, &before, 2, &mut lam, None);
+                let res0 = from.unwrap_or_else(|| panic!("{what}: the line was not taken"));
+                let scale = star.iter().fold(0.0f64, |a, v| a.max(v.abs()));
+                let off = lam
+                    .iter()
+                    .zip(&star)
+                    .fold(0.0f64, |a, (x, y)| a.max((x - y).abs()));
+                assert!(off <= 1e-8 * scale, "{what}: {off:.2e} from lambda*");
+                let mut exact = vec![0.0; c];
+                at.gradient(&lam, &mut exact);
+                let wscale = b.iter().fold(0.0f64, |a, v| a.max(v.abs()));
+                let diff = w
+                    .iter()
+                    .zip(&exact)
+                    .fold(0.0f64, |a, (x, y)| a.max((x - y).abs()));
+                assert!(diff <= 1e-12 * wscale, "{what}: w off by {diff:.2e}");
+                let res = at.natural_residual(&lam, &w);
+                assert!(res <= 1e-4 * res0, "{what}: |F| {res0:.2e} -> {res:.2e}");
+            }
+        }
+    }
+}

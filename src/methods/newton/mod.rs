@@ -402,7 +402,7 @@ impl OuterStep for Newton {
             self.from_lumped = self.lumped_start(problem, g, lam, w);
         }
         self.res = residual_norm(problem, lam, w);
-        self.res0 = self.res;
+        self.res0 = problem.start_from.map_or(self.res, |r| r.max(self.res));
         self.last = None;
         self.drift = 0.0;
         self.rho_max = problem.dual.rho.iter().fold(0.0, |a: f64, &r| a.max(r));
