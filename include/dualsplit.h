@@ -1638,8 +1638,9 @@ enum DsStatus ds_step(struct DsProblem *problem,
  most two products more; not with an interface compliance; docs/design.md
  section 9). A later iteration of an increment, from the third on, starts
  on the line through the last two iterations' multipliers where that
- lowers the natural map's residual (its products ride along the
- right-hand side's solve; not with an interface compliance); new
+ lowers the natural map's residual (on a matrix-free dual on the
+ library's own factor its products ride along the right-hand side's
+ solve in one block; not with an interface compliance); new
  contacts, a new compliance and ds_history_reset forget that line. A
  host that cuts an increment back retries it from the
  failed try's last multipliers and line (the answer does not depend on

@@ -149,10 +149,11 @@ impl Sizes {
     /// `now` and is needed as `next` (rebuilt first when they differ), with a
     /// method whose dense work space is `workspace` bytes: the vectors of length
     /// n (f and its forward half, K^-1 f, u, B^T lambda, K u, the residual, and
-    /// a step's effective f and K u_k) and the method's work space on top of the
-    /// resident bytes.
+    /// a step's effective f and K u_k, or a host iteration's block of three
+    /// right-hand sides, `Dual::solve_with_products`) and the method's work
+    /// space on top of the resident bytes.
     pub fn solve(&self, now: Condensation, next: Condensation, workspace: usize) -> usize {
-        let working = self.resident(next) + 8 * self.n * F64 + workspace;
+        let working = self.resident(next) + 9 * self.n * F64 + workspace;
         if now == next {
             working
         } else {

@@ -327,8 +327,10 @@ impl Operator {
     /// [`Operator::apply`]), in double precision and in one solve of the
     /// block [f, B^T xs] with K's factor: the solve's time is mostly reading
     /// the factor, which a block reads once (on a 3D slab's factor of 3.8e7
-    /// entries three columns took 0.068 s, one 0.051 s). False, with
-    /// nothing written, on the host's solves.
+    /// entries three columns took 0.068 s, one 0.051 s, timed in a build
+    /// not kept). False, with nothing written, on the host's solves. Its
+    /// bytes (the block and faer's scratch for it) are claimed on the
+    /// ledger while it lives.
     ///
     /// Errors: `OutOfMemory` (the block or its scratch refused).
     pub(super) fn solve_with_products(
@@ -343,9 +345,10 @@ impl Operator {
         let factor = &fs.factor;
         let (n, k) = (factor.n(), 1 + xs.len());
         let what = "a solve's block of right-hand sides";
-        let _claim = factor.ledger().claim_f64(n * xs.len());
+        let scratch = factor.solve_scratch(k);
+        let _claim = factor.ledger().claim(8 * n * k + scratch.size_bytes());
         let mut z = try_zeros::<f64>(n * k, what)?;
-        let mut mem = try_scratch(factor.solve_scratch(k), what)?;
+        let mut mem = try_scratch(scratch, what)?;
         z[..n].copy_from_slice(f);
         for (x, col) in xs.iter().zip(z[n..].chunks_exact_mut(n)) {
             scatter(&self.bt, x, 0..x.len(), col);

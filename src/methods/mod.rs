@@ -70,7 +70,8 @@ pub struct DualProblem<'a> {
     pub monitor: Option<RefCell<Monitor<'a>>>,
     /// The wall-clock budget: no outer iteration starts after it.
     pub deadline: Option<Instant>,
-    /// The starting multipliers are a history's prediction (src/history.rs):
+    /// The starting multipliers are a history's prediction (src/history.rs),
+    /// or a host iteration's from its increments' or its iterations' line:
     /// the load increment is already in them, so the natural map at them sorts
     /// the contacts (a plain warm start's is sorted by the multipliers alone).
     pub predicted: bool,
@@ -93,11 +94,11 @@ pub struct DualProblem<'a> {
     /// tolerance. False: every convergence is confirmed on an exact
     /// gradient.
     pub measured_after: bool,
-    /// The natural residual |F| of the point the start was predicted from,
-    /// where a host iteration's line moved it there (`solve::iteration_line`;
-    /// None otherwise): Newton's forcing terms are taken relative to it, as
-    /// after a step (the line is a step along the loop's own direction that
-    /// left the contacts sorted as they were).
+    /// The natural residual |F| (force units) of the point the start was
+    /// predicted from, where a host iteration's line moved it there
+    /// (`solve::iteration_line`, which takes the line only where it lowers
+    /// |F|; None otherwise): Newton's forcing terms are taken relative to
+    /// it, as after a step.
     pub start_from: Option<f64>,
 }
 

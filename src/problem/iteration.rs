@@ -66,8 +66,9 @@ impl ContactProblem {
     /// on, from the line through the last two iterations' answers where
     /// that lowers the natural map's residual (module docs; not with an
     /// interface compliance). They are kept only when this one converges;
-    /// `set_contacts`, `set_compliance` and
-    /// [`ContactProblem::reset_history`] forget the line. The history of
+    /// a first iteration, `set_contacts`, `set_compliance` and
+    /// [`ContactProblem::reset_history`] forget the line (an error or a
+    /// later iteration that does not converge leaves it as it was). The history of
     /// [`ContactProblem::step`] is neither used nor changed.
     ///
     /// `opts.tol` may follow the host's residual, loose in the early
@@ -148,19 +149,25 @@ impl ContactProblem {
             predicted,
         );
         self.increments = increments;
-        let solve::Solved { sol, load, .. } = solved?;
+        // The line of the next iteration: through this answer and the last
+        // one of the same increment where this one converged; none after a
+        // first iteration, whatever its outcome; the line as it was after a
+        // later one that did not converge or returned an error.
+        let solve::Solved { sol, load, .. } = match solved {
+            Ok(solved) => solved,
+            Err(e) => {
+                self.iteration_before = if first { Vec::new() } else { before };
+                return Err(e);
+            }
+        };
         let converged = sol.report.status == SolveStatus::Converged;
+        self.iteration_before = match (first, converged) {
+            (true, _) => Vec::new(),
+            (false, true) => std::mem::take(&mut self.iteration_start),
+            (false, false) => before,
+        };
         if converged {
-            // The line of the next iteration: through this answer and the
-            // last one of the same increment (none after a first iteration).
-            self.iteration_before = if first {
-                Vec::new()
-            } else {
-                std::mem::take(&mut self.iteration_start)
-            };
             self.iteration_start = lam;
-        } else {
-            self.iteration_before = before;
         }
         // An increment's first iteration records its start and load change
         // for the next one; where it records nothing the line is forgotten,

@@ -211,6 +211,12 @@ impl ContactProblem {
     /// - Else u0 everywhere: the combination of the kept K^-1 f_total minus
     ///   u_k, else one solve (of the factor or the host's).
     ///
+    /// `ride` (each of length c): multipliers x whose products A x are wanted
+    /// at the start; returned where they rode along the solve of f in one
+    /// block (`Dual::solve_with_products`: a matrix-free dual on K's own
+    /// factor, the load not combined, the block allowed by the allocator),
+    /// else None (the caller takes them itself).
+    ///
     /// Errors: `HostSolve`.
     fn solve_load(
         &mut self,
@@ -261,8 +267,13 @@ impl ContactProblem {
             Stiffness::Own { factor, .. } => {
                 u0.copy_from_slice(f);
                 let mut ys = vec![vec![0.0; self.dual.c]; ride.len()];
-                let rides =
-                    !ride.is_empty() && self.dual.solve_with_products(factor, u0, ride, &mut ys)?;
+                // A block the allocator refuses is no error: the products
+                // are then taken one by one, as without a ride.
+                let rides = !ride.is_empty()
+                    && self
+                        .dual
+                        .solve_with_products(factor, u0, ride, &mut ys)
+                        .unwrap_or(false);
                 if rides {
                     rode = Some(ys);
                 } else {
@@ -879,15 +890,17 @@ fn equilibrium_residual(k: &Csc, u: &[f64], f: &[f64], bt_lam: &[f64]) -> f64 {
 /// answer `lam` and the answer of the one before, `before` (docs/design.md
 /// section 9): a converging host loop moves its multipliers along nearly
 /// one direction from iteration to iteration (on host_newton's material
-/// updates the last two changes were collinear to 4e-5 and 8e-3 of their
-/// size). With d = lam - before, w = A lam - b and a = A d (two products),
+/// updates of 3d-32x32x4 the last two changes were collinear to 4e-5 and
+/// 8e-3 of their size, measured in a build not kept). With d = lam - before, w = A lam - b and a = A d (two products),
 /// s minimises the natural map's linear part along d, sum rho_i^2 (w_i +
 /// s a_i)^2 over the components the start holds free (closed normals,
 /// sticking tangential pairs); the point P(lam + s d) is taken where its
 /// natural residual is below lam's (one more product where the projection
-/// moved it). `products`: A lam and A d where the caller has them (else
-/// computed here). Returns w at the start, and |F| at lam where the start
-/// moved.
+/// moved it). `lam` and `before` (c values each, force units): the start,
+/// overwritten with the point taken; `products`: A lam and A d (c values
+/// each) where the caller has them, else computed here. Returns w = A x -
+/// b at the start x (c values, length units), and |F| at the given lam
+/// where the start moved.
 pub(super) fn iteration_line(
     at: &DualProblem<'_>,
     before: &[f64],

@@ -207,3 +207,56 @@ fn a_host_iterations_line_lands_on_collinear_errors_answer() {
         }
     }
 }
+
+/// The products that ride along a right-hand side's solve
+/// (`Dual::solve_with_products`, one block solve of [f, B^T x1, B^T x2])
+/// equal K^-1 f by its own solve and A x1, A x2 by their own products, to
+/// rounding; on the dense dual nothing rides and nothing is written.
+#[test]
+fn products_ride_along_a_right_hand_sides_solve() {
+    let nodes = 40;
+    let close = |got: &[f64], want: &[f64], what: &str| {
+        let scale = want.iter().fold(0.0f64, |a, v| a.max(v.abs()));
+        let diff = got
+            .iter()
+            .zip(want)
+            .fold(0.0f64, |a, (x, y)| a.max((x - y).abs()));
+        assert!(
+            scale > 0.0 && diff <= 1e-13 * scale,
+            "{what}: {diff:.2e} of {scale:.2e}"
+        );
+    };
+    let f: Vec<f64> = (0..2 * nodes)
+        .map(|j| ((j * 7) % 11) as f64 - 5.0)
+        .collect();
+    let x1: Vec<f64> = (0..2 * nodes).map(|i| ((i % 5) as f64) * 1e-3).collect();
+    let x2: Vec<f64> = (0..2 * nodes)
+        .map(|i| if i % 3 == 0 { -2e-3 } else { 0.0 })
+        .collect();
+    for form in [DualForm::MatrixFree, DualForm::Dense] {
+        let (pb, _) = strip(nodes, form);
+        let factor = pb.stiff.factor().expect("its own factor").clone();
+        let c = pb.dual.c;
+        let mut u = f.clone();
+        let mut ys = vec![vec![0.0; c]; 2];
+        let rode = pb
+            .dual
+            .solve_with_products(&factor, &mut u, &[&x1, &x2], &mut ys)
+            .unwrap();
+        if form == DualForm::Dense {
+            assert!(!rode);
+            assert_eq!(u, f);
+            assert!(ys.iter().flatten().all(|&v| v == 0.0));
+            continue;
+        }
+        assert!(rode);
+        let mut want = f.clone();
+        factor.solve_vec(&mut want);
+        close(&u, &want, "K^-1 f");
+        for (x, y) in [&x1, &x2].into_iter().zip(&ys) {
+            let mut ax = vec![0.0; c];
+            pb.dual.apply(x, &mut ax);
+            close(y, &ax, "A x");
+        }
+    }
+}
