@@ -396,23 +396,7 @@ impl ContactProblem {
                 if self.dual.shift().is_empty()
                     && let Some(mut ax) = h.start_product(s)
                 {
-                    let delta: Vec<f64> = lam
-                        .iter()
-                        .zip(h.line_point(s))
-                        .map(|(&l, x)| {
-                            let d = l - x;
-                            if d.abs() <= 8.0 * f64::EPSILON * l.abs().max(x.abs()) {
-                                0.0
-                            } else {
-                                d
-                            }
-                        })
-                        .collect();
-                    if delta.iter().any(|&d| d != 0.0) {
-                        let mut ad = vec![0.0; c];
-                        self.dual.apply(&delta, &mut ad);
-                        ax.iter_mut().zip(&ad).for_each(|(a, d)| *a += d);
-                    }
+                    add_projection_move(&self.dual, lam, h.line_point(s), &mut ax);
                     ax.iter_mut().zip(&b).for_each(|(a, bj)| *a -= bj);
                     start_w = Some(ax);
                 }
@@ -963,12 +947,31 @@ pub(super) fn iteration_line(
     let line = x.clone();
     crate::history::project_point(&mut x, at.law, dim);
     let mut wx: Vec<f64> = w.iter().zip(&a).map(|(wi, ai)| wi + s * ai).collect();
-    let delta: Vec<f64> = x
+    add_projection_move(dual, &x, line, &mut wx);
+    let res = at.natural_residual(lam, &w);
+    if at.natural_residual(&x, &wx) < res {
+        lam.copy_from_slice(&x);
+        return (wx, Some(res));
+    }
+    (w, None)
+}
+
+/// ax += A (projected - line): what a projection moved a start off its
+/// line, in one product, where it moved anything beyond rounding (a
+/// saturated slip force rescaled by an ulp moves A x less than a product's
+/// own rounding); `line` gives the point before the projection.
+fn add_projection_move(
+    dual: &Dual,
+    projected: &[f64],
+    line: impl IntoIterator<Item = f64>,
+    ax: &mut [f64],
+) {
+    let delta: Vec<f64> = projected
         .iter()
-        .zip(&line)
-        .map(|(&l, &p)| {
-            let d = l - p;
-            if d.abs() <= 8.0 * f64::EPSILON * l.abs().max(p.abs()) {
+        .zip(line)
+        .map(|(&l, x)| {
+            let d = l - x;
+            if d.abs() <= 8.0 * f64::EPSILON * l.abs().max(x.abs()) {
                 0.0
             } else {
                 d
@@ -976,16 +979,10 @@ pub(super) fn iteration_line(
         })
         .collect();
     if delta.iter().any(|&d| d != 0.0) {
-        let mut ad = vec![0.0; c];
+        let mut ad = vec![0.0; ax.len()];
         dual.apply(&delta, &mut ad);
-        wx.iter_mut().zip(&ad).for_each(|(a, d)| *a += d);
+        ax.iter_mut().zip(&ad).for_each(|(a, d)| *a += d);
     }
-    let res = at.natural_residual(lam, &w);
-    if at.natural_residual(&x, &wx) < res {
-        lam.copy_from_slice(&x);
-        return (wx, Some(res));
-    }
-    (w, None)
 }
 
 /// The largest |s| of a host iteration's line (`iteration_line`).
