@@ -859,7 +859,9 @@ typedef struct DsInfo {
    resident_bytes; a refactor from a coordinate-format K makes its slots
    first (4 bytes per triplet, 8 where one triangle is given, and in
    full storage 4 bytes per entry of K off the diagonal; see
-   ds_problem_refactor) and checks them with the rest.
+   ds_problem_refactor) and checks them with the rest. Until a refactor
+   has made them, the mirror places of a full-storage K (COO or CSC) are
+   counted in, an upper bound for a host that gives one triangle.
    */
   uint64_t refactor_bytes;
   /*
@@ -1338,6 +1340,13 @@ void ds_problem_free(struct DsProblem *problem);
  comes in full storage the places of its pattern's mirror pairs for the
  symmetry check (4 bytes per entry off the diagonal), counted from then on
  in DsInfo.resident_bytes and the predictions made on it.
+
+ A K in compressed columns (DS_FORMAT_CSC) whose pointers and row indices
+ are those of the pattern the handle holds (full storage), or of its upper
+ or lower triangle (one-triangle storage), rows sorted in each column, has
+ its values copied instead of converted afresh (the same matrix, bit for
+ bit); in full storage the handle then keeps its pattern's mirror places
+ for the symmetry check, as above.
 
  Returns DS_STATUS_OK, or the errors of ds_problem_new for K, and
  DS_STATUS_BAD_ARGUMENT if the pattern differs.

@@ -165,6 +165,7 @@ pub(crate) fn sizes_and_layer(
         own_solves: crate::dual::own_solves_bytes(factor, &b),
         dirichlet: layer.as_ref().map_or(0, |p| p.bytes()),
         slots: 0,
+        mirrors_to_make: crate::sparse::mirror_bytes(k),
     };
     (sizes, layer)
 }

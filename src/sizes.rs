@@ -40,9 +40,14 @@ pub(crate) struct Sizes {
     /// analysed beside it (`dirichlet::Plan::bytes`; 0 where it does not).
     pub dirichlet: usize,
     /// Bytes of the slots a refactor from a coordinate-format K keeps, with
-    /// the mirror places of its symmetry check (`sparse::TripletSlots`; 0
-    /// until one made them).
+    /// the mirror places of the symmetry check of a refactor from a K in
+    /// full storage, COO or CSC (`sparse::TripletSlots`; 0 until one made
+    /// them).
     pub slots: usize,
+    /// Bytes of the mirror places the first refactor from a K in full
+    /// storage will make, while the slots do not hold them yet: 4 per
+    /// entry of K off the diagonal (`sparse::mirror_bytes`), 0 once made.
+    pub mirrors_to_make: usize,
 }
 
 /// Predicted bytes, what the counted allocations will reach.
@@ -127,6 +132,7 @@ impl Sizes {
         };
         self.resident(how)
             + k_bytes
+            + self.mirrors_to_make
             + keep
             + self.factor
             + self.factor_scratch.max(self.forming(how).0)

@@ -540,10 +540,12 @@ fn refactor_and_new_contacts_respect_the_handles_max_memory() {
 
 /// A refactor from a coordinate-format K keeps the triplets' slots on the
 /// handle (4 bytes each) and, K given in full, its pattern's mirror places
-/// (4 bytes per entry off the diagonal): the resident, solve and refactor
-/// predictions count them,
-/// the solve's report predicts what ds_problem_info says, and the library's
-/// own count of the solve stays within it.
+/// (4 bytes per entry off the diagonal): the resident and solve predictions
+/// count them from then on, the refactor prediction counted the mirror
+/// places from the start (a first refactor in full storage makes them), the
+/// solve's report predicts what ds_problem_info says, and the library's own
+/// count of the solve stays within it. A refactor from a CSC K in full
+/// storage then makes nothing more.
 #[test]
 fn the_slots_of_a_coordinate_format_refactor_are_predicted() {
     let _serial = SERIAL.lock().unwrap_or_else(|e| e.into_inner());
@@ -583,7 +585,10 @@ fn the_slots_of_a_coordinate_format_refactor_are_predicted() {
     let after = pb.info(&opts);
     assert_eq!(after.resident_bytes, before.resident_bytes + slots);
     assert_eq!(after.solve_bytes, before.solve_bytes + slots);
-    assert_eq!(after.refactor_bytes, before.refactor_bytes + slots);
+    assert_eq!(
+        after.refactor_bytes,
+        before.refactor_bytes + 4 * k.values.len()
+    );
     let p = vec![0.3; sc.m()];
     let sol = pb
         .solve(&sc.f, &sc.g, Friction::Tresca(&p), &opts)
@@ -591,6 +596,66 @@ fn the_slots_of_a_coordinate_format_refactor_are_predicted() {
     let r = &sol.report;
     assert_eq!(r.memory_predicted, after.solve_bytes);
     assert!(r.memory_peak <= r.memory_predicted, "{r:?}");
+    let (p, i) = (
+        k.col_ptr.iter().map(|&v| v as i64).collect::<Vec<_>>(),
+        k.row_idx.iter().map(|&v| v as i64).collect::<Vec<_>>(),
+    );
+    let csc = dualsplit::MatrixView {
+        format: dualsplit::Format::Csc,
+        p: dualsplit::Indices::I64(&p),
+        i: dualsplit::Indices::I64(&i),
+        ..coo
+    };
+    pb.refactor(&csc).expect("refactor");
+    let again = pb.info(&opts);
+    assert_eq!(again.resident_bytes, after.resident_bytes);
+    assert_eq!(again.refactor_bytes, after.refactor_bytes);
+}
+
+/// A first refactor from a CSC K in full storage makes its pattern's mirror
+/// places (4 bytes per entry off the diagonal), which the refactor
+/// prediction counted from the start: the resident prediction grows by
+/// them, the refactor prediction does not, and a second refactor changes
+/// neither.
+#[test]
+fn the_mirror_places_of_a_csc_refactor_are_predicted() {
+    let _serial = SERIAL.lock().unwrap_or_else(|e| e.into_inner());
+    let sc = block3d();
+    let opts = one_thread();
+    let (k, n, t) = (sc.k.clone(), sc.n.clone(), sc.t.clone());
+    let mut pb = ContactProblem::from_csc_with(sc.d, k, n, t, &opts).expect("setup");
+    let before = pb.info(&opts);
+    let k = &sc.k;
+    let off_diagonal = (0..k.ncols)
+        .map(|c| {
+            (k.col_ptr[c]..k.col_ptr[c + 1])
+                .filter(|&q| k.row_idx[q] != c)
+                .count()
+        })
+        .sum::<usize>();
+    let (p, i) = (
+        k.col_ptr.iter().map(|&v| v as i64).collect::<Vec<_>>(),
+        k.row_idx.iter().map(|&v| v as i64).collect::<Vec<_>>(),
+    );
+    let csc = dualsplit::MatrixView {
+        format: dualsplit::Format::Csc,
+        storage: dualsplit::Storage::Full,
+        base: 0,
+        nrows: k.nrows,
+        ncols: k.ncols,
+        p: dualsplit::Indices::I64(&p),
+        i: dualsplit::Indices::I64(&i),
+        x: &k.values,
+    };
+    for _ in 0..2 {
+        pb.refactor(&csc).expect("refactor");
+        let after = pb.info(&opts);
+        assert_eq!(
+            after.resident_bytes,
+            before.resident_bytes + 4 * off_diagonal
+        );
+        assert_eq!(after.refactor_bytes, before.refactor_bytes);
+    }
 }
 
 /// The matrix-free path allocates no c x c array: on a slab whose

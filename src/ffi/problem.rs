@@ -287,6 +287,13 @@ pub unsafe extern "C" fn ds_problem_free(problem: *mut DsProblem) {
 /// symmetry check (4 bytes per entry off the diagonal), counted from then on
 /// in DsInfo.resident_bytes and the predictions made on it.
 ///
+/// A K in compressed columns (DS_FORMAT_CSC) whose pointers and row indices
+/// are those of the pattern the handle holds (full storage), or of its upper
+/// or lower triangle (one-triangle storage), rows sorted in each column, has
+/// its values copied instead of converted afresh (the same matrix, bit for
+/// bit); in full storage the handle then keeps its pattern's mirror places
+/// for the symmetry check, as above.
+///
 /// Returns DS_STATUS_OK, or the errors of ds_problem_new for K, and
 /// DS_STATUS_BAD_ARGUMENT if the pattern differs.
 ///

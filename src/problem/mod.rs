@@ -86,7 +86,8 @@ pub struct ContactProblem {
     kept_blocks: Option<KeptBlocks>,
     /// Where a host's COO triplets fell at the last refactor: guesses only,
     /// checked at each use (a refactor that fails after placing them
-    /// changes no later result).
+    /// changes no later result); and the pattern's mirror places, for the
+    /// symmetry check of a refill in full storage (COO or CSC).
     coo_slots: TripletSlots,
 }
 
@@ -613,10 +614,14 @@ impl ContactProblem {
         };
         let factor = factor.clone();
         // A host's COO tangent on the pattern the handle holds is placed
-        // triplet by triplet; anything else is converted in full.
+        // triplet by triplet, a CSC one on it copied; anything else is
+        // converted in full.
         let refilled = old_k.refill_symmetric(k, &mut self.coo_slots, factor.ledger());
         // The slots the refill made or kept stay held, whatever follows.
         self.sizes.slots = self.coo_slots.held_bytes();
+        if self.coo_slots.has_mirrors() {
+            self.sizes.mirrors_to_make = 0;
+        }
         let k = match refilled {
             Some(k) => k,
             None => Csc::symmetric_from_view(k, "K")?,

@@ -21,7 +21,7 @@ mod validate;
 use crate::error::{ErrorKind, Result, fail};
 use assemble::{Triplets, assemble, filled, try_copy, zeroed};
 pub(crate) use congruence::{congruence, congruence_bytes};
-pub(crate) use refill::TripletSlots;
+pub(crate) use refill::{TripletSlots, mirror_bytes};
 use validate::{
     check_base, check_dense_len, check_pointers, check_sums_finite, check_symmetric, collect,
     collect_dense, dense_not_finite, index0,

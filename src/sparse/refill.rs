@@ -7,7 +7,9 @@
 //! order of its last refill, at the slot it fell on then ([`TripletSlots`]),
 //! each triplet then checked against its slot alone; a K in full storage is
 //! checked for symmetry pair by pair at the mirror places of the pattern,
-//! found once.
+//! found once. A CSC K on the held pattern (a host's own compressed
+//! tangent) is compared with it and its values copied: no index arrays
+//! made anew, no sort, no symmetry walk through the pattern.
 
 use super::validate::{check_base, check_symmetric, index0};
 use super::{Csc, Format, Indices, MatrixView, Storage};
@@ -96,7 +98,26 @@ impl Mirrors {
     }
 }
 
+/// Bytes of the mirror places of `a`'s pattern ([`Mirrors::of`]): 4 per
+/// entry off the diagonal (a pair holds two positions, an entry alone one).
+pub(crate) fn mirror_bytes(a: &Csc) -> usize {
+    let diagonal = (0..a.ncols)
+        .filter(|&c| {
+            a.row_idx[a.col_ptr[c]..a.col_ptr[c + 1]]
+                .binary_search(&c)
+                .is_ok()
+        })
+        .count();
+    (a.values.len() - diagonal) * std::mem::size_of::<u32>()
+}
+
 impl TripletSlots {
+    /// Whether the pattern's mirror places are held (made by a refill in
+    /// full storage).
+    pub(crate) fn has_mirrors(&self) -> bool {
+        self.mirrors.is_some()
+    }
+
     /// Bytes the slots take: 4 per triplet, twice that where one triangle
     /// is given, and the mirror places of a refill in full storage, 4 per
     /// entry off the diagonal, held from the first such refill on (kept
@@ -146,7 +167,13 @@ impl Csc {
         ledger: &Arc<Ledger>,
     ) -> Option<Csc> {
         let n = self.nrows;
-        if view.format != Format::Coo || view.nrows != n || view.ncols != n {
+        if view.nrows != n || view.ncols != n {
+            return None;
+        }
+        if view.format == Format::Csc {
+            return self.refill_csc(view, slots, ledger);
+        }
+        if view.format != Format::Coo {
             return None;
         }
         let base = check_base(view, "K").ok()?;
@@ -267,6 +294,134 @@ impl Csc {
 }
 
 impl Csc {
+    /// The symmetric matrix of `view` (CSC, any storage, `self`'s order)
+    /// where its arrays are `self`'s pattern as it stands (full storage),
+    /// or its upper or lower triangle (one-triangle storage), row indices
+    /// in the same order: the values copied, the other triangle's taken
+    /// from their mirrors. What [`Csc::symmetric_from_view`] returns, bit
+    /// for bit, without its index arrays made anew or its symmetry walk
+    /// through the pattern (full storage is checked pair by pair at the
+    /// mirror places kept in `slots`). None where anything differs or is
+    /// amiss (a pointer, an index, a value not finite, K not symmetric):
+    /// the full conversion then gives the matrix or the error.
+    fn refill_csc(
+        &self,
+        view: &MatrixView<'_>,
+        slots: &mut TripletSlots,
+        ledger: &Arc<Ledger>,
+    ) -> Option<Csc> {
+        let n = self.ncols;
+        let base = check_base(view, "K").ok()?;
+        let stored = view.i.len();
+        if view.p.len() != n + 1
+            || view.x.len() != stored
+            || view.p.get(0) != base as i64
+            || view.p.get(n) - base as i64 != stored as i64
+        {
+            return None;
+        }
+        if view.x.iter().any(|v| !v.is_finite()) {
+            return None;
+        }
+        let nnz = self.values.len();
+        let mut values = Vec::new();
+        values.try_reserve_exact(nnz).ok()?;
+        if view.storage == Storage::Full {
+            let same = (0..=n).all(|j| view.p.get(j) - base as i64 == self.col_ptr[j] as i64)
+                && match view.i {
+                    Indices::I32(i) => same_rows(i, &self.row_idx, base),
+                    Indices::I64(i) => same_rows(i, &self.row_idx, base),
+                };
+            if !same {
+                return None;
+            }
+            values.extend_from_slice(view.x);
+            if slots.mirrors.is_none() {
+                slots.mirrors = Mirrors::of(self, ledger);
+            }
+            // Without mirror places (memory refused), the full conversion.
+            if !slots.mirrors.as_ref()?.symmetric(&values) {
+                return None;
+            }
+        } else {
+            values.resize(nnz, 0.0);
+            self.mirror_triangle(view, base, &mut values)?;
+        }
+        let mut col_ptr = Vec::new();
+        let mut row_idx = Vec::new();
+        col_ptr.try_reserve_exact(n + 1).ok()?;
+        row_idx.try_reserve_exact(nnz).ok()?;
+        col_ptr.extend_from_slice(&self.col_ptr);
+        row_idx.extend_from_slice(&self.row_idx);
+        Some(Csc {
+            nrows: n,
+            ncols: n,
+            col_ptr,
+            row_idx,
+            values,
+        })
+    }
+
+    /// Places the one triangle of `view` (CSC, upper or lower storage,
+    /// values finite) on `self`'s pattern (both triangles, sorted rows)
+    /// into `values`, each of its columns the part of `self`'s column on
+    /// that side of the diagonal, and fills the other triangle from the
+    /// mirrors: the entries (c, r) of a column r are met in increasing c as
+    /// the columns c are walked, so one cursor per column finds them (as
+    /// CSparse's transpose). None where a column or a mirror differs.
+    fn mirror_triangle(
+        &self,
+        view: &MatrixView<'_>,
+        base: usize,
+        values: &mut [f64],
+    ) -> Option<()> {
+        let n = self.ncols;
+        let upper = view.storage == Storage::Upper;
+        // The cursor of each column: its first entry below the diagonal.
+        let mut next = Vec::new();
+        next.try_reserve_exact(n).ok()?;
+        next.extend((0..n).map(|j| {
+            let rows = &self.row_idx[self.col_ptr[j]..self.col_ptr[j + 1]];
+            self.col_ptr[j] + rows.partition_point(|&r| r <= j)
+        }));
+        for c in 0..n {
+            let (lo, hi) = (self.col_ptr[c], self.col_ptr[c + 1]);
+            // The stored part: rows <= c (upper) or >= c (lower).
+            let split = lo + self.row_idx[lo..hi].partition_point(|&r| r < c);
+            let has_diagonal = split < hi && self.row_idx[split] == c;
+            let (from, to) = match upper {
+                true => (lo, split + usize::from(has_diagonal)),
+                false => (split, hi),
+            };
+            let (p0, p1) = (view.p.get(c) - base as i64, view.p.get(c + 1) - base as i64);
+            if p0 < 0 || p1 < p0 || p1 as usize > view.x.len() || (p1 - p0) as usize != to - from {
+                return None;
+            }
+            for (k, q) in (p0 as usize..p1 as usize).zip(from..to) {
+                if view.i.get(k) - base as i64 != self.row_idx[q] as i64 {
+                    return None;
+                }
+                values[q] = view.x[k];
+            }
+            // The entries above the diagonal, each (r, c) with its mirror
+            // (c, r) at column r's cursor.
+            for q in lo..split {
+                let r = self.row_idx[q];
+                let m = next[r];
+                if m >= self.col_ptr[r + 1] || self.row_idx[m] != c {
+                    return None;
+                }
+                next[r] += 1;
+                match upper {
+                    true => values[m] = values[q],
+                    false => values[q] = values[m],
+                }
+            }
+        }
+        // Every entry below the diagonal met as a mirror.
+        (0..n).all(|j| next[j] == self.col_ptr[j + 1]).then_some(())
+    }
+
     /// Adds the triplets (`rows`, `cols`, `x`; full storage, index base
     /// `base`) at `slots`, the places they fell on at the last refill, into
     /// `values` (on `self`'s pattern): true where every triplet's slot lies
@@ -302,6 +457,15 @@ impl Csc {
         }
         true
     }
+}
+
+/// Whether the row indices `rows` (index base `base`) are `want`.
+fn same_rows<I: Copy + Into<i64>>(rows: &[I], want: &[usize], base: usize) -> bool {
+    rows.len() == want.len()
+        && rows
+            .iter()
+            .zip(want)
+            .all(|(&r, &w)| r.into() - base as i64 == w as i64)
 }
 
 /// The entries of a pattern of `nnz` met by the triplets placed at `slots`
@@ -481,6 +645,128 @@ mod tests {
         let bits = |v: &[f64]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
         assert_eq!(bits(&got.values), bits(&want.values));
         assert_eq!(ledger.live(), slots.held_bytes());
+    }
+
+    /// CSC arrays (pointers, rows, values; `base`) of the part of `a`
+    /// that `storage` keeps.
+    fn csc_arrays(a: &Csc, storage: Storage, base: i64) -> Arrays {
+        let (mut p, mut i, mut x) = (vec![base], Vec::new(), Vec::new());
+        for c in 0..a.ncols {
+            for q in a.col_ptr[c]..a.col_ptr[c + 1] {
+                let r = a.row_idx[q];
+                let keep = match storage {
+                    Storage::Full => true,
+                    Storage::Upper => r <= c,
+                    Storage::Lower => r >= c,
+                };
+                if keep {
+                    i.push(r as i64 + base);
+                    x.push(a.values[q]);
+                }
+            }
+            p.push(i.len() as i64 + base);
+        }
+        (p, i, x)
+    }
+
+    fn csc<'a>(a: &'a Arrays, storage: Storage, base: usize) -> MatrixView<'a> {
+        MatrixView {
+            format: Format::Csc,
+            storage,
+            base,
+            nrows: 6,
+            ncols: 6,
+            p: Indices::I64(&a.0),
+            i: Indices::I64(&a.1),
+            x: &a.2,
+        }
+    }
+
+    /// A CSC K on the held pattern, in each storage, base and index width,
+    /// is what the full conversion makes of it, bit for bit (-0.0 kept);
+    /// a pointer, a row, a value not finite, an entry in the wrong
+    /// triangle or K not symmetric is left to the full conversion.
+    #[test]
+    fn a_csc_refill_is_the_full_conversion_bit_for_bit() {
+        let old = [arrays(&triplets(1.0), Storage::Full, 0)];
+        let k0 = Csc::symmetric_from_view(&coo(&old, Storage::Full, 0), "K").unwrap();
+        let mut k1 = Csc::symmetric_from_view(
+            &coo(
+                &[arrays(&triplets(1.3), Storage::Full, 0)],
+                Storage::Full,
+                0,
+            ),
+            "K",
+        )
+        .unwrap();
+        // A signed zero on the diagonal, mirrored nowhere.
+        k1.values[k1.col_ptr[2]..k1.col_ptr[3]]
+            .iter_mut()
+            .zip(&k1.row_idx[k1.col_ptr[2]..k1.col_ptr[3]])
+            .filter(|(_, r)| **r == 2)
+            .for_each(|(v, _)| *v = -0.0);
+        let bits = |v: &[f64]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+        let ledger = Ledger::new();
+        for storage in [Storage::Full, Storage::Upper, Storage::Lower] {
+            for base in [0, 1] {
+                let mut slots = TripletSlots::default();
+                let a = csc_arrays(&k1, storage, base as i64);
+                let narrow: Vec<Vec<i32>> = [&a.0, &a.1]
+                    .iter()
+                    .map(|v| v.iter().map(|&x| x as i32).collect())
+                    .collect();
+                for wide in [true, false] {
+                    let mut view = csc(&a, storage, base);
+                    if !wide {
+                        (view.p, view.i) = (Indices::I32(&narrow[0]), Indices::I32(&narrow[1]));
+                    }
+                    let want = Csc::symmetric_from_view(&view, "K").unwrap();
+                    let got = k0
+                        .refill_symmetric(&view, &mut slots, &ledger)
+                        .expect("the same pattern");
+                    assert_eq!(got.col_ptr, want.col_ptr);
+                    assert_eq!(got.row_idx, want.row_idx);
+                    assert_eq!(bits(&got.values), bits(&want.values), "{storage:?} {base}");
+                }
+                // Each edit leaves the refill to the full conversion.
+                let edits: [&dyn Fn(&mut Arrays); 5] = [
+                    &|a| a.2[3] = f64::NAN,
+                    &|a| a.1[0] += 1,
+                    &|a| {
+                        a.0[3] += 1;
+                    },
+                    &|a| {
+                        a.1.pop();
+                        a.2.pop();
+                        *a.0.last_mut().unwrap() -= 1;
+                    },
+                    &|a| a.2[1] *= 1.5,
+                ];
+                for (e, edit) in edits.iter().enumerate() {
+                    let mut bad = a.clone();
+                    edit(&mut bad);
+                    let view = csc(&bad, storage, base);
+                    let got = k0.refill_symmetric(&view, &mut slots, &ledger);
+                    // A value changed in one triangle is K's new value
+                    // there (one-triangle storage): it must be refilled as
+                    // the full conversion makes it; in full storage it
+                    // breaks the symmetry.
+                    if e == 4 && storage != Storage::Full {
+                        let want = Csc::symmetric_from_view(&view, "K").unwrap();
+                        assert_eq!(bits(&got.expect("refilled").values), bits(&want.values));
+                    } else {
+                        assert!(got.is_none(), "{storage:?} {base} edit {e}");
+                    }
+                }
+            }
+        }
+        // An entry in the wrong triangle, with its own value: upper storage
+        // given the lower triangle.
+        let lower = csc_arrays(&k1, Storage::Lower, 0);
+        let view = csc(&lower, Storage::Upper, 0);
+        let mut slots = TripletSlots::default();
+        assert!(k0.refill_symmetric(&view, &mut slots, &ledger).is_none());
+        assert!(Csc::symmetric_from_view(&view, "K").is_err());
     }
 
     #[test]
