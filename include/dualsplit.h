@@ -860,8 +860,9 @@ typedef struct DsInfo {
    first (4 bytes per triplet, 8 where one triangle is given, and in
    full storage 4 bytes per entry of K off the diagonal; see
    ds_problem_refactor) and checks them with the rest. Until a refactor
-   has made them, the mirror places of a full-storage K (COO or CSC) are
-   counted in, an upper bound for a host that gives one triangle.
+   from a full-storage K (COO or CSC) has made them, the mirror places
+   such a refactor makes are counted in, whatever the format K is given
+   in: an upper bound for the others.
    */
   uint64_t refactor_bytes;
   /*

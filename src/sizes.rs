@@ -52,8 +52,7 @@ pub(crate) struct Sizes {
 
 /// Predicted bytes, what the counted allocations will reach.
 impl Sizes {
-    /// K, N, T, the factor and the slots of the last refactor from a
-    /// coordinate-format K.
+    /// K, N, T, the factor and the slots a refactor keeps (see `slots`).
     fn base(&self) -> usize {
         self.inputs + self.factor + self.slots
     }

@@ -69,8 +69,9 @@ pub struct DsInfo {
     /// first (4 bytes per triplet, 8 where one triangle is given, and in
     /// full storage 4 bytes per entry of K off the diagonal; see
     /// ds_problem_refactor) and checks them with the rest. Until a refactor
-    /// has made them, the mirror places of a full-storage K (COO or CSC) are
-    /// counted in, an upper bound for a host that gives one triangle.
+    /// from a full-storage K (COO or CSC) has made them, the mirror places
+    /// such a refactor makes are counted in, whatever the format K is given
+    /// in: an upper bound for the others.
     pub refactor_bytes: u64,
     /// The memory limit the predictions are checked against, bytes
     /// (DsOptions.max_memory, else this process's address-space limit or the

@@ -632,9 +632,14 @@ impl ContactProblem {
                 "K: the sparsity pattern differs from the one the problem was created with",
             );
         }
+        // The refill above made whatever mirror places this refactor makes
+        // (counted in the slots): none are still to come in this one.
+        let now = Sizes {
+            mirrors_to_make: 0,
+            ..self.sizes
+        };
         memory::check(
-            self.sizes
-                .refactor(self.dual.condensation, k.bytes(), self.threads()),
+            now.refactor(self.dual.condensation, k.bytes(), self.threads()),
             memory::limit(self.max_memory),
             self.max_memory,
             "refactoring K (the old and the new factor are held at once)",

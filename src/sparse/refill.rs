@@ -152,8 +152,9 @@ impl Csc {
     /// exactly `self`'s pattern (`self` a symmetric matrix in internal form,
     /// both triangles): every triplet falls on it, every entry of it is
     /// met, and the result is what [`Csc::symmetric_from_view`] returns
-    /// (duplicates summed in the given order, then the mirrored triangle).
-    /// None where the view is of another format or anything is amiss (an
+    /// (duplicates summed in the given order, then the mirrored triangle);
+    /// of a CSC view, see [`Csc::refill_csc`].
+    /// None where the view is of another format (CSR, dense) or anything is amiss (an
     /// index out of range or off the pattern, an entry missing, a value not
     /// finite, K not symmetric): the full conversion then gives the matrix
     /// or the error.
@@ -316,7 +317,7 @@ impl Csc {
         if view.p.len() != n + 1
             || view.x.len() != stored
             || view.p.get(0) != base as i64
-            || view.p.get(n) - base as i64 != stored as i64
+            || view.p.get(n) != stored as i64 + base as i64
         {
             return None;
         }
@@ -327,7 +328,7 @@ impl Csc {
         let mut values = Vec::new();
         values.try_reserve_exact(nnz).ok()?;
         if view.storage == Storage::Full {
-            let same = (0..=n).all(|j| view.p.get(j) - base as i64 == self.col_ptr[j] as i64)
+            let same = (0..=n).all(|j| view.p.get(j) == self.col_ptr[j] as i64 + base as i64)
                 && match view.i {
                     Indices::I32(i) => same_rows(i, &self.row_idx, base),
                     Indices::I64(i) => same_rows(i, &self.row_idx, base),
@@ -339,8 +340,23 @@ impl Csc {
             if slots.mirrors.is_none() {
                 slots.mirrors = Mirrors::of(self, ledger);
             }
-            // Without mirror places (memory refused), the full conversion.
-            if !slots.mirrors.as_ref()?.symmetric(&values) {
+            // Without mirror places (memory refused), the walk through the
+            // pattern, as for a COO K.
+            let symmetric = match &slots.mirrors {
+                Some(mirrors) => mirrors.symmetric(&values),
+                None => {
+                    let a = Csc {
+                        nrows: n,
+                        ncols: n,
+                        col_ptr: self.col_ptr.clone(),
+                        row_idx: self.row_idx.clone(),
+                        values,
+                    };
+                    check_symmetric(&a, "K", base).ok()?;
+                    return Some(a);
+                }
+            };
+            if !symmetric {
                 return None;
             }
         } else {
@@ -393,12 +409,13 @@ impl Csc {
                 true => (lo, split + usize::from(has_diagonal)),
                 false => (split, hi),
             };
-            let (p0, p1) = (view.p.get(c) - base as i64, view.p.get(c + 1) - base as i64);
+            let p0 = view.p.get(c).checked_sub(base as i64)?;
+            let p1 = view.p.get(c + 1).checked_sub(base as i64)?;
             if p0 < 0 || p1 < p0 || p1 as usize > view.x.len() || (p1 - p0) as usize != to - from {
                 return None;
             }
             for (k, q) in (p0 as usize..p1 as usize).zip(from..to) {
-                if view.i.get(k) - base as i64 != self.row_idx[q] as i64 {
+                if view.i.get(k) != self.row_idx[q] as i64 + base as i64 {
                     return None;
                 }
                 values[q] = view.x[k];
@@ -465,7 +482,7 @@ fn same_rows<I: Copy + Into<i64>>(rows: &[I], want: &[usize], base: usize) -> bo
         && rows
             .iter()
             .zip(want)
-            .all(|(&r, &w)| r.into() - base as i64 == w as i64)
+            .all(|(&r, &w)| r.into() == w as i64 + base as i64)
 }
 
 /// The entries of a pattern of `nnz` met by the triplets placed at `slots`
@@ -729,7 +746,7 @@ mod tests {
                     assert_eq!(bits(&got.values), bits(&want.values), "{storage:?} {base}");
                 }
                 // Each edit leaves the refill to the full conversion.
-                let edits: [&dyn Fn(&mut Arrays); 5] = [
+                let edits: [&dyn Fn(&mut Arrays); 7] = [
                     &|a| a.2[3] = f64::NAN,
                     &|a| a.1[0] += 1,
                     &|a| {
@@ -741,6 +758,9 @@ mod tests {
                         *a.0.last_mut().unwrap() -= 1;
                     },
                     &|a| a.2[1] *= 1.5,
+                    // Indices no subtraction of the base may overflow on.
+                    &|a| a.0[3] = i64::MIN,
+                    &|a| a.1[0] = i64::MIN,
                 ];
                 for (e, edit) in edits.iter().enumerate() {
                     let mut bad = a.clone();
