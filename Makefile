@@ -25,7 +25,7 @@ BLOCK2D = $(OUTDIR)/block2d
 HYPER   = $(OUTDIR)/hyperelastic_host
 DEMO_ARGS ?=
 
-.PHONY: all demo block2d hyperelastic_host lib clean-c
+.PHONY: all demo block2d hyperelastic_host lib clean-c FORCE
 
 all: block2d
 
@@ -34,11 +34,16 @@ demo: block2d
 
 block2d: $(BLOCK2D)
 
-# cargo decides itself whether anything is out of date, so always ask it.
-lib:
+# cargo decides itself whether anything is out of date, so always ask it:
+# a recipe of the library itself, so that make reads its time after cargo
+# ran (without one, a program could be linked against the library as it
+# was before).
+lib: $(LIBDS)
+
+$(LIBDS): FORCE
 	$(CARGO) build --release
 
-$(LIBDS): lib
+FORCE:
 
 $(BLOCK2D): c_examples/block2d.c c_examples/block2d_scene.h include/dualsplit.h $(LIBDS) | $(OUTDIR)
 	$(CC) $(CPPFLAGS) $(CFLAGS) -o $@ c_examples/block2d.c $(LIBDS) $(LDFLAGS) $(LDLIBS)

@@ -404,6 +404,7 @@ impl OuterStep for Newton {
         self.res = residual_norm(problem, lam, w);
         self.res0 = problem.start_from.map_or(self.res, |r| r.max(self.res));
         self.last = None;
+        self.krylov.last_sort = None;
         self.drift = 0.0;
         self.rho_max = problem.dual.rho.iter().fold(0.0, |a: f64, &r| a.max(r));
         (self.best, self.best_at) = (self.res, 0);
@@ -446,14 +447,12 @@ impl OuterStep for Newton {
         } else {
             0.0
         };
-        self.krylov.eta = forcing(
-            self.res,
-            self.res0,
-            self.target,
-            norm(lam),
-            self.last,
-            floor,
-        );
+        let lam_norm = norm(lam);
+        self.krylov.eta = forcing(self.res, self.res0, self.target, lam_norm, self.last, floor);
+        // Where the sort is the last whole step's (`Krylov::settle`): no
+        // looser than the floor and the target's need.
+        self.krylov.settled_eta =
+            settled_forcing(self.res, self.target, lam_norm, floor).min(self.krylov.eta);
         // A step from rough (single-precision) products that the backtracking
         // rejects is solved again with exact ones before any fallback: on an
         // ill-conditioned K the rough products can be too rough. So is a
@@ -548,6 +547,7 @@ impl OuterStep for Newton {
                     ratio: r / self.res,
                     full: t == 1.0,
                 });
+                self.krylov.taken(t == 1.0, combined);
                 self.res = r;
                 if rough_ad {
                     self.drift += ROUGH_DRIFT * t * self.krylov.spread;
@@ -573,6 +573,7 @@ impl OuterStep for Newton {
         self.res = residual_norm(problem, lam, w);
         self.drift = 0.0;
         self.last = None;
+        self.krylov.last_sort = None;
         Flow::Go(Gradient::Exact)
     }
 
@@ -666,6 +667,7 @@ impl Newton {
         self.res = residual_norm(problem, lam, w);
         self.drift = 0.0;
         self.last = None;
+        self.krylov.last_sort = None;
         Flow::Go(Gradient::Exact)
     }
 }
@@ -761,6 +763,10 @@ const SEEN_GAMMA: f64 = 0.9;
 ///   more Newton steps, the warm mean 5 % lower summed over the rows. A
 ///   solve now ends nearer its tolerance (err 9e-11 for 1e-10 where it
 ///   overshot to 1e-13).
+///
+/// A step whose sort is the last whole step's, where that step's A d took
+/// a product of its own, is solved to the floor instead (no tighter than
+/// the target's need: [`settled_forcing`], `Krylov::settle`).
 fn forcing(
     res: f64,
     res0: f64,
@@ -783,6 +789,18 @@ fn forcing(
         0.1
     };
     eta.max(enough.min(0.1)).max(floor).max(1e-14)
+}
+
+/// The forcing term of a step whose sort is the last whole step's
+/// (`Krylov::settle`): the floor, and no tighter than a step whose error
+/// leaves |F| at ENOUGH of the target, as in [`forcing`] (at most 0.1).
+fn settled_forcing(res: f64, target: f64, lam_norm: f64, floor: f64) -> f64 {
+    let enough = if res > 0.0 {
+        ENOUGH * target * lam_norm / res
+    } else {
+        0.1
+    };
+    enough.min(0.1).max(floor).max(1e-14)
 }
 
 fn norm(x: &[f64]) -> f64 {

@@ -68,6 +68,20 @@ pub(super) struct Krylov {
     pub(super) inverse: bool,
     /// Dense steps whose reduced system was solved on A's inverse.
     pub(super) on_inverse: usize,
+    /// The forcing term of a step on a matrix-free dual whose sort is the
+    /// last step's, where that step paid for one of its own (see
+    /// [`Krylov::settle`]): set with `eta` before each step, at most `eta`.
+    pub settled_eta: f64,
+    /// The key of the last step's sort (`sort_key`), and whether a tighter
+    /// solve of it would pay (that step was taken whole and its A d took
+    /// a product of its own); None at the start of a solve and after a
+    /// fallback.
+    pub(super) last_sort: Option<(u64, bool)>,
+    /// Steps whose forcing term `settle` tightened.
+    pub settled: usize,
+    /// Whether `settle` may tighten a forcing term (off in tests that
+    /// measure what it saves).
+    pub(super) settle_on: bool,
 }
 
 impl Krylov {
@@ -93,8 +107,73 @@ impl Krylov {
             inexact_dense: false,
             inverse: false,
             on_inverse: 0,
+            settled_eta: 0.1,
+            last_sort: None,
+            settled: 0,
+            settle_on: true,
         }
     }
+
+    /// Takes `settled_eta` as this step's forcing term where its sort
+    /// (`key`, [`sort_key`]) is the last step's and that step was taken
+    /// whole, its A d by a product of its own (narrowed products, or a
+    /// refinement: `krylov_step` combined none). The linear model the last
+    /// step solved is then this step's too (but for the slip directions'
+    /// turn in 3D), and the whole step showed it true: a tighter solve of
+    /// it shrinks |F| as much in fewer steps (Eisenstat and Walker's first
+    /// choice, whose measure of the model's disagreement vanishes where
+    /// the sort does not change), and each step saved saves its own
+    /// products around the solve (the explicit part's, the backtracking's
+    /// exact one: about five narrowed rough products on the 3d-64x64x6
+    /// slab). Where the step's A d was combined from the solve's products
+    /// a step saved saves about one product, and the tighter solves' last
+    /// decades cost more (on the load-path family's Tresca histories, 2-3
+    /// fewer Newton steps over nine warm steps for 5-10 more products), so
+    /// the forcing term stands there. Records `key` for the next step (see
+    /// [`Krylov::taken`]).
+    pub(super) fn settle(&mut self, key: u64) {
+        if self.settle_on && self.last_sort == Some((key, true)) && self.settled_eta < self.eta {
+            self.eta = self.settled_eta;
+            self.settled += 1;
+        }
+        self.last_sort = Some((key, false));
+    }
+
+    /// Records for [`Krylov::settle`] how the step just kept was taken:
+    /// `whole` (length 1) and `combined` (its A d from the solve's own
+    /// products).
+    pub(super) fn taken(&mut self, whole: bool, combined: bool) {
+        if let Some((_, pays)) = self.last_sort.as_mut() {
+            *pays = whole && !combined;
+        }
+    }
+}
+
+/// A key of a step's sort: which components are free and which directions
+/// its reduced unknowns take (their test and direction rows; in 2D, `d`,
+/// the signs of the directions' coefficients too, which a Coulomb slip
+/// force that reverses changes in its coupling), not the coefficients
+/// themselves (a 3D slip direction turns from step to step, its
+/// components' signs with it where it lies near an axis: keyed, they took
+/// the 3D host example's Newton steps from 57 back to 61 on 3d-32x32x4);
+/// FNV-1a over them. A fixed component leaves no unknown: a 2D Tresca slip
+/// that reverses keeps the key, and costs at most a tighter solve than its
+/// step needed.
+pub(super) fn sort_key(red: &[Reduced], d: usize) -> u64 {
+    let mut h: u64 = 0xcbf2_9ce4_8422_2325;
+    let mut mix = |x: u64| {
+        h ^= x;
+        h = h.wrapping_mul(0x0000_0100_0000_01b3);
+    };
+    mix(red.len() as u64);
+    for u in red {
+        mix(((u.n_test as u64) << 8) | u.n_dir as u64);
+        u.test[..u.n_test].iter().for_each(|&(j, _)| mix(j as u64));
+        u.dir[..u.n_dir]
+            .iter()
+            .for_each(|&(j, coef)| mix(((j as u64) << 1) | u64::from(d == 2 && coef < 0.0)));
+    }
+    h
 }
 
 /// Entry (ja, jb) of A where both lie in one contact's d x d diagonal block

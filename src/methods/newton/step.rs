@@ -201,9 +201,12 @@ pub(super) fn newton_step(
     let red = linearise(problem, lam, w, step, f, cscale);
     let k = red.len();
     if k == 0 {
+        // No sort for the next step to keep (`Krylov::settle`).
+        krylov.last_sort = None;
         return Some(false);
     }
     if dual.is_matrix_free() {
+        krylov.settle(sort_key(&red, dual.d));
         // The products of this step read and give only the rows of the
         // reduced unknowns and of the explicit part: narrowed to them (where
         // their DOFs' paths hold few of L's entries; Coulomb's open contacts

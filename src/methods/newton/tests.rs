@@ -1540,3 +1540,92 @@ fn the_increment_solve_confirms_a_drifted_convergence_it_catches() {
         }
     }
 }
+
+/// A warm matrix-free solve whose sort does not change after its first
+/// step (the lattice slab pressed in a central patch, most contacts open,
+/// and sheared; the load then raised by 0.1 %, as a host's later
+/// iterations change their problem): Coulomb's
+/// steps, whose products are narrowed to the contact zone, solve each
+/// later step to the floor of its forcing term (`Krylov::settle`), in
+/// fewer Newton steps than with the forcing terms of `forcing` alone;
+/// Tresca's, whose A d is combined from the solve's own products, keep
+/// those forcing terms. Both end at the multipliers of the dense route.
+#[test]
+fn a_settled_sort_is_solved_to_the_floor() {
+    use crate::dual::{Condensation, Dual};
+    let (nx, ny, nz) = (24, 24, 3);
+    let m = nx * ny;
+    let (k, factor, nm, tm) = lattice_slab(nx, ny, nz);
+    let dense = Dual::build_with(&factor, &nm, &tm, 3, Condensation::Solves).unwrap();
+    let free = lumped_free(&k, &factor, &nm, &tm);
+    let b1 = patch_load(nx, ny, 0.004, 0.005);
+    let b2: Vec<f64> = b1.iter().map(|v| 1.001 * v).collect();
+    let (p, mu) = (vec![0.01; m], vec![0.3; m]);
+    for law in [Friction::Tresca(&p), Friction::Coulomb(&mu)] {
+        let name = law_name(law);
+        let mut start = vec![0.0; free.c];
+        drive_newton(&free, &b1, law, &mut start, |_| {});
+        let mut want = start.clone();
+        drive_newton(&dense, &b2, law, &mut want, |_| {});
+        let solve = |on: bool| {
+            let mut lam = start.clone();
+            let (out, newton) =
+                drive_newton(&free, &b2, law, &mut lam, |n| n.krylov.settle_on = on);
+            let diff = max_diff(&lam, &want);
+            assert!(diff <= 1e-10 * norm(&want), "{name} {on}: {diff:.2e}");
+            let k = &newton.krylov;
+            (out.outer, out.inner, k.settled, k.narrowed, k.combined)
+        };
+        let (steps_on, its_on, settled, narrowed, combined) = solve(true);
+        let (steps_off, its_off, _, _, _) = solve(false);
+        println!(
+            "{name}: Newton steps / products settled {steps_on} / {its_on} ({settled} \
+             tightened; {narrowed} narrowed, {combined} combined), without {steps_off} / {its_off}"
+        );
+        match law {
+            Friction::Coulomb(_) => {
+                assert!(narrowed > 0 && settled > 0, "{name}: no step tightened");
+                assert!(steps_on < steps_off, "{name}: {steps_on} >= {steps_off}");
+            }
+            Friction::Tresca(_) => {
+                assert_eq!(narrowed, 0, "{name}: narrowed");
+                assert_eq!(settled, 0, "{name}: a combined step tightened");
+                assert_eq!((steps_on, its_on), (steps_off, its_off));
+            }
+        }
+    }
+}
+
+/// The sort's key (`sort_key`) tells apart a 2D Coulomb slip that reverses
+/// (its coupling's sign) and a contact that changes state, and keeps a 3D
+/// slip direction that turns (its coefficients, signs included).
+#[test]
+fn the_sort_key_follows_the_states_not_the_slip_directions() {
+    // A closed normal dragging its slip force (Coulomb), coupling mu n.
+    let drag = |n: [f64; 2], d: usize| {
+        let mut u = Reduced::unit(0, 1.0);
+        u.dir[1] = (1, 0.3 * n[0]);
+        u.n_dir = 2;
+        if d == 3 {
+            u.dir[2] = (2, 0.3 * n[1]);
+            u.n_dir = 3;
+        }
+        u
+    };
+    let key = |red: &[Reduced], d: usize| super::reduced_krylov::sort_key(red, d);
+    assert_ne!(
+        key(&[drag([1.0, 0.0], 2)], 2),
+        key(&[drag([-1.0, 0.0], 2)], 2)
+    );
+    let (a, b) = ([0.6, 0.8], [0.8, -0.6]);
+    assert_eq!(key(&[drag(a, 3)], 3), key(&[drag(b, 3)], 3));
+    // Sticking instead: two unit unknowns on the tangential rows.
+    let stick = [
+        Reduced::unit(0, 1.0),
+        Reduced::unit(1, 0.0),
+        Reduced::unit(2, 0.0),
+    ];
+    assert_ne!(key(&[drag(a, 3)], 3), key(&stick, 3));
+    // An open contact leaves its normal row: not the same key as closed.
+    assert_ne!(key(&stick[1..], 3), key(&stick, 3));
+}
