@@ -127,9 +127,9 @@ impl Krylov {
     /// exact one: about five narrowed rough products on the 3d-64x64x6
     /// slab). Where the step's A d was combined from the solve's products
     /// a step saved saves about one product, and the tighter solves' last
-    /// decades cost more (on the load-path family's Tresca histories, 2-3
-    /// fewer Newton steps over nine warm steps for 5-10 more products), so
-    /// the forcing term stands there. Records `key` for the next step (see
+    /// decades cost more (on the load-path family's Tresca histories, 2-4
+    /// fewer Newton steps over nine warm steps for up to 10 more products),
+    /// so the forcing term stands there. Records `key` for the next step (see
     /// [`Krylov::taken`]).
     pub(super) fn settle(&mut self, key: u64) {
         if self.settle_on && self.last_sort == Some((key, true)) && self.settled_eta < self.eta {
