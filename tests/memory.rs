@@ -574,13 +574,7 @@ fn the_slots_of_a_coordinate_format_refactor_are_predicted() {
     pb.refactor(&coo).expect("refactor");
     // The block's pattern is symmetric: every entry off the diagonal has
     // its mirror stored.
-    let off_diagonal = (0..k.ncols)
-        .map(|c| {
-            (k.col_ptr[c]..k.col_ptr[c + 1])
-                .filter(|&q| k.row_idx[q] != c)
-                .count()
-        })
-        .sum::<usize>();
+    let off_diagonal = off_diagonal(k);
     let slots = 4 * k.values.len() + 4 * off_diagonal;
     let after = pb.info(&opts);
     assert_eq!(after.resident_bytes, before.resident_bytes + slots);
@@ -612,6 +606,17 @@ fn the_slots_of_a_coordinate_format_refactor_are_predicted() {
     assert_eq!(again.refactor_bytes, after.refactor_bytes);
 }
 
+/// Entries of `k` off its diagonal.
+fn off_diagonal(k: &dualsplit::Csc) -> usize {
+    (0..k.ncols)
+        .map(|c| {
+            (k.col_ptr[c]..k.col_ptr[c + 1])
+                .filter(|&q| k.row_idx[q] != c)
+                .count()
+        })
+        .sum()
+}
+
 /// A first refactor from a CSC K in full storage makes its pattern's mirror
 /// places (4 bytes per entry off the diagonal), which the refactor
 /// prediction counted from the start: the resident prediction grows by
@@ -626,13 +631,7 @@ fn the_mirror_places_of_a_csc_refactor_are_predicted() {
     let mut pb = ContactProblem::from_csc_with(sc.d, k, n, t, &opts).expect("setup");
     let before = pb.info(&opts);
     let k = &sc.k;
-    let off_diagonal = (0..k.ncols)
-        .map(|c| {
-            (k.col_ptr[c]..k.col_ptr[c + 1])
-                .filter(|&q| k.row_idx[q] != c)
-                .count()
-        })
-        .sum::<usize>();
+    let off_diagonal = off_diagonal(k);
     let (p, i) = (
         k.col_ptr.iter().map(|&v| v as i64).collect::<Vec<_>>(),
         k.row_idx.iter().map(|&v| v as i64).collect::<Vec<_>>(),

@@ -112,6 +112,26 @@ pub(crate) fn mirror_bytes(a: &Csc) -> usize {
 }
 
 impl TripletSlots {
+    /// Some where `a`, given in full storage on `pattern` (index base
+    /// `base`), is symmetric: checked pair by pair at the pattern's mirror
+    /// places, made here at the first use, or (memory refused) by the walk
+    /// through the pattern.
+    fn symmetric(
+        &mut self,
+        pattern: &Csc,
+        a: &Csc,
+        base: usize,
+        ledger: &Arc<Ledger>,
+    ) -> Option<()> {
+        if self.mirrors.is_none() {
+            self.mirrors = Mirrors::of(pattern, ledger);
+        }
+        match &self.mirrors {
+            Some(mirrors) => mirrors.symmetric(&a.values).then_some(()),
+            None => check_symmetric(a, "K", base).ok(),
+        }
+    }
+
     /// Whether the pattern's mirror places are held (made by a refill in
     /// full storage).
     pub(crate) fn has_mirrors(&self) -> bool {
@@ -279,14 +299,7 @@ impl Csc {
             values,
         };
         if !(upper || lower) {
-            if slots.mirrors.is_none() {
-                slots.mirrors = Mirrors::of(self, ledger);
-            }
-            match &slots.mirrors {
-                Some(mirrors) if !mirrors.symmetric(&a.values) => return None,
-                Some(_) => {}
-                None => check_symmetric(&a, "K", base).ok()?,
-            }
+            slots.symmetric(self, &a, base, ledger)?;
         }
         // Every entry met, by these slots' triplets.
         slots.complete = usable;
@@ -337,28 +350,6 @@ impl Csc {
                 return None;
             }
             values.extend_from_slice(view.x);
-            if slots.mirrors.is_none() {
-                slots.mirrors = Mirrors::of(self, ledger);
-            }
-            // Without mirror places (memory refused), the walk through the
-            // pattern, as for a COO K.
-            let symmetric = match &slots.mirrors {
-                Some(mirrors) => mirrors.symmetric(&values),
-                None => {
-                    let a = Csc {
-                        nrows: n,
-                        ncols: n,
-                        col_ptr: self.col_ptr.clone(),
-                        row_idx: self.row_idx.clone(),
-                        values,
-                    };
-                    check_symmetric(&a, "K", base).ok()?;
-                    return Some(a);
-                }
-            };
-            if !symmetric {
-                return None;
-            }
         } else {
             values.resize(nnz, 0.0);
             self.mirror_triangle(view, base, &mut values)?;
@@ -369,13 +360,17 @@ impl Csc {
         row_idx.try_reserve_exact(nnz).ok()?;
         col_ptr.extend_from_slice(&self.col_ptr);
         row_idx.extend_from_slice(&self.row_idx);
-        Some(Csc {
+        let a = Csc {
             nrows: n,
             ncols: n,
             col_ptr,
             row_idx,
             values,
-        })
+        };
+        if view.storage == Storage::Full {
+            slots.symmetric(self, &a, base, ledger)?;
+        }
+        Some(a)
     }
 
     /// Places the one triangle of `view` (CSC, upper or lower storage,
@@ -532,6 +527,23 @@ mod tests {
         }
     }
 
+    /// The first two arrays of `a` (the indices) in 32 bits.
+    fn narrow(a: &Arrays) -> [Vec<i32>; 2] {
+        [&a.0, &a.1].map(|v| v.iter().map(|&x| x as i32).collect())
+    }
+
+    /// The bits of each value (-0.0 and 0.0 apart).
+    fn bits(v: &[f64]) -> Vec<u64> {
+        v.iter().map(|x| x.to_bits()).collect()
+    }
+
+    /// `got` is `want`, bit for bit.
+    fn assert_same(got: &Csc, want: &Csc, what: &str) {
+        assert_eq!(got.col_ptr, want.col_ptr, "{what}");
+        assert_eq!(got.row_idx, want.row_idx, "{what}");
+        assert_eq!(bits(&got.values), bits(&want.values), "{what}");
+    }
+
     /// The triplets of `storage` (Upper keeps r <= c) shifted to `base`.
     fn arrays(
         t: &[(i64, i64, f64)],
@@ -569,10 +581,7 @@ mod tests {
                     .enumerate()
                 {
                     let new = [arrays(&t, storage, base as i64)];
-                    let narrow: Vec<Vec<i32>> = [&new[0].0, &new[0].1]
-                        .iter()
-                        .map(|v| v.iter().map(|&x| x as i32).collect())
-                        .collect();
+                    let narrow = narrow(&new[0]);
                     let mut view = coo(&new, storage, base);
                     if r >= 2 {
                         (view.i, view.p) = (Indices::I32(&narrow[0]), Indices::I32(&narrow[1]));
@@ -581,14 +590,7 @@ mod tests {
                     let got = k0
                         .refill_symmetric(&view, &mut slots, &ledger)
                         .expect("the same pattern");
-                    assert_eq!(got.col_ptr, want.col_ptr);
-                    assert_eq!(got.row_idx, want.row_idx);
-                    let bits = |v: &[f64]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
-                    assert_eq!(
-                        bits(&got.values),
-                        bits(&want.values),
-                        "{storage:?}, base {base}"
-                    );
+                    assert_same(&got, &want, &format!("{storage:?}, base {base}"));
                     let passes = if storage == Storage::Full { 1 } else { 2 };
                     // A refill in full storage keeps the pattern's six
                     // mirror pairs (the chain's five links and the long one)
@@ -659,7 +661,6 @@ mod tests {
         let got = k0
             .refill_symmetric(&view, &mut slots, &ledger)
             .expect("the same pattern");
-        let bits = |v: &[f64]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
         assert_eq!(bits(&got.values), bits(&want.values));
         assert_eq!(ledger.live(), slots.held_bytes());
     }
@@ -722,16 +723,12 @@ mod tests {
             .zip(&k1.row_idx[k1.col_ptr[2]..k1.col_ptr[3]])
             .filter(|(_, r)| **r == 2)
             .for_each(|(v, _)| *v = -0.0);
-        let bits = |v: &[f64]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
         let ledger = Ledger::new();
         for storage in [Storage::Full, Storage::Upper, Storage::Lower] {
             for base in [0, 1] {
                 let mut slots = TripletSlots::default();
                 let a = csc_arrays(&k1, storage, base as i64);
-                let narrow: Vec<Vec<i32>> = [&a.0, &a.1]
-                    .iter()
-                    .map(|v| v.iter().map(|&x| x as i32).collect())
-                    .collect();
+                let narrow = narrow(&a);
                 for wide in [true, false] {
                     let mut view = csc(&a, storage, base);
                     if !wide {
@@ -741,9 +738,7 @@ mod tests {
                     let got = k0
                         .refill_symmetric(&view, &mut slots, &ledger)
                         .expect("the same pattern");
-                    assert_eq!(got.col_ptr, want.col_ptr);
-                    assert_eq!(got.row_idx, want.row_idx);
-                    assert_eq!(bits(&got.values), bits(&want.values), "{storage:?} {base}");
+                    assert_same(&got, &want, &format!("{storage:?} {base}"));
                 }
                 // Each edit leaves the refill to the full conversion.
                 let edits: [&dyn Fn(&mut Arrays); 7] = [
