@@ -783,24 +783,25 @@ fn forcing(
         _ if res0 > 0.0 => (res / res0).min(0.1),
         _ => 0.1,
     };
-    let enough = if res > 0.0 {
-        ENOUGH * target * lam_norm / res
-    } else {
-        0.1
-    };
-    eta.max(enough.min(0.1)).max(floor).max(1e-14)
+    eta.max(enough(res, target, lam_norm)).max(floor).max(1e-14)
 }
 
 /// The forcing term of a step whose sort is the last whole step's
 /// (`Krylov::settle`): the floor, and no tighter than a step whose error
 /// leaves |F| at ENOUGH of the target, as in [`forcing`] (at most 0.1).
 fn settled_forcing(res: f64, target: f64, lam_norm: f64, floor: f64) -> f64 {
-    let enough = if res > 0.0 {
-        ENOUGH * target * lam_norm / res
+    enough(res, target, lam_norm).max(floor).max(1e-14)
+}
+
+/// The forcing term whose step leaves |F| at ENOUGH of the target (err's
+/// scale taken as |lambda| = `lam_norm`), at most 0.1: no reduced solve
+/// is asked for less (see [`forcing`]).
+fn enough(res: f64, target: f64, lam_norm: f64) -> f64 {
+    if res > 0.0 {
+        (ENOUGH * target * lam_norm / res).min(0.1)
     } else {
         0.1
-    };
-    enough.min(0.1).max(floor).max(1e-14)
+    }
 }
 
 fn norm(x: &[f64]) -> f64 {
