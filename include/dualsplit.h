@@ -841,7 +841,9 @@ typedef struct DsInfo {
   uint64_t setup_bytes;
   /*
    Predicted bytes the handle holds between calls (with the slots a
-   refactor from a coordinate-format K keeps, once it has made them, and
+   refactor from a coordinate-format K keeps, once it has made them, the
+   replaced factor's values a refactor keeps as the next one's storage,
+   see ds_problem_refactor, and
    on a dense dual the single-precision factor of the last Newton step's
    reduced system, at most 4 c^2 bytes, once a solve has made it, and in
    3D A^-1 in single precision, 4 c^2 bytes, once a warm Newton solve has
@@ -850,13 +852,15 @@ typedef struct DsInfo {
   uint64_t resident_bytes;
   /*
    Predicted peak bytes during one solve with that method (its largest
-   case; the slots of resident_bytes included).
+   case; the slots and the kept factor values of resident_bytes
+   included, unless they exceed max_memory: the solve frees those values).
    */
   uint64_t solve_bytes;
   /*
    Predicted peak bytes of ds_problem_refactor (the old and the new factor
-   are held at once; max_memory must allow for it), with the slots of
-   resident_bytes; a refactor from a coordinate-format K makes its slots
+   are held at once, the new one in the kept values of a replaced factor
+   where the handle holds them; max_memory must allow for it), with the
+   slots of resident_bytes; a refactor from a coordinate-format K makes its slots
    first (4 bytes per triplet, 8 where one triangle is given, and in
    full storage 4 bytes per entry of K off the diagonal; see
    ds_problem_refactor) and checks them with the rest. Until a refactor
@@ -1348,6 +1352,15 @@ void ds_problem_free(struct DsProblem *problem);
  its values copied instead of converted afresh (the same matrix, bit for
  bit); in full storage the handle then keeps its pattern's mirror places
  for the symmetry check, as above.
+
+ The replaced factor's values (8 bytes per entry of L, DsInfo.factor_nnz;
+ the refactor held them beside the new ones anyway) stay on the handle as
+ the next refactor's storage, which then factors into memory the process
+ already has instead of new pages the system must fault in and zero
+ (0.15-0.3 s of a 0.6 s numeric factorisation measured on a 38-million
+ entry L). They count in DsInfo.resident_bytes and solve_bytes, not in
+ refactor_bytes, which does not grow; a solve whose max_memory leaves no
+ room for them frees them first, and ds_problem_free frees them.
 
  Returns DS_STATUS_OK, or the errors of ds_problem_new for K, and
  DS_STATUS_BAD_ARGUMENT if the pattern differs.

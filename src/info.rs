@@ -42,6 +42,9 @@ pub struct Info {
     /// is created (factorisation, then condensation), held between calls, during
     /// one solve with that method (its largest case), and during a refactorisation
     /// with new values of K (the old and the new factor at once). Held between
+    /// calls and during a solve include, after a refactor, the replaced
+    /// factor's values kept as the next refactor's storage (see
+    /// [`crate::ContactProblem::refactor`]). Held between
     /// calls, during a solve and during a refactorisation include the slots
     /// that a refactor from a coordinate-format K keeps (4 bytes per triplet,
     /// 8 where one triangle is given; in full storage also 4 bytes per entry

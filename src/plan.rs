@@ -166,6 +166,7 @@ pub(crate) fn sizes_and_layer(
         dirichlet: layer.as_ref().map_or(0, |p| p.bytes()),
         slots: 0,
         mirrors_to_make: crate::sparse::mirror_bytes(k),
+        spare: 0,
     };
     (sizes, layer)
 }

@@ -48,13 +48,16 @@ pub(crate) struct Sizes {
     /// storage will make, while the slots do not hold them yet: 4 per
     /// entry of K off the diagonal (`sparse::mirror_bytes`), 0 once made.
     pub mirrors_to_make: usize,
+    /// Bytes of the replaced factor's values a refactor keeps as the next
+    /// one's storage (0 before the first refactor; at most `factor`).
+    pub spare: usize,
 }
 
 /// Predicted bytes, what the counted allocations will reach.
 impl Sizes {
-    /// K, N, T, the factor and the slots a refactor keeps (see `slots`).
+    /// K, N, T, the factor and what a refactor keeps (see `slots`, `spare`).
     fn base(&self) -> usize {
-        self.inputs + self.factor + self.slots
+        self.inputs + self.factor + self.slots + self.spare
     }
 
     /// Bytes above [`Sizes::base`] while the dual is formed in the way `how`, and
@@ -114,7 +117,8 @@ impl Sizes {
 
     /// The peak of refactoring a problem whose dual is held as `how`: the new K
     /// (`k_bytes`) beside the old one, the new factor beside the old (kept until
-    /// the dual is rebuilt, so that a failure restores it), and the larger of the
+    /// the dual is rebuilt, so that a failure restores it; formed in the
+    /// spare's storage where one is held), and the larger of the
     /// factorisation's workspace and the dual's rebuild.
     /// A matrix-free dual may keep its contact blocks: the values of the K
     /// they were computed on are then held (at most `k_bytes`), and the
@@ -133,7 +137,7 @@ impl Sizes {
             + k_bytes
             + self.mirrors_to_make
             + keep
-            + self.factor
+            + (self.factor - self.spare)
             + self.factor_scratch.max(self.forming(how).0)
     }
 

@@ -291,7 +291,8 @@ impl Work {
     }
 }
 
-/// Factors P K P^T into `values` (zeroed, of `sym`'s length) as `plan` splits
+/// Factors P K P^T into `values` (of `sym`'s length, any contents: each
+/// supernode's block is zeroed before it is written) as `plan` splits
 /// it, on the pool of the caller (a rayon pool of `par`'s threads, installed;
 /// `Par::Seq`: every bin on the calling thread, where the pool could not be
 /// started): `a` holds the lower triangle of P K P^T (rows in any order

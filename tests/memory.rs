@@ -573,12 +573,13 @@ fn the_slots_of_a_coordinate_format_refactor_are_predicted() {
     };
     pb.refactor(&coo).expect("refactor");
     // The block's pattern is symmetric: every entry off the diagonal has
-    // its mirror stored.
+    // its mirror stored. The replaced factor's values are kept too.
     let off_diagonal = off_diagonal(k);
     let slots = 4 * k.values.len() + 4 * off_diagonal;
+    let spare = 8 * before.factor_nnz;
     let after = pb.info(&opts);
-    assert_eq!(after.resident_bytes, before.resident_bytes + slots);
-    assert_eq!(after.solve_bytes, before.solve_bytes + slots);
+    assert_eq!(after.resident_bytes, before.resident_bytes + slots + spare);
+    assert_eq!(after.solve_bytes, before.solve_bytes + slots + spare);
     assert_eq!(
         after.refactor_bytes,
         before.refactor_bytes + 4 * k.values.len()
@@ -619,9 +620,10 @@ fn off_diagonal(k: &dualsplit::Csc) -> usize {
 
 /// A first refactor from a CSC K in full storage makes its pattern's mirror
 /// places (4 bytes per entry off the diagonal), which the refactor
-/// prediction counted from the start: the resident prediction grows by
-/// them, the refactor prediction does not, and a second refactor changes
-/// neither.
+/// prediction counted from the start, and keeps the replaced factor's
+/// values as the next refactor's storage, which it holds then anyway: the
+/// resident prediction grows by both, the refactor prediction does not,
+/// and a second refactor changes neither.
 #[test]
 fn the_mirror_places_of_a_csc_refactor_are_predicted() {
     let _serial = SERIAL.lock().unwrap_or_else(|e| e.into_inner());
@@ -651,7 +653,7 @@ fn the_mirror_places_of_a_csc_refactor_are_predicted() {
         let after = pb.info(&opts);
         assert_eq!(
             after.resident_bytes,
-            before.resident_bytes + 4 * off_diagonal
+            before.resident_bytes + 4 * off_diagonal + 8 * before.factor_nnz
         );
         assert_eq!(after.refactor_bytes, before.refactor_bytes);
     }
@@ -966,4 +968,96 @@ fn the_host_routes_creation_is_predicted_and_kept_under_max_memory() {
         0.1,
     );
     assert_eq!(pb.info(&one_thread()).setup_bytes, solves);
+}
+
+/// A refactor keeps the replaced factor's values as the next refactor's
+/// storage: the second refactor of a handle reaches a peak lower by at
+/// least those values than the first (which also made the mirror places),
+/// the resident prediction counts them, a refactor refused for a K that is
+/// not positive definite keeps them, a solve whose max_memory leaves no
+/// room for them frees them and is predicted as before the refactors, and
+/// the refactor after that keeps them again. Every solve gives the answer
+/// of the handle before its refactors (the same K each time).
+#[test]
+fn a_refactor_keeps_the_replaced_factor_for_the_next_one() {
+    let _serial = SERIAL.lock().unwrap_or_else(|e| e.into_inner());
+    warm_up();
+    let sc = block3d();
+    let opts = one_thread();
+    let (k, n, t) = (sc.k.clone(), sc.n.clone(), sc.t.clone());
+    let mut pb = ContactProblem::from_csc_with(sc.d, k, n, t, &opts).expect("setup");
+    let p = vec![0.3; sc.m()];
+    let reference = pb
+        .solve(&sc.f, &sc.g, Friction::Tresca(&p), &opts)
+        .expect("solve");
+    let before = pb.info(&opts);
+    let spare = 8 * before.factor_nnz;
+    let k = &sc.k;
+    let (cols, rows) = (
+        k.col_ptr.iter().map(|&v| v as i64).collect::<Vec<_>>(),
+        k.row_idx.iter().map(|&v| v as i64).collect::<Vec<_>>(),
+    );
+    let csc = dualsplit::MatrixView {
+        format: dualsplit::Format::Csc,
+        storage: dualsplit::Storage::Full,
+        base: 0,
+        nrows: k.nrows,
+        ncols: k.ncols,
+        p: dualsplit::Indices::I64(&cols),
+        i: dualsplit::Indices::I64(&rows),
+        x: &k.values,
+    };
+    let mirrors = 4 * off_diagonal(k);
+    let ((), first) = peak_of(|| pb.refactor(&csc).expect("refactor"));
+    let ((), second) = peak_of(|| pb.refactor(&csc).expect("refactor"));
+    println!("refactor peaks: first {first}, second {second}, L's values {spare}");
+    assert!(
+        second + spare <= first,
+        "second refactor's peak {second} + {spare} > the first's {first}"
+    );
+    let held = pb.info(&opts);
+    assert_eq!(held.resident_bytes, before.resident_bytes + mirrors + spare);
+    assert_eq!(held.refactor_bytes, before.refactor_bytes);
+    // A K that is not positive definite is refused; the kept values stay.
+    let negative: Vec<f64> = k.values.iter().map(|v| -v).collect();
+    let err = pb
+        .refactor(&dualsplit::MatrixView {
+            x: &negative,
+            ..csc
+        })
+        .expect_err("-K is not positive definite");
+    assert_eq!(err.kind, dualsplit::ErrorKind::NotPositiveDefinite);
+    assert_eq!(pb.info(&opts).resident_bytes, held.resident_bytes);
+    let same = |sol: &dualsplit::Solution| {
+        common::assert_converged("after a refactor", sol);
+        let scale = reference.u.iter().fold(0.0f64, |a, v| a.max(v.abs()));
+        let diff = sol
+            .u
+            .iter()
+            .zip(&reference.u)
+            .fold(0.0f64, |a, (x, y)| a.max((x - y).abs()));
+        assert!(diff <= 1e-9 * scale, "u moved by {diff:e} of {scale:e}");
+    };
+    let roomy = pb
+        .solve(&sc.f, &sc.g, Friction::Tresca(&p), &opts)
+        .expect("solve");
+    assert_eq!(roomy.report.memory_predicted, held.solve_bytes);
+    same(&roomy);
+    // No room for the kept values: the solve frees them.
+    let tight = Options {
+        max_memory: held.solve_bytes - 1,
+        ..one_thread()
+    };
+    let sol = pb
+        .solve(&sc.f, &sc.g, Friction::Tresca(&p), &tight)
+        .expect("a solve that frees the kept values");
+    assert_eq!(sol.report.memory_predicted, held.solve_bytes - spare);
+    same(&sol);
+    assert_eq!(pb.info(&opts).resident_bytes, held.resident_bytes - spare);
+    pb.refactor(&csc).expect("refactor");
+    assert_eq!(pb.info(&opts).resident_bytes, held.resident_bytes);
+    same(
+        &pb.solve(&sc.f, &sc.g, Friction::Tresca(&p), &opts)
+            .expect("solve"),
+    );
 }

@@ -54,18 +54,22 @@ pub struct DsInfo {
     /// is created (factorisation, then condensation).
     pub setup_bytes: u64,
     /// Predicted bytes the handle holds between calls (with the slots a
-    /// refactor from a coordinate-format K keeps, once it has made them, and
+    /// refactor from a coordinate-format K keeps, once it has made them, the
+    /// replaced factor's values a refactor keeps as the next one's storage,
+    /// see ds_problem_refactor, and
     /// on a dense dual the single-precision factor of the last Newton step's
     /// reduced system, at most 4 c^2 bytes, once a solve has made it, and in
     /// 3D A^-1 in single precision, 4 c^2 bytes, once a warm Newton solve has
     /// made it; both are counted from creation on).
     pub resident_bytes: u64,
     /// Predicted peak bytes during one solve with that method (its largest
-    /// case; the slots of resident_bytes included).
+    /// case; the slots and the kept factor values of resident_bytes
+    /// included, unless they exceed max_memory: the solve frees those values).
     pub solve_bytes: u64,
     /// Predicted peak bytes of ds_problem_refactor (the old and the new factor
-    /// are held at once; max_memory must allow for it), with the slots of
-    /// resident_bytes; a refactor from a coordinate-format K makes its slots
+    /// are held at once, the new one in the kept values of a replaced factor
+    /// where the handle holds them; max_memory must allow for it), with the
+    /// slots of resident_bytes; a refactor from a coordinate-format K makes its slots
     /// first (4 bytes per triplet, 8 where one triangle is given, and in
     /// full storage 4 bytes per entry of K off the diagonal; see
     /// ds_problem_refactor) and checks them with the rest. Until a refactor

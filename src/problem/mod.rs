@@ -89,6 +89,16 @@ pub struct ContactProblem {
     /// changes no later result); and the pattern's mirror places, for the
     /// symmetry check of a refill in full storage (COO or CSC).
     coo_slots: TripletSlots,
+    /// The values of the factor the last refactor replaced, the next
+    /// refactor's storage (`Factor::refactor_into`; empty before the first).
+    spare: SpareValues,
+}
+
+/// L's values of a replaced factor, with their count on the ledger.
+#[derive(Default)]
+struct SpareValues {
+    values: Vec<f64>,
+    _claim: Option<memory::Claim>,
 }
 
 /// The most err may grow by a refactor that keeps the contact blocks of an
@@ -398,6 +408,7 @@ impl ContactProblem {
             last_refactor: RefactorCost::default(),
             kept_blocks: None,
             coo_slots: TripletSlots::default(),
+            spare: SpareValues::default(),
         })
     }
 
@@ -504,6 +515,7 @@ impl ContactProblem {
             last_refactor: RefactorCost::default(),
             kept_blocks: None,
             coo_slots: TripletSlots::default(),
+            spare: SpareValues::default(),
         })
     }
 
@@ -603,6 +615,13 @@ impl ContactProblem {
     /// small (`Drift::then`); a step tried and not taken adds its 2 solves
     /// to the full estimate's (10 at most).
     ///
+    /// The replaced factor's values stay on the problem as the next
+    /// refactor's storage ([`Info::resident_bytes`] counts them,
+    /// [`Info::refactor_bytes`] does not grow): it factors into memory the
+    /// process already has, not into new pages the system faults in and
+    /// zeroes first. A solve whose `max_memory` leaves no room for them
+    /// frees them.
+    ///
     /// Errors: those of `new`, and `BadArgument` if the pattern differs.
     pub fn refactor(&mut self, k: &MatrixView<'_>) -> Result<()> {
         let Stiffness::Own { factor, k: old_k } = &self.stiff else {
@@ -650,7 +669,21 @@ impl ContactProblem {
         // place until both succeeded.
         let start = Instant::now();
         let mut fresh = factor.unfactored_copy();
-        fresh.refactor(&k)?;
+        // The spare's storage becomes the new factor's (the factor counts it
+        // on the ledger); a K that is not positive definite gives it back.
+        let SpareValues { mut values, .. } = std::mem::take(&mut self.spare);
+        let spare_bytes = std::mem::take(&mut self.sizes.spare);
+        if let Err(e) = fresh.refactor_into(&k, &mut values) {
+            if spare_bytes > 0 && values.len() * std::mem::size_of::<f64>() == spare_bytes {
+                self.sizes.spare = spare_bytes;
+                self.spare = SpareValues {
+                    _claim: Some(fresh.ledger().claim(spare_bytes)),
+                    values,
+                };
+            }
+            return Err(e);
+        }
+        drop(values);
         let fresh = Arc::new(fresh);
         let factored = Instant::now();
         let how = Dual::condensation_for(&fresh, &self.n, &self.t, self.d, self.current_form());
@@ -718,12 +751,32 @@ impl ContactProblem {
             }
             (None, _) => None,
         };
+        let fresh_bytes = fresh.values_bytes();
         self.dual = dual;
         self.stiff = Stiffness::Own { k, factor: fresh };
+        // The replaced factor's values become the next refactor's storage
+        // where nothing else holds that factor any more.
+        if let Ok(old) = Arc::try_unwrap(factor) {
+            let (values, claim) = old.into_values();
+            if values.len() * std::mem::size_of::<f64>() == fresh_bytes {
+                self.sizes.spare = fresh_bytes;
+                self.spare = SpareValues {
+                    values,
+                    _claim: claim,
+                };
+            }
+        }
         self.history.forget_loads();
         self.history.lu = None;
         self.loads.clear();
         Ok(())
+    }
+
+    /// Frees the storage the last refactor kept for the next one (see
+    /// `spare`): the next refactor allocates its own again.
+    fn release_spare(&mut self) {
+        self.spare = SpareValues::default();
+        self.sizes.spare = 0;
     }
 
     /// Whether a refactor onto `k` (factored in `fresh`; `old_k` the K it

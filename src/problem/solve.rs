@@ -102,9 +102,14 @@ impl ContactProblem {
         let next = plan::solve_condensation(now, trailing, opts);
         let free = Condensation::MatrixFree;
         let (m, c) = (self.n_contacts(), self.dual.c);
-        let need = self
-            .sizes
-            .solve(now, next, opts.method.workspace(m, c, next == free));
+        let workspace = opts.method.workspace(m, c, next == free);
+        let mut need = self.sizes.solve(now, next, workspace);
+        // The storage a refactor keeps for the next one gives way to a solve
+        // that needs its room.
+        if self.sizes.spare > 0 && memory::limit(opts.max_memory).is_some_and(|l| need > l) {
+            self.release_spare();
+            need = self.sizes.solve(now, next, workspace);
+        }
         let hint = if next != free {
             let free_need = self
                 .sizes
