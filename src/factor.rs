@@ -63,8 +63,10 @@ pub struct Factor {
     l_claim: Option<Claim>,
     /// The problem's count of its large allocations.
     ledger: Arc<Ledger>,
-    col_ptr: Vec<usize>,
-    row_idx: Vec<usize>,
+    /// K's pattern (compressed columns), shared by the copies
+    /// [`Factor::unfactored_copy`] makes.
+    col_ptr: Arc<[usize]>,
+    row_idx: Arc<[usize]>,
     /// The DOFs ordered last, in this order (empty for a plain AMD ordering).
     last: Vec<usize>,
     /// The fill-reducing ordering, new -> old (dense: the DOFs not in `last` in
@@ -295,8 +297,8 @@ impl Factor {
             l_claim: None,
             ledger,
             layout: Layout::Supernodal(Arc::new(symbolic)),
-            col_ptr: k.col_ptr.clone(),
-            row_idx: k.row_idx.clone(),
+            col_ptr: Arc::from(&k.col_ptr[..]),
+            row_idx: Arc::from(&k.row_idx[..]),
             last,
             fwd,
             ordering,
@@ -355,8 +357,8 @@ impl Factor {
             l_values: Vec::new(),
             l_claim: None,
             ledger,
-            col_ptr: Vec::new(),
-            row_idx: Vec::new(),
+            col_ptr: Arc::from([]),
+            row_idx: Arc::from([]),
             last: last.to_vec(),
             fwd,
             ordering: Ordering::Dense,
@@ -555,7 +557,9 @@ impl Factor {
     /// every entry stored, the same n).
     pub fn same_pattern(&self, k: &Csc) -> bool {
         match self.layout {
-            Layout::Supernodal(_) => k.col_ptr == self.col_ptr && k.row_idx == self.row_idx,
+            Layout::Supernodal(_) => {
+                k.col_ptr[..] == self.col_ptr[..] && k.row_idx[..] == self.row_idx[..]
+            }
             Layout::Dense => k.nrows == self.n() && is_dense(k),
         }
     }
@@ -1048,10 +1052,13 @@ impl Factor {
         x_last.copy_from_slice(&x[first - base..]);
     }
 
-    /// Drops L's values (and their count on the ledger): refactor before use.
-    pub(crate) fn drop_values(&mut self) {
-        self.l_values = Vec::new();
+    /// [`Factor::refactor`] into this factor's own storage: its values are
+    /// gone whether or not it succeeds (refactor again before use after a
+    /// failure), and one factor's values are held at a time, not two.
+    pub(crate) fn refactor_in_place(&mut self, k: &Csc) -> Result<()> {
+        let mut values = std::mem::take(&mut self.l_values);
         self.l_claim = None;
+        self.refactor_into(k, &mut values)
     }
 
     /// The analysis of this factor without its values (refactor it before use):

@@ -289,11 +289,9 @@ impl Restricted {
             }
         }
         step.factored = match step.factor.as_mut() {
-            // E's old values go first: one factor's values held at a time.
-            Some(factor) => {
-                factor.drop_values();
-                factor.refactor(e).is_ok()
-            }
+            // Into E's old values: one factor's values held at a time, and
+            // no new pages to fault in.
+            Some(factor) => factor.refactor_in_place(e).is_ok(),
             None => nu == 0,
         };
         step.factored
