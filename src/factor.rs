@@ -577,12 +577,13 @@ impl Factor {
     /// L's values (the values of a replaced factor of the same analysis, see
     /// [`Factor::into_values`]): the factorisation then writes over memory
     /// the process already has, where a new vector's pages are each faulted
-    /// in and zeroed by the system first (0.15-0.3 s of a 0.6 s numeric
+    /// in and zeroed by the system first (0.1-0.3 s of a 0.6 s numeric
     /// factorisation of 3d-64x64x6's 38 M entries measured on the
-    /// benchmark host). `spare` is left empty where it was taken; else it
-    /// is left as it was. Where a pivot is not positive or too small, it
-    /// holds that storage again, with other values (and a new vector's
-    /// where it had another length).
+    /// benchmark host, bench_results/refactor_probe_1t.txt). `spare` is left empty where it was taken; else it
+    /// is left as it was. Where the factorisation fails (a pivot not
+    /// positive or too small, its workspace refused), it holds that storage
+    /// again, with other values (and a new vector's where it had another
+    /// length).
     pub(crate) fn refactor_into(&mut self, k: &Csc, spare: &mut Vec<f64>) -> Result<()> {
         if !self.same_pattern(k) {
             return fail(
@@ -593,7 +594,7 @@ impl Factor {
         let start = Instant::now();
         let scratch_claim = self.ledger.claim(self.factor_scratch_bytes());
         let values_claim = self.ledger.claim_f64(self.values_len());
-        let values = if spare.len() == self.values_len() {
+        let mut values = if spare.len() == self.values_len() {
             let mut values = std::mem::take(spare);
             // The supernodal factorisations (faer's, the tree's) zero the
             // values themselves; a dense factor's solves rely on zeros above
@@ -606,11 +607,17 @@ impl Factor {
             self.values_vec()?
         };
         let result = match &self.layout {
-            Layout::Supernodal(symbolic) => self.factor_supernodal(symbolic, k, values),
-            Layout::Dense => self.factor_dense(k, values),
+            Layout::Supernodal(symbolic) => self.factor_supernodal(symbolic, k, &mut values),
+            Layout::Dense => self.factor_dense(k, &mut values),
         };
-        let (values, result) = result?;
         drop(scratch_claim);
+        let result = match result {
+            Ok(result) => result,
+            Err(e) => {
+                *spare = values;
+                return Err(e);
+            }
+        };
         let pivot = match result {
             Ok(()) => self
                 .smallest_pivot(&values, k)
@@ -667,13 +674,13 @@ impl Factor {
     }
 
     /// The numeric supernodal factorisation of `k` into `values` (L's length,
-    /// any contents): (values, Err(message) when a pivot was not positive).
+    /// any contents): Err(message) inside where a pivot was not positive.
     fn factor_supernodal(
         &self,
         symbolic: &SymbolicCholesky<usize>,
         k: &Csc,
-        mut values: Vec<f64>,
-    ) -> Result<(Vec<f64>, std::result::Result<(), String>)> {
+        values: &mut [f64],
+    ) -> Result<std::result::Result<(), String>> {
         let n = self.n();
         let a = SparseColMatRef::new(
             SymbolicSparseColMatRef::new_checked(n, n, &self.col_ptr, None, &self.row_idx),
@@ -687,7 +694,7 @@ impl Factor {
             let req = symbolic.factorize_numeric_llt_scratch::<f64>(par, Default::default());
             let mut mem = workspace(req)?;
             let result = symbolic.factorize_numeric_llt::<f64>(
-                &mut values,
+                values,
                 a,
                 Side::Lower,
                 LltRegularization::default(),
@@ -695,8 +702,7 @@ impl Factor {
                 MemStack::new(&mut mem),
                 Default::default(),
             );
-            let result = result.map(|_| ()).map_err(|e| format!("{e:?}"));
-            Ok((values, result))
+            Ok(result.map(|_| ()).map_err(|e| format!("{e:?}")))
         })
     }
 
@@ -725,8 +731,8 @@ impl Factor {
         symbolic: &SymbolicCholesky<usize>,
         a: SparseColMatRef<'_, usize, f64>,
         plan: &TreePlan,
-        mut values: Vec<f64>,
-    ) -> Result<(Vec<f64>, std::result::Result<(), String>)> {
+        values: &mut [f64],
+    ) -> Result<std::result::Result<(), String>> {
         let SymbolicCholeskyRaw::Supernodal(sym) = symbolic.raw() else {
             unreachable!("a tree plan is made for a supernodal factor only");
         };
@@ -755,19 +761,14 @@ impl Factor {
             None => a,
         };
         let result = self.threads.run(true, |par| {
-            crate::tree_cholesky::factor(plan, sym, lower, &mut values, par)
+            crate::tree_cholesky::factor(plan, sym, lower, values, par)
         });
-        let result = result.map_err(|index| format!("NonPositivePivot {{ index: {index} }}"));
-        Ok((values, result))
+        Ok(result.map_err(|index| format!("NonPositivePivot {{ index: {index} }}")))
     }
 
     /// The dense Cholesky factorisation of P K P^T (k stores every entry): as
     /// [`Factor::factor_supernodal`].
-    fn factor_dense(
-        &self,
-        k: &Csc,
-        mut values: Vec<f64>,
-    ) -> Result<(Vec<f64>, std::result::Result<(), String>)> {
+    fn factor_dense(&self, k: &Csc, values: &mut [f64]) -> Result<std::result::Result<(), String>> {
         use faer::linalg::cholesky::llt::factor::{cholesky_in_place, cholesky_in_place_scratch};
         let n = self.n();
         let new_of = self.new_of_old();
@@ -785,7 +786,7 @@ impl Factor {
         self.threads.run(self.parallel, |par| {
             let req = cholesky_in_place_scratch::<f64>(n, par, Default::default());
             let mut mem = workspace(req)?;
-            let l = faer::MatMut::from_column_major_slice_mut(&mut values, n, n);
+            let l = faer::MatMut::from_column_major_slice_mut(values, n, n);
             let result = cholesky_in_place(
                 l,
                 Default::default(),
@@ -793,8 +794,7 @@ impl Factor {
                 MemStack::new(&mut mem),
                 Default::default(),
             );
-            let result = result.map(|_| ()).map_err(|e| format!("{e:?}"));
-            Ok((values, result))
+            Ok(result.map(|_| ()).map_err(|e| format!("{e:?}")))
         })
     }
 
@@ -1428,8 +1428,8 @@ mod tree_tests {
             let (mut f, symbolic) = analysed(k, ordering, t);
             let planned = f.tree_plan(&symbolic).is_some();
             assert_eq!(planned, t >= 2, "the tree split taken on {t} threads");
-            let fresh = f.values_vec().unwrap();
-            let (values, result) = f.factor_supernodal(&symbolic, k, fresh).unwrap();
+            let mut values = f.values_vec().unwrap();
+            let result = f.factor_supernodal(&symbolic, k, &mut values).unwrap();
             f.l_values = Vec::new();
             result.map(|()| values)
         };
@@ -1603,6 +1603,10 @@ mod tree_tests {
                 Factor::with_last(k, &[], Ordering::Metis, Arc::new(Threads::new(threads)));
             let mut f = Arc::try_unwrap(factor.unwrap()).ok().unwrap();
             assert_eq!(f.is_dense(), std::ptr::eq(k, &dense));
+            if let Layout::Supernodal(symbolic) = &f.layout {
+                let planned = f.tree_plan(symbolic).is_some();
+                assert_eq!(planned, threads >= 2, "the tree split on {threads} threads");
+            }
             let new_memory = f.values().to_vec();
             let mut other = vec![f64::NAN; 3];
             f.refactor_into(k, &mut other).unwrap();

@@ -49,7 +49,7 @@ pub(crate) struct Sizes {
     /// entry of K off the diagonal (`sparse::mirror_bytes`), 0 once made.
     pub mirrors_to_make: usize,
     /// Bytes of the replaced factor's values a refactor keeps as the next
-    /// one's storage (0 before the first refactor; at most `factor`).
+    /// one's storage (0 before the first refactor; else `factor`).
     pub spare: usize,
 }
 
@@ -102,9 +102,11 @@ impl Sizes {
     }
 
     /// The peak of creating a problem whose dual is formed in the way `how`: the
-    /// numeric factorisation, then the condensation.
+    /// numeric factorisation, then the condensation (a new problem holds no
+    /// refactor's spare).
     pub fn setup(&self, how: Condensation) -> usize {
-        (self.base() + self.factor_scratch).max(self.base() + self.forming(how).0)
+        let base = self.base() - self.spare;
+        (base + self.factor_scratch).max(base + self.forming(how).0)
     }
 
     /// What the problem holds between calls: with the dual (a dense one with
@@ -137,7 +139,7 @@ impl Sizes {
             + k_bytes
             + self.mirrors_to_make
             + keep
-            + (self.factor - self.spare)
+            + self.factor.saturating_sub(self.spare)
             + self.factor_scratch.max(self.forming(how).0)
     }
 

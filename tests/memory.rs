@@ -974,9 +974,10 @@ fn the_host_routes_creation_is_predicted_and_kept_under_max_memory() {
 /// storage: the second refactor of a handle reaches a peak lower by at
 /// least those values than the first (which also made the mirror places),
 /// the resident prediction counts them, a refactor refused for a K that is
-/// not positive definite keeps them, a solve whose max_memory leaves no
-/// room for them frees them and is predicted as before the refactors, and
-/// the refactor after that keeps them again. Every solve gives the answer
+/// not positive definite keeps them, a solve refused by its max_memory
+/// keeps them, one that fits it only without them frees them (predicted as
+/// before the refactors, and counted so by the library's ledger), and the
+/// refactor after that keeps them again. Every solve gives the answer
 /// of the handle before its refactors (the same K each time).
 #[test]
 fn a_refactor_keeps_the_replaced_factor_for_the_next_one() {
@@ -1043,6 +1044,16 @@ fn a_refactor_keeps_the_replaced_factor_for_the_next_one() {
         .expect("solve");
     assert_eq!(roomy.report.memory_predicted, held.solve_bytes);
     same(&roomy);
+    // No room even without the kept values: refused, and they stay.
+    let short = Options {
+        max_memory: held.solve_bytes - spare - 1,
+        ..one_thread()
+    };
+    let err = pb
+        .solve(&sc.f, &sc.g, Friction::Tresca(&p), &short)
+        .expect_err("a solve beyond max_memory");
+    assert_eq!(err.kind, dualsplit::ErrorKind::OutOfMemory);
+    assert_eq!(pb.info(&opts).resident_bytes, held.resident_bytes);
     // No room for the kept values: the solve frees them.
     let tight = Options {
         max_memory: held.solve_bytes - 1,
@@ -1053,6 +1064,13 @@ fn a_refactor_keeps_the_replaced_factor_for_the_next_one() {
         .expect("a solve that frees the kept values");
     assert_eq!(sol.report.memory_predicted, held.solve_bytes - spare);
     same(&sol);
+    // The library's own count: the kept values were on it, and are not.
+    let counted = roomy.report.memory_peak - sol.report.memory_peak;
+    println!(
+        "counted peaks: {} and {}",
+        roomy.report.memory_peak, sol.report.memory_peak
+    );
+    assert_within("the kept values on the ledger", counted, spare, 0.05);
     assert_eq!(pb.info(&opts).resident_bytes, held.resident_bytes - spare);
     pb.refactor(&csc).expect("refactor");
     assert_eq!(pb.info(&opts).resident_bytes, held.resident_bytes);

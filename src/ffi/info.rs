@@ -64,7 +64,9 @@ pub struct DsInfo {
     pub resident_bytes: u64,
     /// Predicted peak bytes during one solve with that method (its largest
     /// case; the slots and the kept factor values of resident_bytes
-    /// included, unless they exceed max_memory: the solve frees those values).
+    /// included: a solve whose max_memory this exceeds, and that fits it
+    /// without the kept values, frees them first and predicts that much
+    /// less in its report).
     pub solve_bytes: u64,
     /// Predicted peak bytes of ds_problem_refactor (the old and the new factor
     /// are held at once, the new one in the kept values of a replaced factor

@@ -294,14 +294,16 @@ pub unsafe extern "C" fn ds_problem_free(problem: *mut DsProblem) {
 /// bit); in full storage the handle then keeps its pattern's mirror places
 /// for the symmetry check, as above.
 ///
-/// The replaced factor's values (8 bytes per entry of L, DsInfo.factor_nnz;
-/// the refactor held them beside the new ones anyway) stay on the handle as
-/// the next refactor's storage, which then factors into memory the process
-/// already has instead of new pages the system must fault in and zero
-/// (0.15-0.3 s of a 0.6 s numeric factorisation measured on a 38-million
-/// entry L). They count in DsInfo.resident_bytes and solve_bytes, not in
-/// refactor_bytes, which does not grow; a solve whose max_memory leaves no
-/// room for them frees them first, and ds_problem_free frees them.
+/// The replaced factor's values (8 DsInfo.factor_nnz bytes for a sparse
+/// K, 8 n^2 for a dense one; the refactor held them beside the new ones
+/// anyway) stay on the handle as the next refactor's storage, which then
+/// factors into memory the process already has instead of new pages the
+/// system must fault in and zero (0.1-0.3 s of a 0.6 s numeric
+/// factorisation of a 38-million entry L, measured). A refactor that
+/// fails keeps them. They count in DsInfo.resident_bytes and solve_bytes,
+/// not in refactor_bytes, which does not grow; a solve or
+/// ds_problem_set_contacts that fits its max_memory only without them
+/// frees them first, and ds_problem_free frees them.
 ///
 /// Returns DS_STATUS_OK, or the errors of ds_problem_new for K, and
 /// DS_STATUS_BAD_ARGUMENT if the pattern differs.

@@ -619,8 +619,9 @@ impl ContactProblem {
     /// refactor's storage ([`Info::resident_bytes`] counts them,
     /// [`Info::refactor_bytes`] does not grow): it factors into memory the
     /// process already has, not into new pages the system faults in and
-    /// zeroes first. A solve whose `max_memory` leaves no room for them
-    /// frees them.
+    /// zeroes first. A refactor that fails keeps them; a solve or
+    /// `set_contacts` that fits its `max_memory` only without them frees
+    /// them.
     ///
     /// Errors: those of `new`, and `BadArgument` if the pattern differs.
     pub fn refactor(&mut self, k: &MatrixView<'_>) -> Result<()> {
@@ -670,17 +671,12 @@ impl ContactProblem {
         let start = Instant::now();
         let mut fresh = factor.unfactored_copy();
         // The spare's storage becomes the new factor's (the factor counts it
-        // on the ledger); a K that is not positive definite gives it back.
+        // on the ledger); a refactor that fails gives it back.
         let SpareValues { mut values, .. } = std::mem::take(&mut self.spare);
         let spare_bytes = std::mem::take(&mut self.sizes.spare);
         if let Err(e) = fresh.refactor_into(&k, &mut values) {
-            if spare_bytes > 0 && values.len() * std::mem::size_of::<f64>() == spare_bytes {
-                self.sizes.spare = spare_bytes;
-                self.spare = SpareValues {
-                    _claim: Some(fresh.ledger().claim(spare_bytes)),
-                    values,
-                };
-            }
+            let claim = fresh.ledger().claim_f64(values.len());
+            self.keep_spare(values, Some(claim), spare_bytes);
             return Err(e);
         }
         drop(values);
@@ -695,7 +691,13 @@ impl ContactProblem {
         let single = match how {
             Condensation::MatrixFree if !fresh.is_dense() => {
                 let lent = self.dual.lend_single().unwrap_or_default();
-                Some(fresh.single_values_in(lent)?)
+                match fresh.single_values_in(lent) {
+                    Ok(single) => Some(single),
+                    Err(e) => {
+                        self.give_back(fresh, spare_bytes);
+                        return Err(e);
+                    }
+                }
             }
             _ => None,
         };
@@ -714,7 +716,7 @@ impl ContactProblem {
             Condensation::MatrixFree => self.dual.renewed_layer(&k),
             _ => None,
         };
-        let mut dual = form_dual(
+        let dual = form_dual(
             &fresh,
             &k,
             (&self.n, &self.t),
@@ -722,7 +724,14 @@ impl ContactProblem {
             (how, Made { blocks, single }),
             &shift,
             layer,
-        )?;
+        );
+        let mut dual = match dual {
+            Ok(dual) => dual,
+            Err(e) => {
+                self.give_back(fresh, spare_bytes);
+                return Err(e);
+            }
+        };
         self.last_refactor = RefactorCost {
             factor_seconds: (factored - start).as_secs_f64(),
             drift_seconds: (weighed - copied).as_secs_f64(),
@@ -758,13 +767,7 @@ impl ContactProblem {
         // where nothing else holds that factor any more.
         if let Ok(old) = Arc::try_unwrap(factor) {
             let (values, claim) = old.into_values();
-            if values.len() * std::mem::size_of::<f64>() == fresh_bytes {
-                self.sizes.spare = fresh_bytes;
-                self.spare = SpareValues {
-                    values,
-                    _claim: claim,
-                };
-            }
+            self.keep_spare(values, claim, fresh_bytes);
         }
         self.history.forget_loads();
         self.history.lu = None;
@@ -772,11 +775,46 @@ impl ContactProblem {
         Ok(())
     }
 
-    /// Frees the storage the last refactor kept for the next one (see
-    /// `spare`): the next refactor allocates its own again.
-    fn release_spare(&mut self) {
-        self.spare = SpareValues::default();
-        self.sizes.spare = 0;
+    /// Keeps `values` (counted by `claim`) as the next refactor's storage
+    /// where they have `bytes`, the length of L's values (0: none to keep).
+    fn keep_spare(&mut self, values: Vec<f64>, claim: Option<memory::Claim>, bytes: usize) {
+        if bytes > 0 && values.len() * std::mem::size_of::<f64>() == bytes {
+            self.sizes.spare = bytes;
+            self.spare = SpareValues {
+                values,
+                _claim: claim,
+            };
+        }
+    }
+
+    /// The spare's storage (`bytes`; 0 where none was held) back from the
+    /// factor `fresh` of a refactor that failed after its factorisation,
+    /// where nothing else holds that factor: the handle holds what it held
+    /// before the refactor.
+    fn give_back(&mut self, fresh: Arc<Factor>, bytes: usize) {
+        if let Ok(fresh) = Arc::try_unwrap(fresh) {
+            let (values, claim) = fresh.into_values();
+            self.keep_spare(values, claim, bytes);
+        }
+    }
+
+    /// The bytes `need` predicts for the work about to start, where the
+    /// storage the last refactor kept for the next one (`spare`) gives way
+    /// to it: freed where the prediction with it held exceeds `limit` and
+    /// the one without it does not (the next refactor then allocates its
+    /// own again); kept otherwise, whether or not the work then fits.
+    fn spare_gives_way(&mut self, need: impl Fn(&Sizes) -> usize, limit: Option<usize>) -> usize {
+        let held = need(&self.sizes);
+        let without = need(&Sizes {
+            spare: 0,
+            ..self.sizes
+        });
+        if self.sizes.spare > 0 && limit.is_some_and(|l| held > l && without <= l) {
+            self.spare = SpareValues::default();
+            self.sizes.spare = 0;
+            return without;
+        }
+        held
     }
 
     /// Whether a refactor onto `k` (factored in `fresh`; `old_k` the K it
@@ -874,9 +912,14 @@ impl ContactProblem {
                 (next, Condensation::MatrixFree, layer)
             }
         };
-        let need =
-            self.sizes
-                .replace_contacts(self.dual.condensation, n.bytes() + t.bytes(), &next, how);
+        let (now, nt_bytes) = (self.dual.condensation, n.bytes() + t.bytes());
+        let limit = memory::limit(self.max_memory);
+        let need = self.spare_gives_way(|s| s.replace_contacts(now, nt_bytes, &next, how), limit);
+        // (The spare, where it gave way, is no longer held after either.)
+        let next = Sizes {
+            spare: self.sizes.spare,
+            ..next
+        };
         memory::check(
             need,
             memory::limit(self.max_memory),

@@ -103,13 +103,10 @@ impl ContactProblem {
         let free = Condensation::MatrixFree;
         let (m, c) = (self.n_contacts(), self.dual.c);
         let workspace = opts.method.workspace(m, c, next == free);
-        let mut need = self.sizes.solve(now, next, workspace);
         // The storage a refactor keeps for the next one gives way to a solve
-        // that needs its room.
-        if self.sizes.spare > 0 && memory::limit(opts.max_memory).is_some_and(|l| need > l) {
-            self.release_spare();
-            need = self.sizes.solve(now, next, workspace);
-        }
+        // that fits only without it.
+        let limit = memory::limit(opts.max_memory);
+        let need = self.spare_gives_way(|s| s.solve(now, next, workspace), limit);
         let hint = if next != free {
             let free_need = self
                 .sizes
