@@ -579,8 +579,8 @@ impl Factor {
     /// the process already has, where a new vector's pages are each faulted
     /// in and zeroed by the system first (0.1-0.3 s of a 0.6 s numeric
     /// factorisation of 3d-64x64x6's 38 M entries measured on the
-    /// benchmark host, bench_results/refactor_probe_1t.txt). `spare` is left empty where it was taken; else it
-    /// is left as it was. Where the factorisation fails (a pivot not
+    /// benchmark host, bench_results/refactor_probe_1t.txt). `spare` is
+    /// left empty where it was taken; else it is left as it was. Where the factorisation fails (a pivot not
     /// positive or too small, its workspace refused), it holds that storage
     /// again, with other values (and a new vector's where it had another
     /// length).
@@ -618,29 +618,25 @@ impl Factor {
                 return Err(e);
             }
         };
-        let pivot = match result {
-            Ok(()) => self
-                .smallest_pivot(&values, k)
-                .filter(|&(_, r)| r < PIVOT_TOL),
-            Err(_) => None,
-        };
-        let message = match (result, pivot) {
-            (Ok(()), None) => {
-                self.l_values = values;
-                self.l_claim = Some(values_claim);
-                self.factor_seconds = start.elapsed().as_secs_f64();
-                return Ok(());
-            }
-            (Err(e), _) => format!(
+        let message = match result {
+            Err(e) => format!(
                 "K is not positive definite (Cholesky: {e}): singular, indefinite, \
                  or missing Dirichlet conditions"
             ),
-            (Ok(()), Some((j, ratio))) => format!(
-                "K is numerically singular: the Cholesky pivot of DOF {} is {ratio:.1e} \
-                 of its diagonal entry (< {PIVOT_TOL:e}); a rigid-body mode, missing \
-                 Dirichlet conditions, or cond(K) beyond about 1e14",
-                self.fwd[j]
-            ),
+            Ok(()) => match self.smallest_pivot(&values, k) {
+                Some((j, ratio)) if ratio < PIVOT_TOL => format!(
+                    "K is numerically singular: the Cholesky pivot of DOF {} is {ratio:.1e} \
+                     of its diagonal entry (< {PIVOT_TOL:e}); a rigid-body mode, missing \
+                     Dirichlet conditions, or cond(K) beyond about 1e14",
+                    self.fwd[j]
+                ),
+                _ => {
+                    self.l_values = values;
+                    self.l_claim = Some(values_claim);
+                    self.factor_seconds = start.elapsed().as_secs_f64();
+                    return Ok(());
+                }
+            },
         };
         // The storage goes back where it came from (a new vector to a caller
         // that gave none).
@@ -689,7 +685,6 @@ impl Factor {
         if let Some(plan) = self.tree_plan(symbolic) {
             return self.factor_on_tree(symbolic, a, &plan, values);
         }
-
         self.threads.run(self.parallel, |par| {
             let req = symbolic.factorize_numeric_llt_scratch::<f64>(par, Default::default());
             let mut mem = workspace(req)?;
@@ -772,7 +767,6 @@ impl Factor {
         use faer::linalg::cholesky::llt::factor::{cholesky_in_place, cholesky_in_place_scratch};
         let n = self.n();
         let new_of = self.new_of_old();
-
         // The lower triangle of P K P^T, column-major.
         for j in 0..n {
             let jn = new_of[j];

@@ -634,20 +634,8 @@ fn the_mirror_places_of_a_csc_refactor_are_predicted() {
     let before = pb.info(&opts);
     let k = &sc.k;
     let off_diagonal = off_diagonal(k);
-    let (p, i) = (
-        k.col_ptr.iter().map(|&v| v as i64).collect::<Vec<_>>(),
-        k.row_idx.iter().map(|&v| v as i64).collect::<Vec<_>>(),
-    );
-    let csc = dualsplit::MatrixView {
-        format: dualsplit::Format::Csc,
-        storage: dualsplit::Storage::Full,
-        base: 0,
-        nrows: k.nrows,
-        ncols: k.ncols,
-        p: dualsplit::Indices::I64(&p),
-        i: dualsplit::Indices::I64(&i),
-        x: &k.values,
-    };
+    let owned = common::Owned::of(k);
+    let csc = owned.view();
     for _ in 0..2 {
         pb.refactor(&csc).expect("refactor");
         let after = pb.info(&opts);
@@ -994,20 +982,8 @@ fn a_refactor_keeps_the_replaced_factor_for_the_next_one() {
     let before = pb.info(&opts);
     let spare = 8 * before.factor_nnz;
     let k = &sc.k;
-    let (cols, rows) = (
-        k.col_ptr.iter().map(|&v| v as i64).collect::<Vec<_>>(),
-        k.row_idx.iter().map(|&v| v as i64).collect::<Vec<_>>(),
-    );
-    let csc = dualsplit::MatrixView {
-        format: dualsplit::Format::Csc,
-        storage: dualsplit::Storage::Full,
-        base: 0,
-        nrows: k.nrows,
-        ncols: k.ncols,
-        p: dualsplit::Indices::I64(&cols),
-        i: dualsplit::Indices::I64(&rows),
-        x: &k.values,
-    };
+    let owned = common::Owned::of(k);
+    let csc = owned.view();
     let mirrors = 4 * off_diagonal(k);
     let ((), first) = peak_of(|| pb.refactor(&csc).expect("refactor"));
     let ((), second) = peak_of(|| pb.refactor(&csc).expect("refactor"));
