@@ -39,6 +39,8 @@ mod report;
 mod restricted;
 mod sizes;
 mod sparse;
+#[cfg(test)]
+mod test_scenes;
 mod threads;
 mod tree_cholesky;
 

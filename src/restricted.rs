@@ -113,6 +113,29 @@ impl Step {
     }
 }
 
+impl Step {
+    /// A step of c components holding this one's analysis of E (its
+    /// components U and E's symbolic factor, unfactored), where it has one;
+    /// else none.
+    fn analysis(&self, c: usize) -> Step {
+        let mut next = Step::none(c);
+        if !self.analysed || self.refused {
+            return next;
+        }
+        if let Some(f) = &self.factor {
+            let Ok(mem) = crate::memory::try_scratch(f.solve_scratch(1), "") else {
+                return next;
+            };
+            (next.factor, next.mem) = (Some(f.unfactored_copy()), mem);
+        }
+        next.u.clone_from(&self.u);
+        next.at.clone_from(&self.at);
+        next.rhs = vec![0.0; self.u.len()];
+        next.analysed = true;
+        next
+    }
+}
+
 impl Restricted {
     /// G = B K B^T of K = `k` (n x n, both triangles) and B = `b` (c x n),
     /// with its fill-reducing order (AMD) and its factor's size; E's factors
@@ -160,7 +183,9 @@ impl Restricted {
     /// The preconditioner of K = `k` of the pattern of the K it was made
     /// for, and the same B = `b` (`bt` its transpose): G formed afresh, its
     /// order and bounds kept (functions of G's pattern alone), no step
-    /// factored yet. None where G's pattern differs.
+    /// factored yet, the last step's analysis of E kept for a step with the
+    /// same components U (E's pattern is then the same: a host's next
+    /// iteration whose contact states held). None where G's pattern differs.
     pub(crate) fn renewed(&self, k: &Csc, b: &Csc, bt: &Csc) -> Option<Restricted> {
         let g = crate::sparse::congruence(k, b, bt);
         if g.col_ptr != self.g.col_ptr || g.row_idx != self.g.row_idx {
@@ -170,7 +195,7 @@ impl Restricted {
             order: self.order.clone(),
             empty: self.empty.clone(),
             factor_bytes: self.factor_bytes,
-            step: RefCell::new(Step::none(g.ncols)),
+            step: RefCell::new(self.step.borrow().analysis(g.ncols)),
             g,
             threads: self.threads.clone(),
             ledger: self.ledger.clone(),

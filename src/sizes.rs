@@ -162,9 +162,15 @@ impl Sizes {
     /// n (f and its forward half, K^-1 f, u, B^T lambda, K u, the residual, and
     /// a step's effective f and K u_k, or a host iteration's block of three
     /// right-hand sides, `Dual::solve_with_products`) and the method's work
-    /// space on top of the resident bytes.
+    /// space on top of the resident bytes; on a matrix-free dual also the
+    /// displacement carried with the iterate (`dual::Primal`, 3 n + c
+    /// values) and the fourth column of the block it starts from.
     pub fn solve(&self, now: Condensation, next: Condensation, workspace: usize) -> usize {
-        let working = self.resident(next) + 9 * self.n * F64 + workspace;
+        let carried = match next {
+            Condensation::MatrixFree => 4 * self.n + self.c,
+            _ => 0,
+        };
+        let working = self.resident(next) + (9 * self.n + carried) * F64 + workspace;
         if now == next {
             working
         } else {

@@ -773,9 +773,10 @@ impl Dual {
 
     /// f := K^-1 f with the factor `factor` and `ys[i] := A xs[i]` (length c
     /// each), in one block solve where the dual is matrix-free on that
-    /// factor ([`Operator::solve_with_products`]); false, with nothing
-    /// written, otherwise (an assembled dual, the host's solves, another
-    /// factor).
+    /// factor ([`Operator::solve_with_products`]), with u at xs[0] into
+    /// `primal` where it is given (and z of xs[1], the line's direction,
+    /// where there is one); false, with nothing written, otherwise (an
+    /// assembled dual, the host's solves, another factor).
     ///
     /// Errors: `OutOfMemory`.
     pub(crate) fn solve_with_products(
@@ -784,6 +785,7 @@ impl Dual {
         f: &mut [f64],
         xs: &[&[f64]],
         ys: &mut [Vec<f64>],
+        primal: Option<&mut Primal>,
     ) -> Result<bool> {
         let Some(op) = &self.free else {
             return Ok(false);
@@ -791,13 +793,34 @@ impl Dual {
         if !op.factor().is_some_and(|own| Arc::ptr_eq(own, factor)) {
             return Ok(false);
         }
-        if !op.solve_with_products(f, xs, ys)? {
+        if !op.solve_with_products(f, xs, ys, primal)? {
             return Ok(false);
         }
         for (x, y) in xs.iter().zip(ys.iter_mut()) {
             self.add_shift(x, y);
         }
         Ok(true)
+    }
+
+    /// y := A x (length c each) in double and z := K^-1 B^T x (n values)
+    /// where a matrix-free dual's product computes that whole (see
+    /// [`Operator::apply_keeping`]: on K's own factor, its solves not
+    /// restricted to the contact DOFs' paths); false, with y and z
+    /// untouched, otherwise.
+    pub(crate) fn apply_keeping(&self, x: &[f64], y: &mut [f64], z: &mut [f64]) -> bool {
+        let Some(f) = &self.free else {
+            return false;
+        };
+        if !f.apply_keeping(x, y, z) {
+            return false;
+        }
+        self.add_shift(x, y);
+        true
+    }
+
+    /// Whether [`Dual::apply_keeping`] computes z.
+    pub(crate) fn keeps_solutions(&self) -> bool {
+        self.free.as_ref().is_some_and(|f| f.keeps_solutions())
     }
 
     /// y := A x. x and y may be shorter than c: then y is the leading block of A
@@ -893,6 +916,7 @@ fn rho_of(m: usize, d: usize, diag: impl Fn(usize) -> f64) -> Vec<f64> {
 
 mod condense;
 mod operator;
+mod primal;
 
 /// The layered Dirichlet preconditioner's plan on the host's solves (K
 /// handed over, `b` = [N; T]), weighed as on the own path against a solve
@@ -990,6 +1014,7 @@ pub(crate) fn blocks_by_factor(
 use condense::*;
 use operator::*;
 pub(crate) use operator::{Made, host_rows_bytes, own_solves_bytes};
+pub(crate) use primal::Primal;
 
 #[cfg(test)]
 pub(crate) mod tests;

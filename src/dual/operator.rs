@@ -328,9 +328,13 @@ impl Operator {
     /// block [f, B^T xs] with K's factor: the solve's time is mostly reading
     /// the factor, which a block reads once (on a 3D slab's factor of 3.8e7
     /// entries three columns took 0.068 s, one 0.051 s, timed in a build
-    /// not kept). False, with nothing written, on the host's solves. Its
-    /// bytes (the block and faer's scratch for it) are claimed on the
-    /// ledger while it lives.
+    /// not kept; on the 3D host example's factor of 3d-52x52x4 two columns
+    /// 1.15 times one, four 1.33 times). Where `primal` is given, the block
+    /// also holds f - B^T xs[0], whose solution is u at xs[0]
+    /// ([`Primal::start_at`]), and z = K^-1 B^T xs[1] is left in it where
+    /// there is an xs[1] (its line's direction). False, with nothing
+    /// written, on the host's solves. Its bytes (the block and faer's
+    /// scratch for it) are claimed on the ledger while it lives.
     ///
     /// Errors: `OutOfMemory` (the block or its scratch refused).
     pub(super) fn solve_with_products(
@@ -338,26 +342,42 @@ impl Operator {
         f: &mut [f64],
         xs: &[&[f64]],
         ys: &mut [Vec<f64>],
+        primal: Option<&mut Primal>,
     ) -> Result<bool> {
         let Solves::Factor(fs) = &self.solves else {
             return Ok(false);
         };
         let factor = &fs.factor;
-        let (n, k) = (factor.n(), 1 + xs.len());
+        let with_u = primal.is_some() && !xs.is_empty();
+        let (n, k) = (factor.n(), 1 + xs.len() + usize::from(with_u));
         let what = "a solve's block of right-hand sides";
         let scratch = factor.solve_scratch(k);
         let _claim = factor.ledger().claim(8 * n * k + scratch.size_bytes());
         let mut z = try_zeros::<f64>(n * k, what)?;
         let mut mem = try_scratch(scratch, what)?;
         z[..n].copy_from_slice(f);
-        for (x, col) in xs.iter().zip(z[n..].chunks_exact_mut(n)) {
+        let (head, tail) = z.split_at_mut((1 + xs.len()) * n);
+        for (x, col) in xs.iter().zip(head[n..].chunks_exact_mut(n)) {
             scatter(&self.bt, x, 0..x.len(), col);
+        }
+        if with_u {
+            // f - B^T x: the difference taken before the solve (see
+            // `ContactProblem::recover_u`).
+            tail.copy_from_slice(f);
+            scatter_signed(&self.bt, xs[0], -1.0, tail);
         }
         let block = MatMut::from_column_major_slice_mut(&mut z, n, k);
         factor.solve_in_place(block, MemStack::new(&mut mem));
         f.copy_from_slice(&z[..n]);
         for (y, col) in ys.iter_mut().zip(z[n..].chunks_exact(n)) {
             gather(&self.bt, col, 0..y.len(), y);
+        }
+        if let Some(p) = primal.filter(|_| with_u) {
+            p.start_mut().copy_from_slice(&z[(1 + xs.len()) * n..]);
+            p.start_at(xs[0]);
+            if xs.len() > 1 {
+                p.z.copy_from_slice(&z[2 * n..3 * n]);
+            }
         }
         Ok(true)
     }
@@ -371,6 +391,36 @@ impl Operator {
     /// y := A x (leading blocks for shorter x and y, as [`Dual::apply`]).
     pub(super) fn apply(&self, x: &[f64], y: &mut [f64]) {
         self.apply_in(x, y, false);
+    }
+
+    /// y := A x in double, as [`Operator::apply`], and z := K^-1 B^T x (n
+    /// values), the solve's whole solution. False, with y and z untouched,
+    /// where the products do not compute it whole: on the host's solves, and
+    /// where they are restricted to the contact DOFs' paths (`tree_solve.rs`:
+    /// the back substitution then gives only their values).
+    pub(super) fn apply_keeping(&self, x: &[f64], y: &mut [f64], z: &mut [f64]) -> bool {
+        let Solves::Factor(fs) = &self.solves else {
+            return false;
+        };
+        if !self.keeps_solutions() {
+            return false;
+        }
+        if x.iter().all(|&v| v == 0.0) {
+            y.fill(0.0);
+            z.fill(0.0);
+            return true;
+        }
+        self.apply_in(x, y, false);
+        z.copy_from_slice(&fs.work.borrow().0);
+        true
+    }
+
+    /// Whether [`Operator::apply_keeping`] computes z.
+    pub(super) fn keeps_solutions(&self) -> bool {
+        match &self.solves {
+            Solves::Factor(fs) => !fs.own.as_ref().is_some_and(|own| own.split.restricted()),
+            Solves::Host(_) => false,
+        }
     }
 
     /// y := A x with the solve in single precision where `rough`, else in
@@ -572,6 +622,17 @@ fn scatter_at<T: Real>(
         if xr != 0.0 {
             for k in bt.col_ptr[r]..bt.col_ptr[r + 1] {
                 z[at[k]] += T::of(bt.values[k] * xr);
+            }
+        }
+    }
+}
+
+/// z += sign B^T x over all of x's rows (see [`scatter`]).
+fn scatter_signed(bt: &Csc, x: &[f64], sign: f64, z: &mut [f64]) {
+    for (r, &xr) in x.iter().enumerate() {
+        if xr != 0.0 {
+            for k in bt.col_ptr[r]..bt.col_ptr[r + 1] {
+                z[bt.row_idx[k]] += sign * (bt.values[k] * xr);
             }
         }
     }

@@ -100,6 +100,10 @@ pub struct DualProblem<'a> {
     /// |F|; None otherwise): Newton's forcing terms are taken relative to
     /// it, as after a step.
     pub start_from: Option<f64>,
+    /// u = K^-1 (f - B^T lambda) carried along with the iterate
+    /// ([`crate::dual::Primal`]), where the caller started it: a step whose
+    /// A d is an exact product moves it too (None: nothing carried).
+    pub(crate) primal: Option<&'a RefCell<crate::dual::Primal>>,
 }
 
 impl<'a> DualProblem<'a> {
@@ -118,6 +122,7 @@ impl<'a> DualProblem<'a> {
             start_gradient: Cell::new(None),
             measured_after: false,
             start_from: None,
+            primal: None,
         }
     }
     /// w := A lam - b (the negative of v = [N u - g; T u]).

@@ -4,7 +4,7 @@
 
 use crate::compliance::Compliance;
 use crate::contact_rows::{check_shapes, stack_rows};
-use crate::dual::{Condensation, Dual, Made};
+use crate::dual::{Condensation, Dual, Made, Primal};
 use crate::error::{ErrorKind, Result, fail};
 use crate::factor::Factor;
 use crate::friction::Friction;

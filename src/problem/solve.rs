@@ -217,7 +217,9 @@ impl ContactProblem {
     /// at the start; returned where they rode along the solve of f in one
     /// block (`Dual::solve_with_products`: a matrix-free dual on K's own
     /// factor, the load not combined, the block allowed by the allocator),
-    /// else None (the caller takes them itself).
+    /// else None (the caller takes them itself). Where they ride and
+    /// `primal` is given, u at ride[0] goes into it, with z = K^-1 B^T
+    /// ride[1] (`Dual::solve_with_products`).
     ///
     /// Errors: `HostSolve`.
     fn solve_load(
@@ -231,7 +233,7 @@ impl ContactProblem {
         tol: f64,
         y_f: &mut Vec<f64>,
         u0: &mut [f64],
-        ride: &[&[f64]],
+        (ride, primal): (&[&[f64]], Option<&mut Primal>),
     ) -> Result<Option<Vec<Vec<f64>>>> {
         let amp = max_amplification(tol);
         if !self.dual.trailing {
@@ -274,7 +276,7 @@ impl ContactProblem {
                 let rides = !ride.is_empty()
                     && self
                         .dual
-                        .solve_with_products(factor, u0, ride, &mut ys)
+                        .solve_with_products(factor, u0, ride, &mut ys, primal)
                         .unwrap_or(false);
                 if rides {
                     rode = Some(ys);
@@ -360,7 +362,18 @@ impl ContactProblem {
             ride.push(lam);
             ride.extend(dir.as_deref());
         }
-        let rode = self.solve_load(load, opts.tol, &mut y_f, &mut u0, &ride)?;
+        // u = K^-1 (f - B^T lambda) carried with the iterate from the start
+        // where the block gives it and the products can move it
+        // (`dual::Primal`; with its bytes on the ledger).
+        let carry = !ride.is_empty() && !self.dual.trailing && self.dual.keeps_solutions();
+        let (mut primal, _primal_claim) = match carry {
+            true => (
+                Some(Primal::new(ndof, c)),
+                Some(self.stiff.ledger().claim(Primal::bytes(ndof, c))),
+            ),
+            false => (None, None),
+        };
+        let rode = self.solve_load(load, opts.tol, &mut y_f, &mut u0, (&ride, primal.as_mut()))?;
         drop(ride);
         let mut b = vec![0.0; c];
         self.dual.rows.mul_vec(&u0, &mut b);
@@ -398,7 +411,7 @@ impl ContactProblem {
                 if self.dual.shift().is_empty()
                     && let Some(mut ax) = h.start_product(s)
                 {
-                    add_projection_move(&self.dual, lam, h.line_point(s), &mut ax);
+                    add_projection_move(&self.dual, lam, h.line_point(s), &mut ax, None);
                     ax.iter_mut().zip(&b).for_each(|(a, bj)| *a -= bj);
                     start_w = Some(ax);
                 }
@@ -407,7 +420,7 @@ impl ContactProblem {
             Warm::Line(_) if !self.dual.shift().is_empty() => None,
             Warm::Line(before) => {
                 let at = DualProblem::new(&self.dual, &b, friction);
-                let (w, from) = iteration_line(&at, before, self.d, lam, rode);
+                let (w, from) = iteration_line(&at, before, self.d, lam, rode, primal.as_mut());
                 extrapolated = from.is_some();
                 line_from = from;
                 start_w = Some(w);
@@ -434,14 +447,32 @@ impl ContactProblem {
                 if incs.start(&q, friction, self.d, &mut start) > 0.0 {
                     // The prediction is kept unless its natural residual
                     // exceeds lambda_n's more than INCREMENT_RISE times (one
-                    // product; `history::Increments`).
+                    // product; `history::Increments`): the product of the
+                    // move where it carries u along (`dual::Primal`), else
+                    // of the start.
                     let before = at.natural_residual(lam, &w);
                     let mut ws = vec![0.0; c];
-                    at.gradient(&start, &mut ws);
+                    let mut carried = primal.as_mut().filter(|p| p.holds_at(lam));
+                    let moved = carried.as_mut().is_some_and(|p| {
+                        let d: Vec<f64> =
+                            start.iter().zip(lam.iter()).map(|(s, l)| s - l).collect();
+                        let kept = self.dual.apply_keeping(&d, &mut ws, &mut p.z);
+                        ws.iter_mut().zip(&w).for_each(|(a, wj)| *a += wj);
+                        kept
+                    });
+                    if !moved {
+                        at.gradient(&start, &mut ws);
+                    }
                     if at.natural_residual(&start, &ws) <= INCREMENT_RISE * before {
                         lam.copy_from_slice(&start);
                         extrapolated = true;
                         w = ws;
+                        if let Some(p) = carried {
+                            match moved {
+                                true => p.moved_by(1.0, lam),
+                                false => p.drop_u(),
+                            }
+                        }
                     }
                 }
                 // The gradient at the start, whichever it is, for the
@@ -451,6 +482,8 @@ impl ContactProblem {
                 Some(q)
             }
         };
+        // From here the methods carry it (`DualProblem::primal`).
+        let primal = primal.map(std::cell::RefCell::new);
         // The compliance's tangential term is centred at the force the return
         // mapping starts from: b += D_T lambda_T,prev (a history's last force;
         // zero in a single solve).
@@ -552,6 +585,7 @@ impl ContactProblem {
                     start_gradient: std::cell::Cell::new(first.as_deref()),
                     measured_after: !confirm,
                     start_from: line_from.filter(|_| first.is_some()),
+                    primal: primal.as_ref(),
                 };
                 let local = Options {
                     max_outer: opts.max_outer.saturating_sub(outer),
@@ -585,6 +619,15 @@ impl ContactProblem {
                     g,
                     lt_prev,
                 };
+                let carried = primal.as_ref().map(|p| p.borrow());
+                #[cfg(test)]
+                if carried
+                    .as_ref()
+                    .and_then(|p| p.u_at(lam, round_tol))
+                    .is_some()
+                {
+                    CARRIED.with(|n| n.set(n.get() + 1));
+                }
                 err = self.recover_and_measure(
                     lam,
                     at,
@@ -592,7 +635,9 @@ impl ContactProblem {
                     friction,
                     &b_round,
                     recovered,
+                    carried.as_ref().and_then(|p| p.u_at(lam, round_tol)),
                 )?;
+                drop(carried);
                 recover_seconds += t1.elapsed().as_secs_f64();
                 if end == End::Infeasible {
                     // No u satisfies N u <= g: no error can be small (report.rs).
@@ -744,6 +789,13 @@ impl ContactProblem {
     }
 }
 
+#[cfg(test)]
+thread_local! {
+    /// Recoveries that took the u carried with the iterate (`dual::Primal`)
+    /// on this thread, for the tests.
+    pub(super) static CARRIED: std::cell::Cell<usize> = const { std::cell::Cell::new(0) };
+}
+
 /// What an increment's error is measured against: the load f, its forward
 /// half y_f (see [`ContactProblem::recover_u`]), the gaps g and the force the
 /// elastic slip's return mapping starts from (empty: zero).
@@ -772,9 +824,11 @@ impl ContactProblem {
     /// [0; lt_prev]) less the round's gap offset `s` at the nonlinear
     /// contacts (`law` = (those contacts, s)), the bounds p of `friction`, and
     /// the natural map's err against `b` (the round's right-hand side) with
-    /// the dual's rho.
+    /// the dual's rho. `carried`: u at `lam` where the solve carried it
+    /// there (`dual::Primal`), taken instead of a solve.
     ///
     /// Errors: `HostSolve` (the recovery's solve on the host failed).
+    #[allow(clippy::too_many_arguments)]
     fn recover_and_measure(
         &self,
         lam: &[f64],
@@ -783,10 +837,14 @@ impl ContactProblem {
         friction: Friction<'_>,
         b: &[f64],
         out: Recovered<'_>,
+        carried: Option<&[f64]>,
     ) -> Result<f64> {
         let m = self.n_contacts();
         self.dual.rows.mul_t_vec(lam, out.bt_lam);
-        self.recover_u(at.f, at.y_f, out.bt_lam, out.u, out.forward)?;
+        match carried {
+            Some(u) => out.u.copy_from_slice(u),
+            None => self.recover_u(at.f, at.y_f, out.bt_lam, out.u, out.forward)?,
+        }
         let v = out.v;
         self.dual.rows.mul_vec(out.u, v);
         for (vi, gi) in v.iter_mut().zip(at.g) {
@@ -884,19 +942,26 @@ fn equilibrium_residual(k: &Csc, u: &[f64], f: &[f64], bt_lam: &[f64]) -> f64 {
 /// natural residual is below lam's (one more product where the projection
 /// moved it). `lam` and `before` (c values each, force units): the start,
 /// overwritten with the point taken; `products`: A lam and A d (c values
-/// each) where the caller has them, else computed here. Returns w = A x -
-/// b at the start x (c values, length units), and |F| at the given lam
-/// where the start moved.
+/// each) where the caller has them, else computed here. `primal`: u at
+/// lam with z = K^-1 B^T d (from the block the products rode in), moved to
+/// the point taken where the projection's product computes its own z
+/// (`Dual::apply_keeping`), else left behind. Returns w = A x - b at the
+/// start x (c values, length units), and |F| at the given lam where the
+/// start moved.
 pub(super) fn iteration_line(
     at: &DualProblem<'_>,
     before: &[f64],
     dim: usize,
     lam: &mut [f64],
     products: Option<Vec<Vec<f64>>>,
+    primal: Option<&mut Primal>,
 ) -> (Vec<f64>, Option<f64>) {
     let dual = at.dual;
     let (m, c) = (dual.m, dual.c);
     let dir: Vec<f64> = lam.iter().zip(before).map(|(l, p)| l - p).collect();
+    // z of d is known where A d rode along with u.
+    let rode_both = products.as_ref().is_some_and(|p| p.len() == 2);
+    let mut primal = primal.filter(|p| rode_both && p.holds_at(lam));
     // A lam and A d where they rode along the right-hand side's solve.
     let mut given = products.unwrap_or_default().into_iter();
     let mut w = given.next().unwrap_or_else(|| {
@@ -949,10 +1014,22 @@ pub(super) fn iteration_line(
     let line = x.clone();
     crate::history::project_point(&mut x, at.law, dim);
     let mut wx: Vec<f64> = w.iter().zip(&a).map(|(wi, ai)| wi + s * ai).collect();
-    add_projection_move(dual, &x, line, &mut wx);
+    let carried = match primal.as_mut() {
+        Some(p) => {
+            p.trial_along(s);
+            add_projection_move(dual, &x, line, &mut wx, Some(&mut p.z))
+        }
+        None => add_projection_move(dual, &x, line, &mut wx, None),
+    };
     let res = at.natural_residual(lam, &w);
     if at.natural_residual(&x, &wx) < res {
         lam.copy_from_slice(&x);
+        if let Some(p) = primal {
+            match carried {
+                true => p.take_trial(lam),
+                false => p.drop_u(),
+            }
+        }
         return (wx, Some(res));
     }
     (w, None)
@@ -961,13 +1038,17 @@ pub(super) fn iteration_line(
 /// ax += A (projected - line): what a projection moved a start off its
 /// line, in one product, where it moved anything beyond rounding (a
 /// saturated slip force rescaled by an ulp moves A x less than a product's
-/// own rounding); `line` gives the point before the projection.
+/// own rounding); `line` gives the point before the projection. `keep`
+/// (n values, zero on entry) receives K^-1 B^T (projected - line) where
+/// given; returns false where it was given and that product could not
+/// compute it (`Dual::apply_keeping`).
 fn add_projection_move(
     dual: &Dual,
     projected: &[f64],
     line: impl IntoIterator<Item = f64>,
     ax: &mut [f64],
-) {
+    keep: Option<&mut [f64]>,
+) -> bool {
     let delta: Vec<f64> = projected
         .iter()
         .zip(line)
@@ -980,11 +1061,19 @@ fn add_projection_move(
             }
         })
         .collect();
-    if delta.iter().any(|&d| d != 0.0) {
-        let mut ad = vec![0.0; ax.len()];
-        dual.apply(&delta, &mut ad);
-        ax.iter_mut().zip(&ad).for_each(|(a, d)| *a += d);
+    if !delta.iter().any(|&d| d != 0.0) {
+        return true;
     }
+    let mut ad = vec![0.0; ax.len()];
+    let kept = match keep {
+        Some(z) => dual.apply_keeping(&delta, &mut ad, z),
+        None => false,
+    };
+    if !kept {
+        dual.apply(&delta, &mut ad);
+    }
+    ax.iter_mut().zip(&ad).for_each(|(a, d)| *a += d);
+    kept
 }
 
 /// The largest |s| of a host iteration's line (`iteration_line`).

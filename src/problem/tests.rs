@@ -185,7 +185,7 @@ fn a_host_iterations_line_lands_on_collinear_errors_answer() {
                     before[i] = 3.0 * eps;
                 }
                 let at = DualProblem::new(&pb.dual, &b, law);
-                let (w, from) = solve::iteration_line(&at, &before, 2, &mut lam, None);
+                let (w, from) = solve::iteration_line(&at, &before, 2, &mut lam, None, None);
                 let res0 = from.unwrap_or_else(|| panic!("{what}: the line was not taken"));
                 let scale = star.iter().fold(0.0f64, |a, v| a.max(v.abs()));
                 let off = lam
@@ -241,7 +241,7 @@ fn products_ride_along_a_right_hand_sides_solve() {
         let mut ys = vec![vec![0.0; c]; 2];
         let rode = pb
             .dual
-            .solve_with_products(&factor, &mut u, &[&x1, &x2], &mut ys)
+            .solve_with_products(&factor, &mut u, &[&x1, &x2], &mut ys, None)
             .unwrap();
         if form == DualForm::Dense {
             assert!(!rode);
@@ -259,4 +259,167 @@ fn products_ride_along_a_right_hand_sides_solve() {
             close(y, &ax, "A x");
         }
     }
+}
+
+/// The block of a host iteration's start gives u at its multipliers
+/// (`dual::Primal`): K^-1 (f - B^T x1), with z = K^-1 B^T x2 of the line's
+/// direction; a product that keeps its solution gives K^-1 B^T x. Each
+/// against a solve of its own.
+#[test]
+fn the_start_block_and_a_kept_product_give_their_solutions() {
+    let nodes = 40;
+    let (pb, _) = strip(nodes, DualForm::MatrixFree);
+    assert!(pb.dual.keeps_solutions());
+    let factor = pb.stiff.factor().expect("its own factor").clone();
+    let (n, c) = (2 * nodes, pb.dual.c);
+    let close = |got: &[f64], want: &[f64], what: &str| {
+        let scale = want.iter().fold(0.0f64, |a, v| a.max(v.abs()));
+        let diff = got
+            .iter()
+            .zip(want)
+            .fold(0.0f64, |a, (x, y)| a.max((x - y).abs()));
+        assert!(
+            scale > 0.0 && diff <= 1e-13 * scale,
+            "{what}: {diff:.2e} of {scale:.2e}"
+        );
+    };
+    let solved = |mut x: Vec<f64>| {
+        factor.solve_vec(&mut x);
+        x
+    };
+    let bt = |x: &[f64]| {
+        let mut y = vec![0.0; n];
+        pb.dual.rows.mul_t_vec(x, &mut y);
+        y
+    };
+    let f: Vec<f64> = (0..n).map(|j| ((j * 7) % 11) as f64 - 5.0).collect();
+    let x1: Vec<f64> = (0..c).map(|i| ((i % 5) as f64) * 1e-3).collect();
+    let x2: Vec<f64> = (0..c)
+        .map(|i| if i % 3 == 0 { -2e-3 } else { 0.0 })
+        .collect();
+    let mut primal = crate::dual::Primal::new(n, c);
+    let mut u = f.clone();
+    let mut ys = vec![vec![0.0; c]; 2];
+    let rode = pb
+        .dual
+        .solve_with_products(&factor, &mut u, &[&x1, &x2], &mut ys, Some(&mut primal))
+        .unwrap();
+    assert!(rode && primal.holds_at(&x1));
+    close(&u, &solved(f.clone()), "K^-1 f");
+    let r: Vec<f64> = f.iter().zip(bt(&x1)).map(|(a, b)| a - b).collect();
+    let want = solved(r);
+    close(primal.u_at(&x1, 1e-10).expect("u at x1"), &want, "u at x1");
+    close(&primal.z, &solved(bt(&x2)), "z of x2");
+    let mut ax = vec![0.0; c];
+    let mut z = vec![f64::NAN; n];
+    assert!(pb.dual.apply_keeping(&x2, &mut ax, &mut z));
+    close(&z, &solved(bt(&x2)), "the kept product's z");
+    let mut want_ax = vec![0.0; c];
+    pb.dual.apply(&x2, &mut want_ax);
+    close(&ax, &want_ax, "the kept product's A x");
+}
+
+/// A host loop on a thin 3D lattice slab (matrix-free, Coulomb, pressed
+/// in a patch and dragged; its iterations' loads perturbed so that each
+/// has Newton steps to take): from its second iteration on, the recovery
+/// takes the u carried with the iterate (`dual::Primal`); du equals K^-1
+/// (r - B^T lambda) by a solve of its own to rounding, and each
+/// iteration's answer a fresh handle's solve of the same iteration.
+#[test]
+fn a_host_iteration_carries_u_to_its_answer() {
+    use crate::test_scenes::{lattice, slab_contacts};
+    let (nx, ny, nz) = (12, 12, 3);
+    let k = lattice(nx, ny, nz, 0.05);
+    let (n, m) = (k.nrows, nx * ny);
+    let (nm, tm) = slab_contacts(nx, ny, n);
+    let opts = Options {
+        dual_form: DualForm::MatrixFree,
+        ..Options::default()
+    };
+    let make =
+        || ContactProblem::from_csc_with(3, k.clone(), nm.clone(), tm.clone(), &opts).unwrap();
+    let mut pb = make();
+    assert!(!pb.dual.trailing && pb.dual.keeps_solutions());
+    let factor = pb.stiff.factor().expect("its own factor").clone();
+    let mu = vec![0.3; m];
+    let law = Friction::Coulomb(&mu);
+    // The gap closes in a round central patch.
+    let centre = (nx as f64 - 1.0) / 2.0;
+    let g0: Vec<f64> = (0..m)
+        .map(|i| {
+            let (x, y) = ((i % nx) as f64 - centre, (i / nx) as f64 - centre);
+            0.02 * (x * x + y * y)
+        })
+        .collect();
+    // The top layer pushed towards the face (N = e_z) and dragged along x,
+    // the "host" linear: r
+    // = f_j - K u_j, g_j = g0 - N u_j, s_j = T u_j.
+    let top = 3 * nx * ny * (nz - 1);
+    let mut u = vec![0.0; n];
+    let before = solve::CARRIED.with(|x| x.get());
+    for j in 0..4 {
+        let scale = 1.0 + 0.03 * (j as f64);
+        let f: Vec<f64> = (0..n)
+            .map(|i| match (i >= top, i % 3) {
+                (true, 2) => 0.02 * scale,
+                (true, 0) => 0.004 / scale,
+                _ => 0.0,
+            })
+            .collect();
+        let mut ku = vec![0.0; n];
+        k.mul_vec(&u, &mut ku);
+        let r: Vec<f64> = f.iter().zip(&ku).map(|(a, b)| a - b).collect();
+        let mut nu = vec![0.0; m];
+        nm.mul_vec(&u, &mut nu);
+        let g: Vec<f64> = g0.iter().zip(&nu).map(|(a, b)| a - b).collect();
+        let mut s = vec![0.0; 2 * m];
+        tm.mul_vec(&u, &mut s);
+        let it = HostIteration {
+            r: &r,
+            g: &g,
+            slip: (j > 0).then_some(&s[..]),
+            lt_start: None,
+        };
+        let sol = pb.solve_iteration(&it, law, &opts).unwrap();
+        assert_eq!(sol.report.status, SolveStatus::Converged, "iteration {j}");
+        let lam: Vec<f64> = sol.lambda_n.iter().chain(&sol.lambda_t).copied().collect();
+        let closed = sol.lambda_n.iter().filter(|&&v| v > 0.0).count();
+        assert!(closed > 0 && closed < m, "iteration {j}: {closed} closed");
+        let mut btl = vec![0.0; n];
+        pb.dual.rows.mul_t_vec(&lam, &mut btl);
+        let mut want: Vec<f64> = r.iter().zip(&btl).map(|(a, b)| a - b).collect();
+        factor.solve_vec(&mut want);
+        let scale = want.iter().fold(0.0f64, |a, v| a.max(v.abs()));
+        let diff = sol
+            .u
+            .iter()
+            .zip(&want)
+            .fold(0.0f64, |a, (x, y)| a.max((x - y).abs()));
+        assert!(
+            diff <= 1e-12 * scale,
+            "iteration {j}: du off by {diff:.2e} of {scale:.2e}"
+        );
+        // A fresh handle on the same iteration answers the same.
+        let cold = make().solve_iteration(&it, law, &opts).unwrap();
+        let cold_lam: Vec<f64> = cold
+            .lambda_n
+            .iter()
+            .chain(&cold.lambda_t)
+            .copied()
+            .collect();
+        let lscale = lam.iter().fold(0.0f64, |a, v| a.max(v.abs()));
+        let off = lam
+            .iter()
+            .zip(&cold_lam)
+            .fold(0.0f64, |a, (x, y)| a.max((x - y).abs()));
+        assert!(
+            off <= 1e-7 * lscale,
+            "iteration {j}: lambda off by {off:.2e} of {lscale:.2e}"
+        );
+        for (ui, di) in u.iter_mut().zip(&sol.u) {
+            *ui += di;
+        }
+    }
+    let carried = solve::CARRIED.with(|x| x.get()) - before;
+    assert!(carried >= 3, "{carried} recoveries carried, 3 expected");
 }

@@ -524,10 +524,20 @@ impl OuterStep for Newton {
             // example).
             let rough_ad = combined && self.krylov.rough() && problem.dual.offers_rough();
             let ad = &mut self.ae0;
+            // The displacement carried with lam moves with an exact
+            // product's solution (`dual::Primal`); any other step leaves it
+            // behind.
+            let mut primal = problem.primal.map(|p| p.borrow_mut());
+            let mut carried = false;
             if combined {
                 self.krylov.combined += 1;
             } else {
-                problem.dual.apply(step, ad);
+                carried = primal.as_mut().is_some_and(|p| {
+                    p.holds_at(lam) && problem.dual.apply_keeping(step, ad, &mut p.z)
+                });
+                if !carried {
+                    problem.dual.apply(step, ad);
+                }
             }
             let (mut t, mut kept) = (1.0, None);
             for _ in 0..BACKTRACKS {
@@ -542,6 +552,13 @@ impl OuterStep for Newton {
                 for j in 0..c {
                     lam[j] += t * step[j];
                     w[j] += t * ad[j];
+                }
+                if let Some(p) = primal.as_mut() {
+                    if carried {
+                        p.moved_by(t, lam);
+                    } else {
+                        p.drop_u();
+                    }
                 }
                 self.last = Some(LastStep {
                     ratio: r / self.res,
