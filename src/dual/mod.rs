@@ -773,8 +773,8 @@ impl Dual {
 
     /// f := K^-1 f with the factor `factor` and `ys[i] := A xs[i]` (length c
     /// each), in one block solve where the dual is matrix-free on that
-    /// factor ([`Operator::solve_with_products`]), with u at xs[0] into
-    /// `primal` where it is given (and z of xs[1], the line's direction,
+    /// factor ([`Operator::solve_with_products`]), with u at `xs[0]` into
+    /// `primal` where it is given (and z of `xs[1]`, the line's direction,
     /// where there is one); false, with nothing written, otherwise (an
     /// assembled dual, the host's solves, another factor).
     ///

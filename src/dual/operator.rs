@@ -330,9 +330,9 @@ impl Operator {
     /// entries three columns took 0.068 s, one 0.051 s, timed in a build
     /// not kept; on the 3D host example's factor of 3d-52x52x4 two columns
     /// 1.15 times one, four 1.33 times). Where `primal` is given, the block
-    /// also holds f - B^T xs[0], whose solution is u at xs[0]
-    /// ([`Primal::start_at`]), and z = K^-1 B^T xs[1] is left in it where
-    /// there is an xs[1] (its line's direction). False, with nothing
+    /// also holds f - B^T `xs[0]`, whose solution is u at `xs[0]`
+    /// ([`Primal::start_at`]), and z = K^-1 B^T `xs[1]` is left in it where
+    /// there is an `xs[1]` (its line's direction). False, with nothing
     /// written, on the host's solves. Its bytes (the block and faer's
     /// scratch for it) are claimed on the ledger while it lives.
     ///

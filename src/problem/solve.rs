@@ -218,8 +218,8 @@ impl ContactProblem {
     /// block (`Dual::solve_with_products`: a matrix-free dual on K's own
     /// factor, the load not combined, the block allowed by the allocator),
     /// else None (the caller takes them itself). Where they ride and
-    /// `primal` is given, u at ride[0] goes into it, with z = K^-1 B^T
-    /// ride[1] (`Dual::solve_with_products`).
+    /// `primal` is given, u at `ride[0]` goes into it, with z = K^-1 B^T
+    /// `ride[1]` (`Dual::solve_with_products`).
     ///
     /// Errors: `HostSolve`.
     fn solve_load(
