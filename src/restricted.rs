@@ -119,7 +119,7 @@ impl Step {
     /// else none.
     fn analysis(&self, c: usize) -> Step {
         let mut next = Step::none(c);
-        if !self.analysed || self.refused {
+        if !self.analysed || self.refused || (self.factor.is_none() && !self.u.is_empty()) {
             return next;
         }
         if let Some(f) = &self.factor {
@@ -256,8 +256,10 @@ impl Restricted {
                 step.at[j] = l;
             }
             // The old factor (if any) and its workspace go before the new
-            // ones are made.
+            // ones are made; U is analysed anew even where E is refused
+            // below before its analysis.
             step.factor = None;
+            step.analysed = false;
             step.mem = MemBuffer::new(faer::dyn_stack::StackReq::EMPTY);
             step.rhs.resize(step.u.len(), 0.0);
         } else if step.refused {
@@ -611,6 +613,62 @@ mod tests {
     #[test]
     fn a_contact_that_does_not_act_decouples() {
         check_inverse(true);
+    }
+
+    /// A preconditioner renewed for a K of the same pattern keeps the last
+    /// step's analysis of E: the same step on it (without an analysis of
+    /// its own) applies as one made afresh on that K, to rounding; a step
+    /// whose E is refused before its analysis (a pair on the contact whose
+    /// rows of B are empty: G does not couple its components) leaves none
+    /// to keep.
+    #[test]
+    fn a_renewed_preconditioner_keeps_the_analysis_of_e() {
+        let m = 12;
+        let (k, b, r) = made(m, true);
+        let (prescribed, pairs) = steps(m);
+        assert!(r.factor(&prescribed, &pairs));
+        // K scaled by 1 + 0.02 on every entry of the first third of the
+        // DOFs' columns and rows (a zone made stiffer), symmetrised.
+        let mut k2 = k.clone();
+        let zone = k.nrows / 3;
+        for j in 0..k2.ncols {
+            for p in k2.col_ptr[j]..k2.col_ptr[j + 1] {
+                let i = k2.row_idx[p];
+                let s = |x: usize| if x < zone { 1.02 } else { 1.0 };
+                k2.values[p] *= s(i) * s(j);
+            }
+        }
+        let bt = b.transpose();
+        let renewed = r.renewed(&k2, &b, &bt).expect("G's pattern");
+        assert!(renewed.step.borrow().analysed);
+        let (threads, ledger) = (Arc::new(Threads::new(1)), Ledger::new());
+        let fresh = Restricted::new(&k2, &b, threads, ledger).expect("analysed");
+        assert!(renewed.factor(&prescribed, &pairs) && fresh.factor(&prescribed, &pairs));
+        let x: Vec<f64> = (0..prescribed.len() + pairs.len())
+            .map(|i| ((i * 7) % 5) as f64 - 2.0)
+            .collect();
+        let (got, _) = applied(&renewed, &prescribed, &pairs, &x);
+        let (want, _) = applied(&fresh, &prescribed, &pairs, &x);
+        let scale = want.iter().fold(0.0f64, |a, v| a.max(v.abs()));
+        let diff = got
+            .iter()
+            .zip(&want)
+            .fold(0.0f64, |a, (x, y)| a.max((x - y).abs()));
+        assert!(
+            scale > 0.0 && diff <= 1e-12 * scale,
+            "{diff:.2e} of {scale:.2e}"
+        );
+        // A pair whose components G does not couple (those of the contact
+        // that does not act) is refused before E's analysis: nothing
+        // analysed is kept for the next K.
+        let bad = [Pair {
+            j: 3 * m - 2,
+            t: [1.0, 0.0],
+            delta: 0.1,
+        }];
+        assert!(!renewed.factor(&[], &bad));
+        let again = renewed.renewed(&k, &b, &bt).expect("G's pattern");
+        assert!(!again.step.borrow().analysed);
     }
 
     fn check_inverse(empty_last: bool) {

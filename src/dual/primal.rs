@@ -16,12 +16,16 @@
 //! |u_start| + sum |t| |z|, stays within
 //! `load_span::max_amplification(tol)` times |u| (the bound the load's
 //! combinations of solutions use: its rounding then stays a hundredth of
-//! tol), else the recovery solves as before. u belongs to one lambda,
+//! tol), else the recovery solves as before. (lambda's own rounding at
+//! each move, fl(lambda + t d), adds about eps |K^-1 B^T lambda| to u's
+//! error, the floor the rounding of the data and of the host's u_j + du
+//! sets anyway.) u belongs to one lambda,
 //! copied at each move: any other change of the iterate (a step from
 //! single-precision products, a fallback, another method) leaves the copy
 //! behind and u unused.
 
 use crate::load_span::max_amplification;
+use crate::memory::try_zeros;
 
 /// u = K^-1 (f - B^T lambda) at the multipliers `at`, for one solve's f.
 pub(crate) struct Primal {
@@ -43,17 +47,19 @@ pub(crate) struct Primal {
 }
 
 impl Primal {
-    /// Room for n DOFs and c multipliers, holding nothing.
-    pub(crate) fn new(n: usize, c: usize) -> Primal {
-        Primal {
-            u: vec![0.0; n],
-            at: vec![0.0; c],
+    /// Room for n DOFs and c multipliers, holding nothing; None where the
+    /// allocator refuses it (the solve then recovers u by a solve).
+    pub(crate) fn new(n: usize, c: usize) -> Option<Primal> {
+        let zeros = |len: usize| try_zeros::<f64>(len, "").ok();
+        Some(Primal {
+            u: zeros(n)?,
+            at: zeros(c)?,
             held: false,
             moved: 0.0,
-            z: vec![0.0; n],
-            spare: vec![0.0; n],
+            z: zeros(n)?,
+            spare: zeros(n)?,
             trial_moved: 0.0,
-        }
+        })
     }
 
     /// Bytes it holds for n DOFs and c multipliers.
@@ -143,7 +149,7 @@ mod tests {
     #[test]
     fn u_follows_its_moves_and_is_refused_beyond_the_rounding_allowed() {
         let (n, c) = (3, 2);
-        let mut p = Primal::new(n, c);
+        let mut p = Primal::new(n, c).expect("room");
         let lam0 = [1.0, 2.0];
         assert!(!p.holds_at(&lam0));
         p.start_mut().copy_from_slice(&[3.0, 0.0, 4.0]);

@@ -335,7 +335,8 @@ pub(super) fn drive(
         // |F| off). Where the caller measures the error on the recovered u
         // anyway (`measured_after`), a drifted convergence is left to that
         // measurement: the recovery's solve costs what the recomputation
-        // would.
+        // would (a drifted gradient's steps left the carried u behind:
+        // `DualProblem::primal`).
         let mut scratch = Scratch {
             w: &mut w,
             p: &mut p,

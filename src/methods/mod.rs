@@ -87,7 +87,9 @@ pub struct DualProblem<'a> {
     /// after the first start from another iterate and compute it).
     pub start_gradient: Cell<Option<&'a [f64]>>,
     /// The caller measures the error again on the u it recovers from the
-    /// answer (one solve with K, as a product with A costs): the driver may
+    /// answer (one solve with K, as a product with A costs, or none where
+    /// the solve carried u there, `primal`; a drifted gradient comes from
+    /// single-precision products, which leave it behind): the driver may
     /// then end converged on a drifted gradient ([`driver::Gradient::Drifted`])
     /// without recomputing it, and says so ([`Outcome::unconfirmed`]); the
     /// caller runs again from there where the recovered error misses the

@@ -368,7 +368,7 @@ impl ContactProblem {
         let carry = !ride.is_empty() && !self.dual.trailing && self.dual.keeps_solutions();
         let (mut primal, _primal_claim) = match carry {
             true => (
-                Some(Primal::new(ndof, c)),
+                Primal::new(ndof, c),
                 Some(self.stiff.ledger().claim(Primal::bytes(ndof, c))),
             ),
             false => (None, None),
@@ -620,10 +620,12 @@ impl ContactProblem {
                     lt_prev,
                 };
                 let carried = primal.as_ref().map(|p| p.borrow());
+                // Its rounding is weighed against the solve's tolerance, not
+                // a nonlinear law's looser round's.
                 #[cfg(test)]
                 if carried
                     .as_ref()
-                    .and_then(|p| p.u_at(lam, round_tol))
+                    .and_then(|p| p.u_at(lam, opts.tol))
                     .is_some()
                 {
                     CARRIED.with(|n| n.set(n.get() + 1));
@@ -635,7 +637,7 @@ impl ContactProblem {
                     friction,
                     &b_round,
                     recovered,
-                    carried.as_ref().and_then(|p| p.u_at(lam, round_tol)),
+                    carried.as_ref().and_then(|p| p.u_at(lam, opts.tol)),
                 )?;
                 drop(carried);
                 recover_seconds += t1.elapsed().as_secs_f64();
