@@ -366,13 +366,10 @@ impl ContactProblem {
         // where the block gives it and the products can move it
         // (`dual::Primal`; with its bytes on the ledger).
         let carry = !ride.is_empty() && !self.dual.trailing && self.dual.keeps_solutions();
-        let (mut primal, _primal_claim) = match carry {
-            true => (
-                Primal::new(ndof, c),
-                Some(self.stiff.ledger().claim(Primal::bytes(ndof, c))),
-            ),
-            false => (None, None),
-        };
+        let mut primal = if carry { Primal::new(ndof, c) } else { None };
+        let _primal_claim = primal
+            .as_ref()
+            .map(|_| self.stiff.ledger().claim(Primal::bytes(ndof, c)));
         let rode = self.solve_load(load, opts.tol, &mut y_f, &mut u0, (&ride, primal.as_mut()))?;
         drop(ride);
         let mut b = vec![0.0; c];
