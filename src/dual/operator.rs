@@ -361,10 +361,10 @@ impl Operator {
             scatter(&self.bt, x, 0..x.len(), col);
         }
         if with_u {
-            // f - B^T x: the difference taken before the solve (see
-            // `ContactProblem::recover_u`).
-            tail.copy_from_slice(f);
-            scatter_signed(&self.bt, xs[0], -1.0, tail);
+            // f - B^T x: the difference taken before the solve, as
+            // `ContactProblem::recover_u` takes it.
+            scatter(&self.bt, xs[0], 0..xs[0].len(), tail);
+            tail.iter_mut().zip(&*f).for_each(|(t, fi)| *t = fi - *t);
         }
         let block = MatMut::from_column_major_slice_mut(&mut z, n, k);
         factor.solve_in_place(block, MemStack::new(&mut mem));
@@ -622,17 +622,6 @@ fn scatter_at<T: Real>(
         if xr != 0.0 {
             for k in bt.col_ptr[r]..bt.col_ptr[r + 1] {
                 z[at[k]] += T::of(bt.values[k] * xr);
-            }
-        }
-    }
-}
-
-/// z += sign B^T x over all of x's rows (see [`scatter`]).
-fn scatter_signed(bt: &Csc, x: &[f64], sign: f64, z: &mut [f64]) {
-    for (r, &xr) in x.iter().enumerate() {
-        if xr != 0.0 {
-            for k in bt.col_ptr[r]..bt.col_ptr[r + 1] {
-                z[bt.row_idx[k]] += sign * (bt.values[k] * xr);
             }
         }
     }

@@ -454,7 +454,9 @@ impl ContactProblem {
                         let d: Vec<f64> =
                             start.iter().zip(lam.iter()).map(|(s, l)| s - l).collect();
                         let kept = self.dual.apply_keeping(&d, &mut ws, &mut p.z);
-                        ws.iter_mut().zip(&w).for_each(|(a, wj)| *a += wj);
+                        if kept {
+                            ws.iter_mut().zip(&w).for_each(|(a, wj)| *a += wj);
+                        }
                         kept
                     });
                     if !moved {

@@ -45,6 +45,20 @@ pub(crate) fn strip(nodes: usize, form: DualForm) -> (ContactProblem, Vec<f64>) 
     (pb, g)
 }
 
+/// Asserts that `got` equals `want` (not zero) to `rel` of want's largest
+/// entry, entry by entry.
+fn assert_close(got: &[f64], want: &[f64], rel: f64, what: &str) {
+    let scale = want.iter().fold(0.0f64, |a, v| a.max(v.abs()));
+    let diff = got
+        .iter()
+        .zip(want)
+        .fold(0.0f64, |a, (x, y)| a.max((x - y).abs()));
+    assert!(
+        scale > 0.0 && diff <= rel * scale,
+        "{what}: {diff:.2e} of {scale:.2e}"
+    );
+}
+
 /// A converged history step keeps A lambda of its answer (b - v on the
 /// recovered u), from which the next step's gradient at its start is
 /// combined without a product: it equals A lambda computed afresh, on a
@@ -215,17 +229,6 @@ fn a_host_iterations_line_lands_on_collinear_errors_answer() {
 #[test]
 fn products_ride_along_a_right_hand_sides_solve() {
     let nodes = 40;
-    let close = |got: &[f64], want: &[f64], what: &str| {
-        let scale = want.iter().fold(0.0f64, |a, v| a.max(v.abs()));
-        let diff = got
-            .iter()
-            .zip(want)
-            .fold(0.0f64, |a, (x, y)| a.max((x - y).abs()));
-        assert!(
-            scale > 0.0 && diff <= 1e-13 * scale,
-            "{what}: {diff:.2e} of {scale:.2e}"
-        );
-    };
     let f: Vec<f64> = (0..2 * nodes)
         .map(|j| ((j * 7) % 11) as f64 - 5.0)
         .collect();
@@ -252,11 +255,11 @@ fn products_ride_along_a_right_hand_sides_solve() {
         assert!(rode);
         let mut want = f.clone();
         factor.solve_vec(&mut want);
-        close(&u, &want, "K^-1 f");
+        assert_close(&u, &want, 1e-13, "K^-1 f");
         for (x, y) in [&x1, &x2].into_iter().zip(&ys) {
             let mut ax = vec![0.0; c];
             pb.dual.apply(x, &mut ax);
-            close(y, &ax, "A x");
+            assert_close(y, &ax, 1e-13, "A x");
         }
     }
 }
@@ -272,17 +275,6 @@ fn the_start_block_and_a_kept_product_give_their_solutions() {
     assert!(pb.dual.keeps_solutions());
     let factor = pb.stiff.factor().expect("its own factor").clone();
     let (n, c) = (2 * nodes, pb.dual.c);
-    let close = |got: &[f64], want: &[f64], what: &str| {
-        let scale = want.iter().fold(0.0f64, |a, v| a.max(v.abs()));
-        let diff = got
-            .iter()
-            .zip(want)
-            .fold(0.0f64, |a, (x, y)| a.max((x - y).abs()));
-        assert!(
-            scale > 0.0 && diff <= 1e-13 * scale,
-            "{what}: {diff:.2e} of {scale:.2e}"
-        );
-    };
     let solved = |mut x: Vec<f64>| {
         factor.solve_vec(&mut x);
         x
@@ -305,18 +297,23 @@ fn the_start_block_and_a_kept_product_give_their_solutions() {
         .solve_with_products(&factor, &mut u, &[&x1, &x2], &mut ys, Some(&mut primal))
         .unwrap();
     assert!(rode && primal.holds_at(&x1));
-    close(&u, &solved(f.clone()), "K^-1 f");
+    assert_close(&u, &solved(f.clone()), 1e-13, "K^-1 f");
     let r: Vec<f64> = f.iter().zip(bt(&x1)).map(|(a, b)| a - b).collect();
     let want = solved(r);
-    close(primal.u_at(&x1, 1e-10).expect("u at x1"), &want, "u at x1");
-    close(&primal.z, &solved(bt(&x2)), "z of x2");
+    assert_close(
+        primal.u_at(&x1, 1e-10).expect("u at x1"),
+        &want,
+        1e-13,
+        "u at x1",
+    );
+    assert_close(&primal.z, &solved(bt(&x2)), 1e-13, "z of x2");
     let mut ax = vec![0.0; c];
     let mut z = vec![f64::NAN; n];
     assert!(pb.dual.apply_keeping(&x2, &mut ax, &mut z));
-    close(&z, &solved(bt(&x2)), "the kept product's z");
+    assert_close(&z, &solved(bt(&x2)), 1e-13, "the kept product's z");
     let mut want_ax = vec![0.0; c];
     pb.dual.apply(&x2, &mut want_ax);
-    close(&ax, &want_ax, "the kept product's A x");
+    assert_close(&ax, &want_ax, 1e-13, "the kept product's A x");
 }
 
 /// A host loop on a thin 3D lattice slab (matrix-free, Coulomb, pressed
@@ -397,16 +394,7 @@ fn a_host_iteration_carries_u_to_its_answer() {
             pb.dual.rows.mul_t_vec(&lam, &mut btl);
             let mut want: Vec<f64> = r.iter().zip(&btl).map(|(a, b)| a - b).collect();
             factor.solve_vec(&mut want);
-            let scale = want.iter().fold(0.0f64, |a, v| a.max(v.abs()));
-            let diff = sol
-                .u
-                .iter()
-                .zip(&want)
-                .fold(0.0f64, |a, (x, y)| a.max((x - y).abs()));
-            assert!(
-                diff <= 1e-12 * scale,
-                "{what}: du off by {diff:.2e} of {scale:.2e}"
-            );
+            assert_close(&sol.u, &want, 1e-12, &format!("{what}: du"));
             // A fresh handle on the same iteration answers the same.
             let cold = make().solve_iteration(&it, law, &opts).unwrap();
             let cold_lam: Vec<f64> = cold
@@ -415,15 +403,7 @@ fn a_host_iteration_carries_u_to_its_answer() {
                 .chain(&cold.lambda_t)
                 .copied()
                 .collect();
-            let lscale = lam.iter().fold(0.0f64, |a, v| a.max(v.abs()));
-            let off = lam
-                .iter()
-                .zip(&cold_lam)
-                .fold(0.0f64, |a, (x, y)| a.max((x - y).abs()));
-            assert!(
-                off <= 1e-7 * lscale,
-                "{what}: lambda off by {off:.2e} of {lscale:.2e}"
-            );
+            assert_close(&lam, &cold_lam, 1e-7, &format!("{what}: lambda"));
             for (ui, di) in u.iter_mut().zip(&sol.u) {
                 *ui += di;
             }
